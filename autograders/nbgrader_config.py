@@ -1,0 +1,37 @@
+"""nbgrader configuration of the cvkit course.
+
+The chapter notebooks in ``lectures/`` are the nbgrader *source*: ``lectures/chNN_topic/``
+is the assignment ``chNN_topic``. Generated folders (release/, submitted/, autograded/,
+feedback/) and the gradebook live next to this file (or in ``$CVKIT_COURSE_ROOT``) and are
+never committed.
+
+Environment overrides (set by ``cvkit course ...``):
+  CVKIT_COURSE_ROOT  course folder (default: this folder)
+  CVKIT_SOURCE_DIR   source notebooks (default: ../lectures)
+  CVKIT_DB_URL       any SQLAlchemy URL for the gradebook, e.g.
+                     postgresql://grader:secret@localhost/cvkit (default: SQLite in the root)
+"""
+import os
+from pathlib import Path
+
+c = get_config()  # noqa: F821  (provided by nbgrader when it loads this file)
+
+HERE = Path(__file__).resolve().parent
+ROOT = Path(os.environ.get("CVKIT_COURSE_ROOT") or HERE).resolve()
+
+c.CourseDirectory.course_id = "cvkit-ipcv"
+c.CourseDirectory.root = str(ROOT)
+c.CourseDirectory.source_directory = str(Path(os.environ.get("CVKIT_SOURCE_DIR") or HERE.parent / "lectures").resolve())
+c.CourseDirectory.db_url = os.environ.get("CVKIT_DB_URL") or f"sqlite:///{ROOT / 'gradebook.db'}"
+# only the notebooks are course material; never copy caches or checkpoints
+c.CourseDirectory.ignore = [".ipynb_checkpoints", "*.pyc", "__pycache__", "feedback", ".DS_Store"]
+
+# what students see where a solution was
+c.ClearSolutions.code_stub = {"python": "# YOUR CODE HERE\nraise NotImplementedError()"}
+c.ClearSolutions.text_stub = "YOUR ANSWER HERE"
+
+# autograding: a generous per-cell limit (notebooks run in well under a minute), and the
+# kernel's environment carries the grading salt and student id (see cvkit.grading.hidden_seed)
+c.Execute.timeout = int(os.environ.get("CVKIT_CELL_TIMEOUT", "180"))
+c.Execute.interrupt_on_timeout = True
+c.Autograde.create_student = True

@@ -1,0 +1,83 @@
+"""Argument checks shared by every cvkit module.
+
+Each helper raises ``TypeError`` (wrong kind of object) or ``ValueError`` (right kind, wrong
+value) with a message that names the argument and says what was expected.
+"""
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+BORDERS = ("zero", "replicate", "reflect", "reflect101")
+
+
+def as_float_array(value, name: str, *, ndim=None, finite: bool = True, allow_empty: bool = False) -> np.ndarray:
+    """``value`` as a float64 array (a new array only when conversion needs one)."""
+    if isinstance(value, (str, bytes)) or value is None:
+        raise TypeError(f"{name} must be a numeric array, got {type(value).__name__}")
+    array = np.asarray(value)
+    if array.dtype == object or not (np.issubdtype(array.dtype, np.number) or array.dtype == bool):
+        raise TypeError(f"{name} must be a real numeric array, got dtype {array.dtype}")
+    if np.issubdtype(array.dtype, np.complexfloating):
+        raise TypeError(f"{name} must be real, got complex dtype {array.dtype}")
+    if ndim is not None:
+        allowed = (ndim,) if isinstance(ndim, int) else tuple(ndim)
+        if array.ndim not in allowed:
+            want = " or ".join(str(n) for n in allowed)
+            raise ValueError(f"{name} must have {want} dimensions, got shape {array.shape}")
+    if not allow_empty and array.size == 0:
+        raise ValueError(f"{name} must not be empty, got shape {array.shape}")
+    array = array.astype(np.float64, copy=False)
+    if finite and not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must contain only finite values (found NaN or inf)")
+    return array
+
+
+def as_image(image, name: str = "image", *, color: bool = True) -> np.ndarray:
+    """A grayscale ``(H, W)`` or (if ``color``) RGB ``(H, W, 3)`` image as float64."""
+    array = as_float_array(image, name, ndim=(2, 3) if color else 2)
+    if array.ndim == 3 and array.shape[2] != 3:
+        raise ValueError(f"{name} must be (H, W) grayscale or (H, W, 3) colour, got shape {array.shape}")
+    return array
+
+
+def check_border(border) -> str:
+    if not isinstance(border, str) or border not in BORDERS:
+        raise ValueError(f"border must be one of {', '.join(map(repr, BORDERS))}, got {border!r}")
+    return border
+
+
+def check_int(value, name: str, *, minimum=None, odd: bool = False) -> int:
+    """An integer (Python or NumPy, not bool), at least ``minimum``, optionally odd."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)):
+        raise TypeError(f"{name} must be an integer, got {type(value).__name__} {value!r}")
+    value = int(value)
+    if minimum is not None and value < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {value}")
+    if odd and value % 2 == 0:
+        raise ValueError(f"{name} must be odd, got {value}")
+    return value
+
+
+def check_real(value, name: str, *, positive: bool = False, nonnegative: bool = False) -> float:
+    """A finite real scalar, optionally > 0 or >= 0."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Real, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
+    value = float(value)
+    if not np.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value}")
+    if positive and value <= 0:
+        raise ValueError(f"{name} must be > 0, got {value}")
+    if nonnegative and value < 0:
+        raise ValueError(f"{name} must be >= 0, got {value}")
+    return value
+
+
+def as_rng(rng) -> np.random.Generator:
+    """``rng`` (a Generator, an int seed or None) as a ``numpy.random.Generator``."""
+    if rng is None or isinstance(rng, (numbers.Integral, np.integer)) and not isinstance(rng, bool):
+        return np.random.default_rng(rng)
+    if isinstance(rng, np.random.Generator):
+        return rng
+    raise TypeError(f"rng must be a numpy.random.Generator, an int seed or None, got {type(rng).__name__}")

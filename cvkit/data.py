@@ -1,0 +1,126 @@
+"""Images and data sets for the notebooks: made by code or shipped with installed packages.
+
+Every loader returns float64 arrays in [0, 1] (grayscale ``(H, W)`` or RGB ``(H, W, 3)``);
+nothing is downloaded. Standard images wrap the ones bundled with scikit-image.
+
+>>> camera().shape
+(512, 512)
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ._validation import as_image, as_rng, check_int, check_real
+
+__all__ = [
+    "camera", "astronaut", "coins", "moon", "text", "brick", "coffee", "chelsea", "image",
+    "resize_half", "noisy_stack", "with_gaussian_noise", "with_impulse_noise", "step_edge",
+    "psnr",
+]
+
+_NAMES = ("camera", "astronaut", "coins", "moon", "text", "brick", "coffee", "chelsea", "grass", "gravel")
+
+
+def image(name: str) -> np.ndarray:
+    """One of scikit-image's bundled images by name, as float64 in [0, 1]."""
+    if name not in _NAMES:
+        raise ValueError(f"name must be one of {', '.join(_NAMES)}, got {name!r}")
+    import skimage.data
+
+    raw = getattr(skimage.data, name)()
+    return raw.astype(np.float64) / 255.0
+
+
+def camera() -> np.ndarray:
+    """The 512×512 grayscale 'cameraman' image."""
+    return image("camera")
+
+
+def astronaut() -> np.ndarray:
+    """A 512×512 RGB portrait (Eileen Collins)."""
+    return image("astronaut")
+
+
+def coins() -> np.ndarray:
+    """303×384 grayscale coins on a textured background."""
+    return image("coins")
+
+
+def moon() -> np.ndarray:
+    """512×512 grayscale lunar surface."""
+    return image("moon")
+
+
+def text() -> np.ndarray:
+    """172×448 grayscale handwritten text."""
+    return image("text")
+
+
+def brick() -> np.ndarray:
+    """512×512 grayscale brick wall texture."""
+    return image("brick")
+
+
+def coffee() -> np.ndarray:
+    """400×600 RGB cup of coffee."""
+    return image("coffee")
+
+
+def chelsea() -> np.ndarray:
+    """300×451 RGB cat."""
+    return image("chelsea")
+
+
+def resize_half(img) -> np.ndarray:
+    """Halve both sides by averaging 2×2 blocks (odd last rows/columns are dropped)."""
+    arr = as_image(img, "img")
+    h, w = arr.shape[0] // 2 * 2, arr.shape[1] // 2 * 2
+    arr = arr[:h, :w]
+    return 0.25 * (arr[0::2, 0::2] + arr[1::2, 0::2] + arr[0::2, 1::2] + arr[1::2, 1::2])
+
+
+def with_gaussian_noise(img, sigma: float, rng=None) -> np.ndarray:
+    """``img`` plus N(0, σ²) noise (not clipped)."""
+    arr = as_image(img, "img")
+    sigma = check_real(sigma, "sigma", nonnegative=True)
+    return arr + as_rng(rng).normal(0.0, sigma, size=arr.shape)
+
+
+def with_impulse_noise(img, amount: float, rng=None) -> np.ndarray:
+    """``img`` with a fraction ``amount`` of its pixels set to 0 or 1."""
+    arr = as_image(img, "img").copy()
+    amount = check_real(amount, "amount", nonnegative=True)
+    if amount > 1:
+        raise ValueError(f"amount must be in [0, 1], got {amount}")
+    gen = as_rng(rng)
+    flat = arr.reshape(arr.shape[0] * arr.shape[1], -1)
+    chosen = gen.choice(flat.shape[0], size=int(round(amount * flat.shape[0])), replace=False)
+    flat[chosen] = (gen.random(chosen.size) < 0.5)[:, None].astype(np.float64)
+    return arr
+
+
+def noisy_stack(img, frames: int, sigma: float, rng=None) -> np.ndarray:
+    """``frames`` noisy shots of the same scene, ``(T, H, W[, 3])``: I_t = I + n_t (§3.1)."""
+    arr = as_image(img, "img")
+    frames = check_int(frames, "frames", minimum=1)
+    sigma = check_real(sigma, "sigma", nonnegative=True)
+    return arr[None] + as_rng(rng).normal(0.0, sigma, size=(frames,) + arr.shape)
+
+
+def step_edge(shape=(64, 64), low: float = 0.2, high: float = 0.8, angle: float = 0.0) -> np.ndarray:
+    """A synthetic step edge through the centre, normal at ``angle`` radians from the x axis."""
+    rows, cols = shape
+    y, x = np.mgrid[0:rows, 0:cols].astype(np.float64)
+    s = (x - (cols - 1) / 2) * np.cos(angle) + (y - (rows - 1) / 2) * np.sin(angle)
+    return np.where(s >= 0, high, low)
+
+
+def psnr(reference, test, data_range: float = 1.0) -> float:
+    """Peak signal-to-noise ratio in dB: 10·log10(range² / MSE)."""
+    ref = as_image(reference, "reference")
+    out = as_image(test, "test")
+    if ref.shape != out.shape:
+        raise ValueError(f"reference and test must have the same shape, got {ref.shape} and {out.shape}")
+    mse = float(np.mean((ref - out) ** 2))
+    return float("inf") if mse == 0 else 10.0 * np.log10(data_range ** 2 / mse)
+

@@ -1,0 +1,72 @@
+"""Border handling (§3.7): extend an image beyond its edges before filtering."""
+from __future__ import annotations
+
+import numpy as np
+
+from .._validation import as_image, check_border, check_int
+from ..registry import algorithm
+
+
+def border_indices(n: int, radius: int, border: str) -> np.ndarray:
+    """Source index, in ``0..n-1``, of each of the ``n + 2*radius`` padded positions.
+
+    For ``border="zero"`` positions outside the image get index ``-1``.
+    """
+    idx = np.arange(-radius, n + radius)
+    if border == "replicate":
+        return np.clip(idx, 0, n - 1)
+    if border == "reflect":  # dcb|abcd|cba: period 2n
+        m = np.mod(idx, 2 * n)
+        return np.where(m < n, m, 2 * n - 1 - m)
+    if border == "reflect101":  # dc|abcd|cb: period 2(n-1); a single pixel repeats
+        if n == 1:
+            return np.zeros_like(idx)
+        m = np.mod(idx, 2 * (n - 1))
+        return np.where(m < n, m, 2 * (n - 1) - m)
+    # zero
+    return np.where((idx >= 0) & (idx < n), idx, -1)
+
+
+def _radii(radius) -> tuple[int, int]:
+    if isinstance(radius, (tuple, list, np.ndarray)):
+        if len(radius) != 2:
+            raise ValueError(f"radius must be an int or a pair (ry, rx), got {radius!r}")
+        return (check_int(radius[0], "radius[0] (ry)", minimum=0), check_int(radius[1], "radius[1] (rx)", minimum=0))
+    r = check_int(radius, "radius", minimum=0)
+    return r, r
+
+
+@algorithm("filters.pad", section="3.7", check="cvkit.filters.checks:pad")
+def pad(image, radius, border="reflect101"):
+    """Pad an image by ``radius`` pixels on every side.
+
+    Parameters
+    ----------
+    image : (H, W) or (H, W, 3) array
+        Grayscale or colour image, any real dtype.
+    radius : int or (int, int)
+        Pixels added above/below and left/right; a pair is ``(ry, rx)``.
+    border : {"reflect101", "reflect", "replicate", "zero"}
+        How values outside the image are made up (§3.7). Radii larger than the image repeat
+        the rule (reflections bounce back and forth, as in ``numpy.pad``).
+
+    Returns
+    -------
+    (H + 2*ry, W + 2*rx[, 3]) float64 array
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pad(np.array([[1, 2, 3, 4]]), (0, 2), border="reflect101")
+    array([[3., 2., 1., 2., 3., 4., 3., 2.]])
+    """
+    img = as_image(image)
+    check_border(border)
+    ry, rx = _radii(radius)
+    rows = border_indices(img.shape[0], ry, border)
+    cols = border_indices(img.shape[1], rx, border)
+    out = img[np.ix_(np.maximum(rows, 0), np.maximum(cols, 0))]  # a new array
+    if border == "zero":
+        out[rows < 0] = 0.0
+        out[:, cols < 0] = 0.0
+    return out

@@ -1,0 +1,21 @@
+"""The grading engine behind the course notebooks.
+
+- :class:`Check` (in :mod:`.checks`): public cases, a hidden-case generator, a comparator and a
+  bank of named :class:`Mistake`\\ s, declared next to each reference implementation.
+- :func:`evaluate`: grade any callable, never raising for a faulty one; returns a
+  :class:`Report`.
+- :func:`check`: what notebook test cells call (shows the report, asserts or returns partial
+  credit for nbgrader).
+- :mod:`.guard`: copies of the inputs, time limit, captured output, forbidden calls.
+"""
+from .checks import FORBIDDEN_LIBRARIES, Case, Check, Mistake
+from .compare import Close, Comparator, Mismatch, Statistics, close
+from .engine import check, evaluate, hidden_seed
+from .report import MIME_TYPE, CaseResult, Report
+
+__all__ = [
+    "Case", "Check", "Mistake", "FORBIDDEN_LIBRARIES",
+    "Comparator", "Close", "Statistics", "Mismatch", "close",
+    "check", "evaluate", "hidden_seed",
+    "Report", "CaseResult", "MIME_TYPE",
+]

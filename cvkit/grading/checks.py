@@ -1,0 +1,121 @@
+"""How an algorithm is graded: its cases, comparator and bank of known mistakes."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from .compare import Comparator
+
+#: libraries that would do a Chapter's exercise for the student (module-name prefixes)
+FORBIDDEN_LIBRARIES = (
+    "skimage",
+    "scipy.ndimage",
+    "scipy.signal",
+    "scipy.spatial",
+    "scipy.optimize",
+    "cv2",
+    "sklearn",
+    "torch",
+)
+
+
+def _describe_value(value: Any) -> str:
+    if isinstance(value, np.ndarray):
+        if value.size <= 6:
+            return np.array2string(value, precision=4, separator=", ").replace("\n", "")
+        return f"array{value.shape} {value.dtype}"
+    if isinstance(value, np.random.Generator):
+        return "Generator"
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, (list, tuple)) and len(value) > 6:
+        return f"{type(value).__name__} of {len(value)}"
+    return repr(value)
+
+
+@dataclass
+class Case:
+    """One call of the algorithm: positional ``args`` and keyword ``kwargs``.
+
+    ``label`` says in a few words what the case probes ("asymmetric kernel, zero border").
+    """
+
+    args: tuple = ()
+    kwargs: dict = field(default_factory=dict)
+    label: str = ""
+
+    def describe(self, names: Sequence[str] = ()) -> str:
+        parts = []
+        for i, value in enumerate(self.args):
+            name = names[i] if i < len(names) else f"arg{i}"
+            parts.append(f"{name}={_describe_value(value)}")
+        parts += [f"{k}={_describe_value(v)}" for k, v in self.kwargs.items()]
+        return ", ".join(parts)
+
+
+@dataclass
+class Mistake:
+    """A named wrong variant of an algorithm, with the advice that fixes it."""
+
+    name: str
+    function: Callable
+    hint: str
+
+
+@dataclass
+class Check:
+    """Everything the grader needs for one algorithm.
+
+    Parameters
+    ----------
+    public : list of Case, or a function returning one
+        Small fixed cases students see in the visible test.
+    hidden : function ``rng -> list of Case``
+        Cases drawn at grading time from a seed nobody knows in advance. They must contain the
+        inputs that separate each mistake of the bank from the right answer.
+    compare : Comparator
+        Decides whether an output is right (``cvkit.grading.compare``).
+    mistakes : list of Mistake
+        Typical wrong versions; a failing candidate whose output matches one is told which.
+    allowed : tuple of algorithm ids
+        Reference building blocks the candidate may call (e.g. ``"filters.pad"``).
+    allowed_libraries : tuple of module prefixes
+        Exceptions to :data:`FORBIDDEN_LIBRARIES`.
+    forbidden : tuple of ``"module.function"``
+        Extra functions the candidate must not call (``"numpy.pad"`` for the padding exercise).
+    seeded : bool
+        The algorithm draws random numbers from an ``rng`` argument: two calls with the same
+        seed must agree, and outputs are compared by their statistics, not draw by draw.
+    time_limit : float
+        Seconds per case before the candidate is stopped.
+    """
+
+    public: Sequence[Case] | Callable[[], Sequence[Case]]
+    hidden: Callable[[np.random.Generator], Sequence[Case]]
+    compare: Comparator
+    mistakes: Sequence[Mistake] = ()
+    allowed: tuple = ()
+    allowed_libraries: tuple = ()
+    forbidden: tuple = ()
+    seeded: bool = False
+    time_limit: float = 20.0
+    arg_names: tuple = ()
+
+    def public_cases(self) -> list[Case]:
+        cases = self.public() if callable(self.public) else self.public
+        return list(cases)
+
+    def hidden_cases(self, rng: np.random.Generator) -> list[Case]:
+        return list(self.hidden(rng))
+
+    def mistake(self, name: str) -> Mistake:
+        for m in self.mistakes:
+            if m.name == name:
+                return m
+        raise KeyError(f"no mistake called {name!r}; known: {[m.name for m in self.mistakes]}")
+
+    @property
+    def forbidden_libraries(self) -> tuple:
+        return tuple(p for p in FORBIDDEN_LIBRARIES if p not in self.allowed_libraries)

@@ -1,0 +1,195 @@
+"""Comparators: is a candidate's output right, and if not, how exactly does it differ?
+
+Messages follow ``numpy.testing``: shape or dtype mismatch, how many elements differ, the
+largest absolute and relative difference and where it is.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+
+@dataclass
+class Mismatch:
+    """Why an output was judged wrong."""
+
+    message: str
+    max_abs: float | None = None
+    max_rel: float | None = None
+    worst: tuple | None = None
+    mismatched: int | None = None
+    total: int | None = None
+
+
+class Comparator:
+    """Base class: ``comparator(got, expected, case)`` returns ``None`` or a :class:`Mismatch`."""
+
+    def __call__(self, got: Any, expected: Any, case: Any = None) -> Mismatch | None:  # pragma: no cover
+        raise NotImplementedError
+
+    def describe(self) -> str:
+        return type(self).__name__
+
+
+def _as_numeric(got: Any, what: str = "your output") -> tuple[np.ndarray | None, str | None]:
+    if got is None:
+        return None, f"{what} is None: did you forget to `return` the result?"
+    try:
+        with np.errstate(all="ignore"):
+            arr = np.asarray(got)
+    except Exception as exc:  # ragged lists and the like
+        return None, f"{what} could not be turned into an array ({type(exc).__name__}: {exc})"
+    if arr.dtype == object or arr.dtype.kind not in "biuf":
+        return None, f"{what} must be a numeric array, got {type(got).__name__} of dtype {arr.dtype}"
+    return arr, None
+
+
+def _shape_advice(got: tuple, expected: tuple) -> str:
+    if len(got) == len(expected) >= 2 and got[:2] == expected[:2][::-1] and got != expected:
+        return " (rows and columns swapped? images are indexed [row, col])"
+    if len(got) == len(expected) and len(got) >= 2:
+        dr, dc = got[0] - expected[0], got[1] - expected[1]
+        if dr > 0 and dc >= 0 or dr >= 0 and dc > 0:
+            return f" (yours is larger by {dr} rows and {dc} columns: crop the padding you added)"
+        if dr < 0 and dc <= 0 or dr <= 0 and dc < 0:
+            return f" (yours is smaller by {-dr} rows and {-dc} columns: pad the input so the output keeps its size)"
+    if len(got) != len(expected):
+        return f" (yours has {len(got)} dimensions, expected {len(expected)})"
+    return ""
+
+
+def _index(flat: int, shape: tuple) -> tuple:
+    return tuple(int(i) for i in np.unravel_index(flat, shape)) if shape else ()
+
+
+@dataclass
+class Close(Comparator):
+    """``allclose`` with stated tolerances: ``|got − expected| ≤ atol + rtol·|expected|``.
+
+    NaN and ±inf must appear at the same places. ``kind`` optionally requires the dtype kind
+    (``"f"`` float, ``"b"`` bool, ``"i"`` integer). Tuples and lists are compared element by
+    element.
+    """
+
+    rtol: float = 1e-7
+    atol: float = 1e-10
+    kind: str | None = None
+
+    def describe(self) -> str:
+        return f"allclose(rtol={self.rtol:g}, atol={self.atol:g})"
+
+    def __call__(self, got, expected, case=None):
+        if isinstance(expected, (tuple, list)) and not isinstance(expected, np.ndarray):
+            if not isinstance(got, (tuple, list)) or len(got) != len(expected):
+                n = len(got) if isinstance(got, (tuple, list)) else "not a tuple"
+                return Mismatch(f"expected a tuple of {len(expected)} results, got {n}")
+            for i, (g, e) in enumerate(zip(got, expected)):
+                mismatch = self(g, e, case)
+                if mismatch is not None:
+                    mismatch.message = f"result [{i}]: {mismatch.message}"
+                    return mismatch
+            return None
+        exp = np.asarray(expected)
+        arr, problem = _as_numeric(got)
+        if problem:
+            return Mismatch(problem)
+        if self.kind is not None and arr.dtype.kind not in self.kind:
+            names = {"f": "float", "b": "bool", "i": "integer", "u": "unsigned integer"}
+            want = " or ".join(names.get(k, k) for k in self.kind)
+            return Mismatch(f"dtype mismatch: expected a {want} array, got {arr.dtype}")
+        if arr.shape != exp.shape:
+            return Mismatch(f"shape mismatch: expected {exp.shape}, got {arr.shape}{_shape_advice(arr.shape, exp.shape)}")
+        if exp.dtype.kind == "b" or arr.dtype.kind == "b":
+            bad = arr.astype(bool) != exp.astype(bool)
+            n = int(bad.sum())
+            if n == 0:
+                return None
+            worst = _index(int(np.flatnonzero(bad)[0]), exp.shape)
+            return Mismatch(
+                f"Mismatched elements: {n} / {exp.size} ({100 * n / exp.size:.3g}%)\nFirst at {list(worst)}",
+                worst=worst, mismatched=n, total=exp.size,
+            )
+        a = arr.astype(np.float64)
+        e = exp.astype(np.float64)
+        with np.errstate(all="ignore"):
+            nan_bad = np.isnan(a) != np.isnan(e)
+            inf_bad = (np.isinf(a) | np.isinf(e)) & ~(a == e) & ~np.isnan(a) & ~np.isnan(e)
+            finite = np.isfinite(a) & np.isfinite(e)
+            diff = np.where(finite, np.abs(a - e), 0.0)
+            tol = self.atol + self.rtol * np.abs(np.where(finite, e, 0.0))
+            bad = (diff > tol) | nan_bad | inf_bad
+        n = int(bad.sum())
+        if n == 0:
+            return None
+        lines = [
+            f"Not equal to tolerance rtol={self.rtol:g}, atol={self.atol:g}",
+            f"Mismatched elements: {n} / {e.size} ({100 * n / e.size:.3g}%)",
+        ]
+        max_abs = max_rel = None
+        worst = None
+        if (nan_bad | inf_bad).any():
+            flat = int(np.flatnonzero(nan_bad | inf_bad)[0])
+            worst = _index(flat, e.shape)
+            lines.append(f"NaN/inf where not expected (or missing) first at {list(worst)}: yours {a.flat[flat]!r}, expected {e.flat[flat]!r}")
+        if finite.any():
+            with np.errstate(all="ignore"):
+                rel = np.where(finite & (e != 0), diff / np.abs(e), np.where(diff > 0, np.inf, 0.0))
+            flat = int(np.argmax(np.where(finite, diff - tol, -np.inf)))
+            max_abs = float(diff.max())
+            max_rel = float(rel[finite].max())
+            if worst is None:
+                worst = _index(flat, e.shape)
+            where = f" at {list(_index(flat, e.shape))}" if e.ndim else ""
+            lines.append(f"Max absolute difference: {max_abs:.6g}{where} (yours {a.flat[flat]:.6g}, expected {e.flat[flat]:.6g})")
+            lines.append(f"Max relative difference: {max_rel:.6g}")
+        return Mismatch("\n".join(lines), max_abs=max_abs, max_rel=max_rel, worst=worst, mismatched=n, total=int(e.size))
+
+
+def close(rtol: float = 1e-7, atol: float = 1e-10, kind: str | None = None) -> Close:
+    """An :class:`Close` comparator (``numpy.allclose`` semantics, NaN-aware)."""
+    return Close(rtol=rtol, atol=atol, kind=kind)
+
+
+@dataclass
+class Statistics(Comparator):
+    """Random outputs, judged by properties and statistics instead of exact draws.
+
+    ``statistics(output, case)`` returns named numbers (noise standard deviation, fraction of
+    pixels replaced, fraction of replaced values that are neither ``low`` nor ``high``...);
+    ``tolerance(case)`` says how far the candidate's may be from the reference draw's (0 for
+    properties that must hold exactly). Because a mistake is judged by the same numbers, the
+    grader can tell a candidate "your noise has the spread of σ², not σ".
+    ``dtype_kind`` optionally requires the output's dtype kind (``"f"``: float).
+    """
+
+    statistics: Callable[[Any, Any], Mapping[str, float]]
+    tolerance: Callable[[Any], Mapping[str, float]]
+    dtype_kind: str | None = None
+
+    def describe(self) -> str:
+        return "statistics of the output (two correct versions may draw differently)"
+
+    def __call__(self, got, expected, case=None):
+        arr, problem = _as_numeric(got)
+        if problem:
+            return Mismatch(problem)
+        exp = np.asarray(expected)
+        if arr.shape != exp.shape:
+            return Mismatch(f"shape mismatch: expected {exp.shape}, got {arr.shape}{_shape_advice(arr.shape, exp.shape)}")
+        if self.dtype_kind is not None and arr.dtype.kind not in self.dtype_kind:
+            return Mismatch(f"dtype mismatch: expected a float array, got {arr.dtype} (do not cast back to the input's integer type)")
+        with np.errstate(all="ignore"):
+            got_stats = dict(self.statistics(arr, case))
+            exp_stats = dict(self.statistics(exp, case))
+        tolerances = self.tolerance(case)
+        wrong = []
+        for name, expected_value in exp_stats.items():
+            value = got_stats.get(name, np.nan)
+            tol = tolerances.get(name, 0.0)
+            if not (abs(value - expected_value) <= tol) and not (np.isnan(value) and np.isnan(expected_value)):
+                wrong.append(f"{name}: yours {value:.6g}, expected {expected_value:.6g} ± {tol:.3g}")
+        if wrong:
+            return Mismatch("Statistics differ from the expected distribution:\n" + "\n".join(wrong))
+        return None

@@ -1,0 +1,232 @@
+"""Grade a candidate implementation against an algorithm's check.
+
+:func:`evaluate` never raises because of the candidate: every failure ends up in the
+:class:`~cvkit.grading.report.Report`. :func:`check` is what notebook test cells call.
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import inspect
+import json
+import os
+from typing import Any, Callable
+
+import numpy as np
+
+from .. import registry
+from .checks import Check, Mistake
+from .guard import run_guarded
+from .report import MIME_TYPE, CaseResult, Report
+
+SALT_VARIABLE = "CVKIT_GRADING_SALT"
+STUDENT_VARIABLE = "CVKIT_STUDENT_ID"
+
+
+def hidden_seed(algorithm_id: str, student: str | None = None, salt: str | None = None) -> int:
+    """The seed of an algorithm's hidden cases for one student.
+
+    It mixes a salt chosen at grading time (environment variable ``CVKIT_GRADING_SALT``,
+    kept by the course for regrading) with the student id (``CVKIT_STUDENT_ID``) and the
+    algorithm id, so it is reproducible for the grader and unknowable to students beforehand.
+    """
+    salt = salt if salt is not None else os.environ.get(SALT_VARIABLE, "practice")
+    student = student if student is not None else os.environ.get(STUDENT_VARIABLE, "student")
+    digest = hashlib.sha256(f"{salt}\x1f{student}\x1f{algorithm_id}".encode()).digest()
+    return int.from_bytes(digest[:8], "little")
+
+
+def _arg_names(function: Callable, check: Check) -> tuple:
+    if check.arg_names:
+        return tuple(check.arg_names)
+    try:
+        return tuple(
+            p.name for p in inspect.signature(function).parameters.values()
+            if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
+        )
+    except (TypeError, ValueError):
+        return ()
+
+
+def _reference_output(function: Callable, case) -> Any:
+    with registry.use("reference"):
+        return function(*copy.deepcopy(case.args), **copy.deepcopy(case.kwargs))
+
+
+def _mistake_output(mistake: Mistake, case) -> tuple[bool, Any]:
+    try:
+        with registry.use("reference"), np.errstate(all="ignore"):
+            return True, mistake.function(*copy.deepcopy(case.args), **copy.deepcopy(case.kwargs))
+    except Exception:
+        return False, None
+
+
+def evaluate(
+    algorithm_id: str,
+    candidate: Callable,
+    *,
+    hidden: bool = False,
+    seed: int | None = None,
+    check: Check | None = None,
+) -> Report:
+    """Grade ``candidate`` on the public (or hidden) cases of ``algorithm_id``.
+
+    Parameters
+    ----------
+    algorithm_id : str
+        A catalog id such as ``"filters.gaussian"``.
+    candidate : callable
+        The implementation to grade (a student's function, a mistake, the reference...).
+    hidden : bool
+        Grade on the hidden cases drawn from ``seed`` instead of the public ones.
+    seed : int, optional
+        Seed of the hidden cases; default :func:`hidden_seed` of the algorithm.
+    check : Check, optional
+        Use this check instead of the registered one.
+
+    Returns
+    -------
+    Report
+        ``.passed``, ``.score`` (fraction of cases passed), per-case results and the mistake
+        of the bank the candidate's output matches, if any.
+    """
+    record = registry.get(algorithm_id)
+    spec = check if check is not None else record.check
+    if spec is None:
+        raise ValueError(f"algorithm {algorithm_id!r} has no check")
+    if hidden:
+        seed = hidden_seed(algorithm_id) if seed is None else int(seed)
+        cases = spec.hidden_cases(np.random.default_rng(seed))
+    else:
+        cases = spec.public_cases()
+        seed = None
+    report = Report(algorithm_id, record.section, hidden, seed, [])
+    if not callable(candidate):
+        report.problem = f"expected a function to grade, got {type(candidate).__name__}"
+        return report
+
+    names = _arg_names(record.reference, spec)
+    mistake_votes: dict[str, int] = {}
+    for index, case in enumerate(cases):
+        expected = _reference_output(record.reference, case)
+        outcome = run_guarded(
+            candidate, case.args, case.kwargs,
+            arg_names=names,
+            time_limit=spec.time_limit,
+            forbidden_libraries=spec.forbidden_libraries,
+            forbidden_functions=spec.forbidden,
+            allowed_ids=tuple(spec.allowed),
+        )
+        result = CaseResult(
+            index=index,
+            label=case.label or f"case {index + 1}",
+            description=case.describe(names),
+            passed=False,
+            elapsed=outcome.elapsed,
+            warnings=outcome.warnings,
+            stdout=outcome.stdout,
+            stderr=outcome.stderr,
+            traceback=outcome.traceback,
+            expected=expected,
+        )
+        mismatch = None
+        if outcome.error is not None:
+            result.message = outcome.error
+        elif outcome.forbidden_calls:
+            result.message = (
+                "calls " + ", ".join(outcome.forbidden_calls)
+                + ", which would do the exercise for you: write it with NumPy"
+            )
+        elif outcome.modified:
+            result.message = (
+                f"modified its input {', '.join(map(repr, outcome.modified))}: do not overwrite the "
+                "input image (§3.7); work on a copy or write the result to a new array"
+            )
+        else:
+            result.got = outcome.value
+            with np.errstate(all="ignore"):
+                mismatch = spec.compare(outcome.value, expected, case)
+            if mismatch is None and spec.seeded:
+                again = run_guarded(candidate, case.args, case.kwargs, arg_names=names,
+                                    time_limit=spec.time_limit, watch_reference=False)
+                if again.error is not None or spec.compare(again.value, outcome.value, case) is not None \
+                        or not _identical(again.value, outcome.value):
+                    result.message = (
+                        "two calls with the same rng seed gave different results: draw every random "
+                        "number from np.random.default_rng(rng), never from np.random.* directly"
+                    )
+                else:
+                    result.passed = True
+            elif mismatch is None:
+                result.passed = True
+            else:
+                result.message = mismatch.message
+                result.worst = mismatch.worst
+        if not result.passed and result.got is not None:
+            for mistake in spec.mistakes:
+                produced, wrong = _mistake_output(mistake, case)
+                if not produced:
+                    continue
+                with np.errstate(all="ignore"):
+                    if spec.compare(wrong, expected, case) is None:
+                        continue  # this case does not tell the mistake from the right answer
+                    if spec.compare(outcome.value, wrong, case) is None:
+                        result.mistake, result.hint = mistake.name, mistake.hint
+                        mistake_votes[mistake.name] = mistake_votes.get(mistake.name, 0) + 1
+                        break
+        report.cases.append(result)
+    if mistake_votes:
+        best = max(mistake_votes, key=mistake_votes.get)
+        report.mistake = best
+        report.hint = spec.mistake(best).hint
+    return report
+
+
+def _identical(a, b) -> bool:
+    try:
+        return bool(np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True))
+    except Exception:
+        return False
+
+
+def _show(report: Report) -> None:
+    """Display the report in a Jupyter kernel (HTML + text + JSON), else print the text."""
+    try:
+        from IPython import get_ipython
+
+        shell = get_ipython()
+    except Exception:
+        shell = None
+    if shell is not None and getattr(shell, "kernel", None) is not None:
+        from IPython.display import display
+
+        bundle = {"text/plain": report.text(), MIME_TYPE: json.loads(json.dumps(report.to_dict(), default=str))}
+        try:
+            bundle["text/html"] = report._repr_html_()
+        except Exception:
+            pass
+        display(bundle, raw=True)
+    else:
+        print(report.text())
+
+
+def check(algorithm_id: str, candidate: Callable, hidden: bool = False, points: float | None = None, *, seed: int | None = None):
+    """Grade ``candidate`` in a notebook test cell.
+
+    Shows the report (HTML with images in JupyterLab, text elsewhere). A visible test
+    (``hidden=False``) raises ``AssertionError`` when any case fails. A hidden test returns the
+    partial credit ``score × points`` (or the score in 0..1 without ``points``) as the cell's
+    value, which nbgrader records as the cell's grade.
+
+    >>> import cvkit.filters
+    >>> check("filters.mean_kernel", cvkit.filters.mean_kernel)  # doctest: +ELLIPSIS
+    filters.mean_kernel (§3.8), visible tests: ... passed — passed
+    """
+    report = evaluate(algorithm_id, candidate, hidden=hidden, seed=seed)
+    _show(report)
+    if hidden:
+        value = report.score if points is None else report.score * float(points)
+        return round(float(value), 6)
+    if not report.passed:
+        raise AssertionError(report.summary())
+    return None

@@ -1,0 +1,233 @@
+"""Run a candidate function safely: copies of its inputs, a time limit, captured output, and a
+watch on calls into libraries (or cvkit's own reference) that would do the exercise for it.
+
+Nothing here writes to stderr: nbgrader gives zero to a test cell with any stderr output, so
+warnings and prints from student code are captured into the report instead.
+"""
+from __future__ import annotations
+
+import contextlib
+import copy
+import io
+import signal
+import sys
+import threading
+import time
+import traceback
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from .. import registry
+
+
+class CandidateTimeout(BaseException):
+    """Raised inside the candidate when its time is up (BaseException: ``except Exception``
+    in student code does not swallow it)."""
+
+
+@dataclass
+class Outcome:
+    """What happened during one guarded call."""
+
+    value: Any = None
+    error: str | None = None          # one-line summary of an exception
+    traceback: str | None = None      # the candidate's part of the traceback
+    exception: str | None = None      # exception type name
+    elapsed: float = 0.0
+    timed_out: bool = False
+    modified: list = field(default_factory=list)      # names of inputs the candidate changed
+    forbidden_calls: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+    stdout: str = ""
+    stderr: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None and not self.modified and not self.forbidden_calls
+
+
+class _CallWatcher:
+    """A ``sys.setprofile`` hook recording the outermost calls into forbidden code."""
+
+    def __init__(self, libraries: tuple, functions: tuple, reference_codes: dict, allowed_ids: tuple):
+        self.libraries = tuple(libraries)
+        self.functions = tuple(tuple(f.rsplit(".", 1)) for f in functions)
+        self.reference_codes = reference_codes
+        self.allowed_ids = set(allowed_ids)
+        self.calls: list[str] = []
+        self.stop_code = None
+
+    def _module_of(self, frame) -> str:
+        return frame.f_globals.get("__name__", "") or ""
+
+    def _is_watched_frame(self, frame) -> bool:
+        if frame.f_code in self.reference_codes:
+            return True
+        module = self._module_of(frame)
+        return bool(self.libraries) and module.startswith(self.libraries)
+
+    def _nested(self, frame) -> bool:
+        """Is this call made from inside reference or library code (not by the candidate)?"""
+        parent = frame.f_back
+        while parent is not None and parent.f_code is not self.stop_code:
+            if self._is_watched_frame(parent):
+                return True
+            parent = parent.f_back
+        return False
+
+    def _record(self, what: str) -> None:
+        if what not in self.calls:
+            self.calls.append(what)
+
+    def __call__(self, frame, event, arg):
+        if event == "call":
+            code = frame.f_code
+            algorithm_id = self.reference_codes.get(code)
+            if algorithm_id is not None:
+                if algorithm_id not in self.allowed_ids and not self._nested(frame):
+                    self._record(f"cvkit reference implementation of {algorithm_id!r}")
+                return
+            module = self._module_of(frame)
+            if self.libraries and module.startswith(self.libraries):
+                if not self._nested(frame):
+                    self._record(f"{module}.{code.co_name}")
+                return
+            for prefix, name in self.functions:
+                if code.co_name == name and module.startswith(prefix) and not self._nested(frame):
+                    self._record(f"{prefix}.{name}")
+        elif event == "c_call":
+            module = getattr(arg, "__module__", None) or ""
+            if not module:
+                owner = getattr(arg, "__self__", None)
+                module = getattr(owner, "__name__", "") if isinstance(getattr(owner, "__name__", None), str) else ""
+            if self.libraries and module.startswith(self.libraries) and not self._nested(frame):
+                self._record(f"{module}.{getattr(arg, '__name__', '?')}")
+
+
+@contextlib.contextmanager
+def _time_limit(seconds: float | None):
+    """Raise :class:`CandidateTimeout` in the main thread after ``seconds`` (Unix only)."""
+    usable = (
+        seconds
+        and hasattr(signal, "setitimer")
+        and threading.current_thread() is threading.main_thread()
+    )
+    if not usable:
+        yield
+        return
+
+    def _expire(signum, frame):
+        raise CandidateTimeout()
+
+    previous = signal.signal(signal.SIGALRM, _expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def _copy_inputs(value):
+    return copy.deepcopy(value)
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        try:
+            return (
+                isinstance(a, np.ndarray) and isinstance(b, np.ndarray)
+                and a.shape == b.shape and a.dtype == b.dtype
+                and bool(np.array_equal(a, b, equal_nan=a.dtype.kind in "fc"))
+            )
+        except Exception:
+            return False
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, np.random.Generator):
+        return True  # drawing from the rng is expected
+    try:
+        return bool(a == b)
+    except Exception:
+        return True
+
+
+def _candidate_traceback(exc: BaseException) -> str:
+    """The traceback without the grader's own frames."""
+    frames = traceback.extract_tb(exc.__traceback__)
+    here = __file__.rsplit(".", 1)[0]
+    kept = [f for f in frames if not f.filename.startswith(here)]
+    lines = traceback.format_list(kept) + traceback.format_exception_only(type(exc), exc)
+    return "".join(lines).rstrip()
+
+
+def run_guarded(
+    function: Callable,
+    args: tuple,
+    kwargs: dict,
+    *,
+    arg_names: tuple = (),
+    time_limit: float | None = 20.0,
+    forbidden_libraries: tuple = (),
+    forbidden_functions: tuple = (),
+    allowed_ids: tuple = (),
+    watch_reference: bool = True,
+) -> Outcome:
+    """Call ``function(*args, **kwargs)`` on copies of the inputs under the guard."""
+    outcome = Outcome()
+    call_args = _copy_inputs(args)
+    call_kwargs = _copy_inputs(kwargs)
+    watcher = None
+    if forbidden_libraries or forbidden_functions or watch_reference:
+        codes = registry.reference_functions() if watch_reference else {}
+        watcher = _CallWatcher(forbidden_libraries, forbidden_functions, codes, allowed_ids)
+    out, err = io.StringIO(), io.StringIO()
+    previous_profile = sys.getprofile()
+    start = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught, contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        warnings.simplefilter("always")
+        try:
+            with _time_limit(time_limit):
+                if watcher is not None:
+                    watcher.stop_code = sys._getframe().f_code
+                    sys.setprofile(watcher)
+                try:
+                    outcome.value = function(*call_args, **call_kwargs)
+                finally:
+                    sys.setprofile(previous_profile)
+        except CandidateTimeout:
+            outcome.timed_out = True
+            outcome.exception = "Timeout"
+            outcome.error = (
+                f"stopped after {time_limit:g} s: this is far slower than needed; vectorize with "
+                "NumPy (whole-array operations, shifted copies, sliding windows) instead of "
+                "looping over pixels"
+            )
+        except KeyboardInterrupt:
+            raise
+        except BaseException as exc:  # the candidate's fault, never the grader's
+            outcome.exception = type(exc).__name__
+            if isinstance(exc, NotImplementedError):
+                outcome.error = "not implemented yet (the function raises NotImplementedError)"
+            else:
+                message = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+                outcome.error = f"raised {type(exc).__name__}" + (f": {message}" if message else "")
+            outcome.traceback = _candidate_traceback(exc)
+    outcome.elapsed = time.perf_counter() - start
+    outcome.stdout, outcome.stderr = out.getvalue(), err.getvalue()
+    outcome.warnings = [f"{w.category.__name__}: {w.message}" for w in caught]
+    if watcher is not None:
+        outcome.forbidden_calls = list(watcher.calls)
+    names = list(arg_names) + [f"argument {i}" for i in range(len(arg_names), len(args))]
+    for i, (original, used) in enumerate(zip(args, call_args)):
+        if not _same(original, used):
+            outcome.modified.append(names[i])
+    for key in kwargs:
+        if not _same(kwargs[key], call_kwargs[key]):
+            outcome.modified.append(key)
+    return outcome
