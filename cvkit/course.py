@@ -427,3 +427,57 @@ def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str]
         lines.append("\nWhat the checks found:")
         lines += notes
     return "\n".join(lines)
+
+
+def _cell_source(cell: dict) -> str:
+    return cell["source"] if isinstance(cell["source"], str) else "".join(cell["source"])
+
+
+def predict_scores(notebook: dict, student: str, salt: str) -> dict[str, float]:
+    """What nbgrader should record for each test cell of a (trusted) notebook.
+
+    Runs the setup cell and the answer cells in this process, then grades every
+    ``check(...)`` call of the test cells with the seeds the kernel would use. Used by the
+    tests and the demo to confirm that the course pipeline records exactly the engine's
+    verdicts. Never use it on untrusted submissions: it executes their code here.
+    """
+    import ast
+
+    from .grading import evaluate, hidden_seed
+
+    namespace: dict = {"__name__": "__cvkit_prediction__"}
+    tests = []
+    for cell in notebook.get("cells", []):
+        if cell.get("cell_type") != "code":
+            continue
+        meta = cell.get("metadata", {}).get("nbgrader", {})
+        source = _cell_source(cell)
+        if meta.get("grade_id") == "setup" or meta.get("solution"):
+            code = "\n".join(line for line in source.splitlines() if not line.lstrip().startswith(("%", "!")))
+            try:
+                exec(compile(code, f"<cell {meta.get('grade_id')}>", "exec"), namespace)
+            except Exception:
+                pass  # a broken answer cell: its tests will fail in the kernel too
+        elif meta.get("grade"):
+            tests.append((meta["grade_id"], float(meta.get("points", 0)), source))
+    scores = {}
+    for grade_id, points, source in tests:
+        calls = [n for n in ast.walk(ast.parse(source)) if isinstance(n, ast.Call)
+                 and getattr(n.func, "id", None) == "check"]
+        total = points
+        for call in calls:
+            algorithm_id = ast.literal_eval(call.args[0])
+            function = namespace.get(call.args[1].id) if isinstance(call.args[1], ast.Name) else None
+            keywords = {k.arg: ast.literal_eval(k.value) for k in call.keywords}
+            hidden = keywords.get("hidden", False)
+            if function is None:
+                total = 0.0
+                continue
+            seed = hidden_seed(algorithm_id, student=student, salt=salt)
+            report = evaluate(algorithm_id, function, hidden=hidden, seed=seed if hidden else None)
+            if hidden:
+                total = min(total, round(report.score * float(keywords.get("points", 1.0)), 6))
+            elif not report.passed:
+                total = 0.0
+        scores[grade_id] = total
+    return scores

@@ -63,10 +63,20 @@ def pad(image, radius, border="reflect101"):
     img = as_image(image)
     check_border(border)
     ry, rx = _radii(radius)
-    rows = border_indices(img.shape[0], ry, border)
-    cols = border_indices(img.shape[1], rx, border)
-    out = img[np.ix_(np.maximum(rows, 0), np.maximum(cols, 0))]  # a new array
+    h, w = img.shape[:2]
+    out = np.empty((h + 2 * ry, w + 2 * rx) + img.shape[2:])
+    out[ry : ry + h, rx : rx + w] = img
     if border == "zero":
-        out[rows < 0] = 0.0
-        out[:, cols < 0] = 0.0
+        out[:ry] = 0.0
+        out[ry + h :] = 0.0
+        out[:, :rx] = 0.0
+        out[:, rx + w :] = 0.0
+        return out
+    rows = border_indices(h, ry, border)
+    cols = border_indices(w, rx, border)
+    # top and bottom strips of the central band, then whole columns (corners included)
+    out[:ry, rx : rx + w] = img[rows[:ry]]
+    out[ry + h :, rx : rx + w] = img[rows[ry + h :]]
+    out[:, :rx] = out[:, rx + cols[:rx]]
+    out[:, rx + w :] = out[:, rx + cols[rx + w :]]
     return out

@@ -14,6 +14,7 @@ import sys
 import threading
 import time
 import traceback
+import types
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -49,6 +50,34 @@ class Outcome:
         return self.error is None and not self.modified and not self.forbidden_calls
 
 
+_builtin_cache: dict = {}
+
+
+def _forbidden_builtins(libraries: tuple) -> dict:
+    """id → dotted name of the C functions exported by imported forbidden modules.
+
+    Extension functions such as ``cv2.GaussianBlur`` have no ``__module__``, so they are
+    recognised by identity instead (the table is rebuilt when new modules are imported).
+    """
+    key = (libraries, len(sys.modules))
+    if key in _builtin_cache:
+        return _builtin_cache[key]
+    table = {}
+    for name, module in list(sys.modules.items()):
+        if module is None or not name.startswith(libraries):
+            continue
+        try:
+            items = list(vars(module).items())
+        except TypeError:
+            continue
+        for attr, value in items:
+            if isinstance(value, types.BuiltinFunctionType):
+                table.setdefault(id(value), f"{name}.{attr}")
+    _builtin_cache.clear()
+    _builtin_cache[key] = table
+    return table
+
+
 class _CallWatcher:
     """A ``sys.setprofile`` hook recording the outermost calls into forbidden code."""
 
@@ -59,6 +88,8 @@ class _CallWatcher:
         self.allowed_ids = set(allowed_ids)
         self.calls: list[str] = []
         self.stop_code = None
+        self.exempt = None  # the candidate's own code (grading the reference itself is fine)
+        self.builtins = _forbidden_builtins(self.libraries) if self.libraries else {}
 
     def _module_of(self, frame) -> str:
         return frame.f_globals.get("__name__", "") or ""
@@ -85,6 +116,8 @@ class _CallWatcher:
     def __call__(self, frame, event, arg):
         if event == "call":
             code = frame.f_code
+            if code is self.exempt:
+                return
             algorithm_id = self.reference_codes.get(code)
             if algorithm_id is not None:
                 if algorithm_id not in self.allowed_ids and not self._nested(frame):
@@ -99,10 +132,12 @@ class _CallWatcher:
                 if code.co_name == name and module.startswith(prefix) and not self._nested(frame):
                     self._record(f"{prefix}.{name}")
         elif event == "c_call":
+            known = self.builtins.get(id(arg))
+            if known is not None:
+                if not self._nested(frame):
+                    self._record(known)
+                return
             module = getattr(arg, "__module__", None) or ""
-            if not module:
-                owner = getattr(arg, "__self__", None)
-                module = getattr(owner, "__name__", "") if isinstance(getattr(owner, "__name__", None), str) else ""
             if self.libraries and module.startswith(self.libraries) and not self._nested(frame):
                 self._record(f"{module}.{getattr(arg, '__name__', '?')}")
 
@@ -186,6 +221,7 @@ def run_guarded(
     if forbidden_libraries or forbidden_functions or watch_reference:
         codes = registry.reference_functions() if watch_reference else {}
         watcher = _CallWatcher(forbidden_libraries, forbidden_functions, codes, allowed_ids)
+        watcher.exempt = getattr(function, "__code__", None)
     out, err = io.StringIO(), io.StringIO()
     previous_profile = sys.getprofile()
     start = time.perf_counter()

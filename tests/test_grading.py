@@ -1,0 +1,276 @@
+"""The grading engine on a small synthetic algorithm: reports, mistakes, guard, check()."""
+import time
+import warnings
+
+import numpy as np
+import pytest
+
+from cvkit import registry
+from cvkit.grading import Case, Check, Mistake, Statistics, check, close, evaluate, hidden_seed
+from cvkit.grading.report import MIME_TYPE
+
+
+def shift_right(image, steps=1):
+    """Reference of the synthetic algorithm: roll columns to the right."""
+    return np.roll(np.asarray(image, dtype=float), steps, axis=1)
+
+
+def _shift(image, steps=1):
+    """The same computation, not registered: what a student's correct answer looks like."""
+    return np.roll(np.asarray(image, dtype=float), steps, axis=1)
+
+
+def _cases_public():
+    return [Case((np.arange(12.0).reshape(3, 4),), {"steps": 1}, "3×4 ramp"),
+            Case((np.arange(20.0).reshape(4, 5),), {"steps": 2}, "4×5, two steps")]
+
+
+def _cases_hidden(rng):
+    return [Case((rng.random((int(rng.integers(2, 6)), int(rng.integers(3, 7)))),), {"steps": int(rng.integers(1, 3))},
+                 f"random {i}") for i in range(4)]
+
+
+SHIFT_CHECK = Check(
+    public=_cases_public,
+    hidden=_cases_hidden,
+    compare=close(rtol=1e-12, atol=1e-12),
+    mistakes=[
+        Mistake("rolled the rows", lambda image, steps=1: np.roll(np.asarray(image, float), steps, axis=0),
+                "columns are axis 1: images are indexed [row, col]"),
+        Mistake("rolled left", lambda image, steps=1: np.roll(np.asarray(image, float), -steps, axis=1),
+                "a shift to the right moves x to x + steps"),
+    ],
+    time_limit=1.0,
+)
+
+
+@pytest.fixture(autouse=True)
+def synthetic_algorithm():
+    registry.algorithm("testing.shift_right", section="0.1", check=SHIFT_CHECK)(shift_right)
+    yield
+    registry._algorithms.pop("testing.shift_right", None)
+
+
+def test_reference_passes_public_and_hidden():
+    assert evaluate("testing.shift_right", shift_right).score == 1.0
+    report = evaluate("testing.shift_right", shift_right, hidden=True, seed=5)
+    assert report.passed and report.score == 1.0 and len(report.cases) == 4
+
+
+def test_stub_scores_zero_and_says_not_implemented():
+    def stub(image, steps=1):
+        raise NotImplementedError()
+
+    report = evaluate("testing.shift_right", stub)
+    assert not report.passed and report.score == 0.0
+    assert "not implemented" in report.cases[0].message
+
+
+def test_mistake_is_named_with_hint():
+    def wrong(image, steps=1):
+        return np.roll(image, -steps, axis=1)
+
+    report = evaluate("testing.shift_right", wrong)
+    assert not report.passed
+    assert report.mistake == "rolled left"
+    assert "x + steps" in report.hint
+    assert "rolled left" in report.text()
+
+
+def test_partial_score_is_fraction_of_cases():
+    def half_right(image, steps=1):
+        return _shift(image, 1)  # right only when steps == 1
+
+    report = evaluate("testing.shift_right", half_right)
+    assert report.score == 0.5
+    assert [c.passed for c in report.cases] == [True, False]
+
+
+def test_error_message_has_numpy_testing_details():
+    def off_by_one_pixel(image, steps=1):
+        out = _shift(image, steps)
+        out[1, 2] += 0.5
+        return out
+
+    report = evaluate("testing.shift_right", off_by_one_pixel)
+    message = report.cases[0].message
+    assert "Mismatched elements: 1 / 12" in message
+    assert "Max absolute difference: 0.5 at [1, 2]" in message
+    assert report.cases[0].worst == (1, 2)
+
+
+def test_shape_mismatch_messages():
+    report = evaluate("testing.shift_right", lambda image, steps=1: _shift(image, steps).T)
+    assert "shape mismatch: expected (3, 4), got (4, 3)" in report.cases[0].message
+    assert "rows and columns swapped" in report.cases[0].message
+    report = evaluate("testing.shift_right", lambda image, steps=1: np.pad(_shift(image, steps), 1))
+    assert "larger by 2 rows and 2 columns" in report.cases[0].message
+    report = evaluate("testing.shift_right", lambda image, steps=1: None)
+    assert "forget to `return`" in report.cases[0].message
+
+
+def test_candidate_exception_never_escapes_and_traceback_is_the_candidates():
+    def broken(image, steps=1):
+        return image[10, 10]
+
+    report = evaluate("testing.shift_right", broken)
+    assert report.score == 0
+    assert "IndexError" in report.cases[0].message
+    assert "broken" in report.cases[0].traceback
+    assert "guard.py" not in report.cases[0].traceback
+
+
+def test_not_callable_candidate():
+    report = evaluate("testing.shift_right", 42)
+    assert not report.passed and "expected a function" in report.summary()
+
+
+def test_input_modification_is_caught():
+    def in_place(image, steps=1):
+        image[:] = np.roll(image, steps, axis=1)
+        return image
+
+    report = evaluate("testing.shift_right", in_place)
+    assert not report.passed
+    assert "modified its input 'image'" in report.cases[0].message
+
+
+def test_time_limit_with_vectorize_hint():
+    def slow(image, steps=1):
+        time.sleep(5)
+        return shift_right(image, steps)
+
+    start = time.perf_counter()
+    report = evaluate("testing.shift_right", slow)
+    assert time.perf_counter() - start < 4
+    assert not report.passed and "vectorize" in report.cases[0].message
+
+
+def test_forbidden_library_calls_are_caught():
+    import scipy.ndimage
+
+    def via_scipy(image, steps=1):
+        return scipy.ndimage.shift(np.asarray(image, float), (0, steps), order=0, mode="grid-wrap")
+
+    report = evaluate("testing.shift_right", via_scipy)
+    assert not report.passed
+    assert "scipy.ndimage" in report.cases[0].message
+
+
+def test_opencv_builtin_calls_are_caught():
+    cv2 = pytest.importorskip("cv2")
+
+    def via_cv2(image, steps=1):
+        cv2.flip(np.zeros((2, 2)), 0)
+        return _shift(image, steps)
+
+    report = evaluate("testing.shift_right", via_cv2)
+    assert not report.passed and "cv2" in report.cases[0].message
+
+
+def test_calling_the_reference_is_caught_unless_allowed():
+    def via_reference(image, steps=1):
+        return shift_right(image, steps)
+
+    report = evaluate("testing.shift_right", via_reference)
+    assert not report.passed
+    assert "reference implementation of 'testing.shift_right'" in report.cases[0].message
+    allowed = Check(public=_cases_public, hidden=_cases_hidden, compare=close(), allowed=("testing.shift_right",))
+    assert evaluate("testing.shift_right", via_reference, check=allowed).passed
+
+
+def test_numpy_is_allowed_and_library_exception_list_works():
+    import scipy.ndimage
+
+    def via_scipy(image, steps=1):
+        return scipy.ndimage.shift(np.asarray(image, float), (0, steps), order=0, mode="grid-wrap")
+
+    lenient = Check(public=_cases_public, hidden=_cases_hidden, compare=close(), allowed_libraries=("scipy.ndimage",))
+    assert evaluate("testing.shift_right", via_scipy, check=lenient).passed
+
+
+def test_warnings_and_prints_are_captured_and_cost_nothing(capsys):
+    def chatty(image, steps=1):
+        print("debugging output")
+        warnings.warn("a student warning")
+        np.log(np.zeros(1))  # RuntimeWarning
+        return _shift(image, steps)
+
+    report = evaluate("testing.shift_right", chatty)
+    captured = capsys.readouterr()
+    assert report.passed
+    assert captured.err == "" and captured.out == ""
+    assert any("a student warning" in w for w in report.cases[0].warnings)
+    assert "debugging output" in report.cases[0].stdout
+
+
+def test_hidden_seed_mixes_salt_student_and_algorithm(monkeypatch):
+    base = hidden_seed("filters.gaussian", student="ada", salt="s1")
+    assert base == hidden_seed("filters.gaussian", student="ada", salt="s1")
+    assert base != hidden_seed("filters.gaussian", student="bob", salt="s1")
+    assert base != hidden_seed("filters.gaussian", student="ada", salt="s2")
+    assert base != hidden_seed("filters.mean", student="ada", salt="s1")
+    monkeypatch.setenv("CVKIT_GRADING_SALT", "s1")
+    monkeypatch.setenv("CVKIT_STUDENT_ID", "ada")
+    assert hidden_seed("filters.gaussian") == base
+    first = evaluate("testing.shift_right", shift_right, hidden=True)
+    assert first.seed == hidden_seed("testing.shift_right")
+
+
+def test_hidden_cases_are_reproducible_and_vary_with_seed():
+    a = SHIFT_CHECK.hidden_cases(np.random.default_rng(1))
+    b = SHIFT_CHECK.hidden_cases(np.random.default_rng(1))
+    c = SHIFT_CHECK.hidden_cases(np.random.default_rng(2))
+    assert all(np.array_equal(x.args[0], y.args[0]) for x, y in zip(a, b))
+    assert not all(x.args[0].shape == y.args[0].shape and np.array_equal(x.args[0], y.args[0]) for x, y in zip(a, c))
+
+
+def test_check_visible_raises_and_hidden_returns_partial_credit(capsys):
+    assert check("testing.shift_right", shift_right) is None
+    assert "2/2 cases passed" in capsys.readouterr().out
+    with pytest.raises(AssertionError, match="FAILED"):
+        check("testing.shift_right", lambda image, steps=1: image)
+    assert check("testing.shift_right", shift_right, hidden=True, points=3) == 3.0
+
+    def half_right(image, steps=1):
+        return _shift(image, 1)
+
+    value = check("testing.shift_right", half_right, hidden=True, points=2, seed=0)
+    report = evaluate("testing.shift_right", half_right, hidden=True, seed=0)
+    assert value == pytest.approx(2 * report.score)
+    assert capsys.readouterr().err == ""
+
+
+def test_report_html_shows_images_and_json_roundtrip():
+    import json
+
+    report = evaluate("testing.shift_right", lambda image, steps=1: np.roll(image, steps, axis=0))
+    page = report._repr_html_()
+    assert page.count("<img") == 3 and "rolled the rows" in page
+    data = json.loads(json.dumps(report.to_dict()))
+    assert data["mistake"] == "rolled the rows" and data["score"] == 0.0
+    assert MIME_TYPE.startswith("application/vnd.cvkit")
+
+
+def test_close_comparator_nan_inf_and_tuples():
+    cmp = close(rtol=0, atol=1e-9)
+    assert cmp(np.array([1.0, np.nan, np.inf]), np.array([1.0, np.nan, np.inf])) is None
+    assert "NaN/inf" in cmp(np.array([1.0, 2.0, np.inf]), np.array([1.0, np.nan, np.inf])).message
+    assert cmp((np.ones(2), np.zeros(2)), (np.ones(2), np.zeros(2))) is None
+    assert "result [1]" in cmp((np.ones(2), np.ones(2)), (np.ones(2), np.zeros(2))).message
+    assert "tuple of 2" in cmp(np.ones(2), (np.ones(2), np.zeros(2))).message
+    assert "numeric array" in cmp(np.array(["a"]), np.array([1.0])).message
+    assert "dtype mismatch" in close(kind="b")(np.array([1.0]), np.array([True])).message
+
+
+def test_statistics_comparator():
+    def stats(output, case):
+        return {"mean": float(np.mean(output)), "std": float(np.std(output))}
+
+    cmp = Statistics(stats, lambda case: {"mean": 0.05, "std": 0.05}, dtype_kind="f")
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(0, 1, 4000), rng.normal(0, 1, 4000)
+    assert cmp(a, b) is None
+    wrong = cmp(2 * a, b)
+    assert wrong is not None and "std" in wrong.message and "mean" not in wrong.message
+    assert "dtype mismatch" in cmp(np.round(a).astype(int), b).message
