@@ -274,3 +274,28 @@ def test_statistics_comparator():
     wrong = cmp(2 * a, b)
     assert wrong is not None and "std" in wrong.message and "mean" not in wrong.message
     assert "dtype mismatch" in cmp(np.round(a).astype(int), b).message
+
+
+def test_switching_off_the_watch_is_caught():
+    import sys as _sys
+
+    def sneaky(image, steps=1):
+        _sys.setprofile(None)
+        return shift_right(image, steps)  # the reference, unseen
+
+    report = evaluate("testing.shift_right", sneaky)
+    assert not report.passed and "sys.setprofile" in report.cases[0].message
+
+
+def test_expected_output_is_not_reachable_from_the_candidate():
+    import sys as _sys
+
+    def peeking(image, steps=1):
+        frame = _sys._getframe(1)
+        while frame is not None:
+            if "expected" in frame.f_locals:
+                return frame.f_locals["expected"]
+            frame = frame.f_back
+        return np.zeros_like(image)
+
+    assert not evaluate("testing.shift_right", peeking).passed

@@ -108,7 +108,6 @@ def evaluate(
     names = _arg_names(record.reference, spec)
     mistake_votes: dict[str, int] = {}
     for index, case in enumerate(cases):
-        expected = _reference_output(record.reference, case)
         outcome = run_guarded(
             candidate, case.args, case.kwargs,
             arg_names=names,
@@ -117,6 +116,8 @@ def evaluate(
             forbidden_functions=spec.forbidden,
             allowed_ids=tuple(spec.allowed),
         )
+        # computed only after the candidate ran: it cannot be read from the grader's frames
+        expected = _reference_output(record.reference, case)
         result = CaseResult(
             index=index,
             label=case.label or f"case {index + 1}",

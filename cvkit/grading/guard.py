@@ -235,6 +235,8 @@ def run_guarded(
                 try:
                     outcome.value = function(*call_args, **call_kwargs)
                 finally:
+                    if watcher is not None and sys.getprofile() is not watcher:
+                        watcher.calls.append("sys.setprofile (switching off the grader's watch on library calls)")
                     sys.setprofile(previous_profile)
         except CandidateTimeout:
             outcome.timed_out = True

@@ -1,0 +1,111 @@
+"""The course pipeline end to end, through the command line: `cvkit demo` builds the course,
+makes the three sample submissions, autogrades them with nbgrader in parallel, writes
+feedback and grades. Then every recorded grade is compared with what it must be."""
+import csv
+import json
+from pathlib import Path
+
+import pytest
+
+from cvkit.cli import main
+from cvkit.course import SAMPLE_STUDENTS, Course, predict_scores, typical_mistakes
+
+pytestmark = pytest.mark.slow
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("course") / "demo"
+    status = main(["demo", "--dir", str(folder), "--workers", "2"])
+    course = Course(folder)
+    return status, course
+
+
+def test_demo_succeeds(demo, capsys):
+    status, course = demo
+    assert status == 0
+    assert course.audit(course.submissions()) == []
+    assert sorted(s for s, _ in course.submissions()) == sorted(SAMPLE_STUDENTS * len(course.assignments()))
+
+
+def test_release_has_stubs_and_no_solutions_or_hidden_tests(demo):
+    _, course = demo
+    for assignment in course.assignments():
+        notebooks = course.release_notebooks(assignment)
+        assert notebooks
+        for path in notebooks:
+            text = path.read_text()
+            assert "BEGIN SOLUTION" not in text and "BEGIN HIDDEN TESTS" not in text
+            assert "raise NotImplementedError()" in text
+
+
+def _cell_grades(course, assignment, student):
+    from nbgrader.api import Gradebook
+
+    with Gradebook(course.db_url) as gb:
+        submission = gb.find_submission(assignment, student)
+        return {g.name: (g.score, g.max_score) for nb in submission.notebooks for g in nb.grades}
+
+
+def test_complete_sample_gets_full_marks(demo):
+    _, course = demo
+    for assignment in course.assignments():
+        grades = _cell_grades(course, assignment, "sample_complete")
+        assert grades
+        for name, (score, top) in grades.items():
+            assert score == pytest.approx(top), name
+
+
+def test_blank_release_scores_zero_everywhere(demo):
+    _, course = demo
+    for assignment in course.assignments():
+        grades = _cell_grades(course, assignment, "sample_blank")
+        assert grades and all(score == 0 for score, _ in grades.values()), grades
+
+
+def test_mistakes_sample_scores_exactly_as_the_engine_predicts(demo):
+    _, course = demo
+    for assignment in course.assignments():
+        path = next((course.root / "submitted" / "sample_mistakes" / assignment).glob("*.ipynb"))
+        predicted = predict_scores(json.loads(path.read_text()), "sample_mistakes", course.salt())
+        grades = _cell_grades(course, assignment, "sample_mistakes")
+        assert set(predicted) == set(grades)
+        for name, (score, top) in grades.items():
+            assert score == pytest.approx(predicted[name], abs=1e-6), name
+        # every exercise replaced by a typical mistake loses its visible test
+        for grade_id in typical_mistakes(ROOT / "autograders" / "samples" / assignment):
+            name = grade_id.replace("_answer", "_visible")
+            assert grades[name][0] == 0, f"{name} should fail with the typical mistake"
+        total = sum(s for s, _ in grades.values())
+        assert 0 < total < sum(t for _, t in grades.values())
+
+
+def test_table_names_the_mistakes(demo):
+    _, course = demo
+    for assignment in course.assignments():
+        scores = course.scores(assignment)
+        found = {m for e in scores["sample_mistakes"] for m in e.mistakes}
+        assert found, "the typical mistakes should be recognised by name"
+        assert not any(e.mistakes for e in scores["sample_complete"])
+
+
+def test_feedback_and_csv_export(demo):
+    _, course = demo
+    for assignment in course.assignments():
+        for student in SAMPLE_STUDENTS:
+            assert list((course.root / "feedback" / student / assignment).glob("*.html")), student
+    rows = list(csv.DictReader((course.root / "exports" / "grades.csv").open()))
+    assert {r["student_id"] for r in rows} == set(SAMPLE_STUDENTS)
+
+
+def test_cli_table_and_regrade_is_reproducible(demo, capsys):
+    _, course = demo
+    assignment = course.assignments()[0]
+    before = _cell_grades(course, assignment, "sample_mistakes")
+    result = course.autograde_one("sample_mistakes", assignment)
+    assert result.ok, result.log
+    assert _cell_grades(course, assignment, "sample_mistakes") == before
+    assert main(["course", "table", "--course-dir", str(course.root)]) == 0
+    out = capsys.readouterr().out
+    assert "sample_mistakes" in out and "total" in out
