@@ -316,8 +316,25 @@ class Course:
                             text = item.split(":", 1)[1]
                             if text not in bucket:
                                 bucket.append(text)
-                table[student] = list(exercises.values())
-        return table
+                order = self._grade_order(assignment)
+                table[student] = sorted(
+                    exercises.values(), key=lambda e: order.get(e.name, len(order))
+                )
+        return dict(sorted(table.items(), key=lambda item: _student_order(item[0])))
+
+    def _grade_order(self, assignment: str) -> dict[str, int]:
+        """Exercise name → position of its first graded cell in the released notebooks."""
+        order: dict[str, int] = {}
+        for path in self.release_notebooks(assignment):
+            for cell in json.loads(path.read_text()).get("cells", []):
+                grade_id = cell.get("metadata", {}).get("nbgrader", {}).get("grade_id")
+                if grade_id:
+                    order.setdefault(re.sub(r"_(answer|visible|hidden|test)$", "", grade_id), len(order))
+        return order
+
+
+def _student_order(student: str) -> tuple:
+    return (SAMPLE_STUDENTS.index(student), student) if student in SAMPLE_STUDENTS else (len(SAMPLE_STUDENTS), student)
 
 
 def _autograde_job(root: str, db_url: str, student: str, assignment: str) -> JobResult:
@@ -342,7 +359,7 @@ def _reported_mistakes(folder: Path) -> dict[str, list[str]]:
                 failures = [c for c in report.get("cases", []) if not c.get("passed")]
                 if failures and not report.get("mistake"):
                     first = (failures[0].get("message") or "").splitlines()
-                    items.append(f"problem:{first[0][:70] if first else 'failed'}")
+                    items.append(f"problem:{first[0][:90] if first else 'failed'}")
     return found
 
 
@@ -418,11 +435,16 @@ def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str]
     lines.append("total".ljust(width) + "".join(totals))
     notes = []
     for s in students:
+        missing = [e.name for e in scores[s] if any(p.startswith("not implemented") for p in e.problems)]
         for e in scores[s]:
             for m in e.mistakes:
                 notes.append(f"  {s} · {e.name}: mistake “{m}”")
             for p in e.problems:
-                notes.append(f"  {s} · {e.name}: {p}")
+                if not p.startswith("not implemented"):
+                    notes.append(f"  {s} · {e.name}: {p}")
+        if missing:
+            shown = ", ".join(missing) if len(missing) <= 4 else f"{len(missing)} exercises"
+            notes.append(f"  {s} · not attempted: {shown}")
     if notes:
         lines.append("\nWhat the checks found:")
         lines += notes

@@ -110,13 +110,15 @@ class _CallWatcher:
         return False
 
     def _record(self, what: str) -> None:
+        # public spelling: scipy.ndimage._filters.uniform_filter -> scipy.ndimage.uniform_filter
+        what = ".".join(part for part in what.split(".") if not part.startswith("_") or part.startswith("__"))
         if what not in self.calls:
             self.calls.append(what)
 
     def __call__(self, frame, event, arg):
         if event == "call":
             code = frame.f_code
-            if code is self.exempt:
+            if code is self.exempt or code.co_name == "<module>":  # importing is not calling
                 return
             algorithm_id = self.reference_codes.get(code)
             if algorithm_id is not None:
