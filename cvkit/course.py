@@ -455,14 +455,21 @@ def _cell_source(cell: dict) -> str:
     return cell["source"] if isinstance(cell["source"], str) else "".join(cell["source"])
 
 
-def predict_scores(notebook: dict, student: str, salt: str) -> dict[str, float]:
+def predict_scores(notebook: dict, student: str, salt: str, source: dict | None = None) -> dict[str, float]:
     """What nbgrader should record for each test cell of a (trusted) notebook.
 
     Runs the setup cell and the answer cells in this process, then grades every
-    ``check(...)`` call of the test cells with the seeds the kernel would use. Used by the
-    tests and the demo to confirm that the course pipeline records exactly the engine's
-    verdicts. Never use it on untrusted submissions: it executes their code here.
+    ``check(...)`` call of the test cells with the seeds the kernel would use. As nbgrader's
+    autograde does, test cells are taken from the ``source`` notebook when given (the
+    submitted copy has its hidden tests stripped). Used by the tests to confirm that the
+    course pipeline records exactly the engine's verdicts. Never use it on untrusted
+    submissions: it executes their code here.
     """
+    originals = {}
+    for cell in (source or {}).get("cells", []):
+        meta = cell.get("metadata", {}).get("nbgrader", {})
+        if meta.get("grade") and not meta.get("solution"):
+            originals[meta.get("grade_id")] = _cell_source(cell)
     import ast
 
     from .grading import evaluate, hidden_seed
@@ -481,7 +488,7 @@ def predict_scores(notebook: dict, student: str, salt: str) -> dict[str, float]:
             except Exception:
                 pass  # a broken answer cell: its tests will fail in the kernel too
         elif meta.get("grade"):
-            tests.append((meta["grade_id"], float(meta.get("points", 0)), source))
+            tests.append((meta["grade_id"], float(meta.get("points", 0)), originals.get(meta["grade_id"], source)))
     scores = {}
     for grade_id, points, source in tests:
         calls = [n for n in ast.walk(ast.parse(source)) if isinstance(n, ast.Call)

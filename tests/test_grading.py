@@ -299,3 +299,14 @@ def test_expected_output_is_not_reachable_from_the_candidate():
         return np.zeros_like(image)
 
     assert not evaluate("testing.shift_right", peeking).passed
+
+
+def test_numpy_functions_reexported_by_forbidden_modules_are_fine():
+    import scipy.signal  # noqa: F401  (re-exports numpy builtins such as arange)
+
+    def uses_numpy_builtins(image, steps=1):
+        np.arange(3)
+        np.concatenate([np.zeros(1), np.ones(1)])
+        return _shift(image, steps)
+
+    assert evaluate("testing.shift_right", uses_numpy_builtins).passed

@@ -71,8 +71,13 @@ def _forbidden_builtins(libraries: tuple) -> dict:
         except TypeError:
             continue
         for attr, value in items:
-            if isinstance(value, types.BuiltinFunctionType):
-                table.setdefault(id(value), f"{name}.{attr}")
+            if not isinstance(value, types.BuiltinFunctionType):
+                continue
+            owner = getattr(value, "__module__", None) or ""
+            # re-exports such as scipy.signal.arange (= numpy.arange) are not the library's own
+            if owner and not owner.startswith(libraries):
+                continue
+            table.setdefault(id(value), f"{name}.{attr}")
     _builtin_cache.clear()
     _builtin_cache[key] = table
     return table
