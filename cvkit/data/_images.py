@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validation import as_image, as_rng, check_int, check_real
+from .._validation import as_image, as_rng, check_int, check_real
 
 __all__ = [
     "camera", "astronaut", "coins", "moon", "text", "brick", "coffee", "chelsea", "image",
