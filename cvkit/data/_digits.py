@@ -22,13 +22,13 @@ def digits(flatten: bool = True):
     (X_train, y_train), (X_test, y_test)
         ``X`` float64 in [0, 1] (the original 0..16 grey levels divided by 16), ``y`` int64
         labels 0..9. The split is the same on every machine: 30 % of each class for testing
-        (1257 training and 540 test images), drawn once with a fixed seed.
+        (1258 training and 539 test images), drawn once with a fixed seed.
 
     Examples
     --------
     >>> (X_train, y_train), (X_test, y_test) = digits()
     >>> X_train.shape, X_test.shape, int(y_train.max())
-    ((1257, 64), (540, 64), 9)
+    ((1258, 64), (539, 64), 9)
     """
     try:
         from sklearn.datasets import load_digits
