@@ -358,9 +358,18 @@ def _reported_mistakes(folder: Path) -> dict[str, list[str]]:
                     items.append(f"mistake:{report['mistake']}")
                 failures = [c for c in report.get("cases", []) if not c.get("passed")]
                 if failures and not report.get("mistake"):
-                    first = (failures[0].get("message") or "").splitlines()
-                    items.append(f"problem:{first[0][:90] if first else 'failed'}")
+                    first = (failures[0].get("message") or "failed").splitlines()[0]
+                    items.append(f"problem:{_headline(first)}")
     return found
+
+
+def _headline(message: str, width: int = 90) -> str:
+    """The first clause of a failure message ("calls X, which would..." → "calls X")."""
+    for stop in (", which", ": "):
+        if stop in message and not (stop == ": " and message.startswith("raised ")):
+            message = message.split(stop, 1)[0]
+            break
+    return message if len(message) <= width else message[: width - 1].rsplit(" ", 1)[0] + "…"
 
 
 def solution_sources(notebook: dict) -> dict[str, str]:
