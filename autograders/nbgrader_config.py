@@ -35,3 +35,27 @@ c.ClearSolutions.text_stub = "YOUR ANSWER HERE"
 c.Execute.timeout = int(os.environ.get("CVKIT_CELL_TIMEOUT", "180"))
 c.Execute.interrupt_on_timeout = True
 c.Autograde.create_student = True
+
+# Trusted grading (cvkit.grading.nbgrader_plugins): after the student's notebook has run, every
+# check() of the test cells is decided again outside the student's kernel, in an isolated
+# worker, and compared with the reference here; that verdict is what nbgrader records.
+# The grading salt is read once and removed from the environment, so the student's kernel
+# (started later by nbgrader) never sees it; the kernel only knows that checks are decided
+# elsewhere (CVKIT_TRUSTED_GRADING=1) and skips its own evaluation.
+from nbconvert.preprocessors import ClearMetadataPreprocessor, CSSHTMLHeaderPreprocessor  # noqa: E402
+from nbgrader.preprocessors import (  # noqa: E402
+    AssignLatePenalties, CheckCellMetadata, Execute, GetGrades, IgnorePattern, LimitOutput, SaveAutoGrades,
+)
+
+from cvkit.grading.nbgrader_plugins import HideHiddenTests, TrustedChecks  # noqa: E402
+
+_salt_file = ROOT / ".grading_salt"  # made by `cvkit course grade`; kept for regrading
+c.TrustedChecks.salt = os.environ.pop("CVKIT_GRADING_SALT", "") or (
+    _salt_file.read_text().strip() if _salt_file.exists() else "")
+c.TrustedChecks.source_directory = c.CourseDirectory.source_directory
+os.environ["CVKIT_TRUSTED_GRADING"] = "1"
+c.Autograde.autograde_preprocessors = [
+    Execute, IgnorePattern, ClearMetadataPreprocessor, TrustedChecks, LimitOutput, SaveAutoGrades,
+    AssignLatePenalties, CheckCellMetadata,
+]
+c.GenerateFeedback.preprocessors = [GetGrades, HideHiddenTests, CSSHTMLHeaderPreprocessor]

@@ -483,6 +483,22 @@ def predict_scores(notebook: dict, student: str, salt: str, source: dict | None 
 
     from .grading import evaluate, hidden_seed
 
+    from . import registry
+
+    student_provider = registry.provider("student")
+    saved = (dict(student_provider.functions), dict(student_provider.sources))
+    try:
+        return _predict(notebook, student, salt, originals, evaluate, hidden_seed)
+    finally:  # the answer cells' @student decorators must not leak into this process
+        student_provider.functions.clear()
+        student_provider.functions.update(saved[0])
+        student_provider.sources.clear()
+        student_provider.sources.update(saved[1])
+
+
+def _predict(notebook, student, salt, originals, evaluate, hidden_seed) -> dict[str, float]:
+    import ast
+
     namespace: dict = {"__name__": "__cvkit_prediction__"}
     tests = []
     for cell in notebook.get("cells", []):

@@ -16,7 +16,7 @@ import numpy as np
 
 from .. import registry
 from .checks import Check, Mistake
-from .guard import run_guarded
+from .guard import Outcome, run_guarded
 from .report import MIME_TYPE, CaseResult, Report
 
 SALT_VARIABLE = "CVKIT_GRADING_SALT"
@@ -68,6 +68,7 @@ def evaluate(
     hidden: bool = False,
     seed: int | None = None,
     check: Check | None = None,
+    runner: Callable | None = None,
 ) -> Report:
     """Grade ``candidate`` on the public (or hidden) cases of ``algorithm_id``.
 
@@ -83,6 +84,10 @@ def evaluate(
         Seed of the hidden cases; default :func:`hidden_seed` of the algorithm.
     check : Check, optional
         Use this check instead of the registered one.
+    runner : callable, optional
+        ``runner(index, case, attempt) -> Outcome`` producing the candidate's outcome for a
+        case (attempt 1 is the seeded re-run) — e.g. outcomes computed in an isolated worker
+        (:mod:`cvkit.grading.trusted`). Default: call ``candidate`` here, under the guard.
 
     Returns
     -------
@@ -107,15 +112,22 @@ def evaluate(
 
     names = _arg_names(record.reference, spec)
     mistake_votes: dict[str, int] = {}
+    if runner is None:
+        def runner(index, case, attempt):
+            return run_guarded(
+                candidate, case.args, case.kwargs,
+                arg_names=names,
+                time_limit=spec.time_limit,
+                forbidden_libraries=spec.forbidden_libraries if attempt == 0 else (),
+                forbidden_functions=spec.forbidden if attempt == 0 else (),
+                allowed_ids=tuple(spec.allowed),
+                watch_reference=attempt == 0,
+            )
+
     for index, case in enumerate(cases):
-        outcome = run_guarded(
-            candidate, case.args, case.kwargs,
-            arg_names=names,
-            time_limit=spec.time_limit,
-            forbidden_libraries=spec.forbidden_libraries,
-            forbidden_functions=spec.forbidden,
-            allowed_ids=tuple(spec.allowed),
-        )
+        outcome = runner(index, case, 0)
+        if outcome is None:  # e.g. the isolated worker died before this case
+            outcome = Outcome(error="no result: the grading worker stopped before this case (exit, crash or memory)")
         # computed only after the candidate ran: it cannot be read from the grader's frames
         expected = _reference_output(record.reference, case)
         result = CaseResult(
@@ -148,9 +160,8 @@ def evaluate(
             with np.errstate(all="ignore"):
                 mismatch = spec.compare(outcome.value, expected, case)
             if mismatch is None and spec.seeded:
-                again = run_guarded(candidate, case.args, case.kwargs, arg_names=names,
-                                    time_limit=spec.time_limit, watch_reference=False)
-                if again.error is not None or spec.compare(again.value, outcome.value, case) is not None \
+                again = runner(index, case, 1)
+                if again is None or again.error is not None or spec.compare(again.value, outcome.value, case) is not None \
                         or not _identical(again.value, outcome.value):
                     result.message = (
                         "two calls with the same rng seed gave different results: draw every random "
@@ -223,6 +234,10 @@ def check(algorithm_id: str, candidate: Callable, hidden: bool = False, points: 
     >>> check("filters.mean_kernel", cvkit.filters.mean_kernel)  # doctest: +ELLIPSIS
     filters.mean_kernel (§3.8), visible tests: ... passed — passed
     """
+    if os.environ.get("CVKIT_TRUSTED_GRADING") == "1":
+        # autograding: the verdict is computed outside this kernel and replaces this output
+        print(f"{algorithm_id}: checked by the trusted grader outside the notebook")
+        return 0.0 if hidden else None
     report = evaluate(algorithm_id, candidate, hidden=hidden, seed=seed)
     _show(report)
     if hidden:

@@ -86,6 +86,15 @@ def _forbidden_builtins(libraries: tuple) -> dict:
 class _CallWatcher:
     """A ``sys.setprofile`` hook recording the outermost calls into forbidden code."""
 
+    #: C functions that let code switch off or reach around the watch; flagged when the
+    #: candidate's own code calls them (libraries such as ``warnings`` may use them freely)
+    TAMPERING = {
+        id(sys.setprofile): "sys.setprofile (switching off the grader's watch)",
+        id(sys.getprofile): "sys.getprofile (reaching into the grader's watch)",
+        id(sys.settrace): "sys.settrace",
+        id(sys._getframe): "sys._getframe (reading the grader's frames)",
+    }
+
     def __init__(self, libraries: tuple, functions: tuple, reference_codes: dict, allowed_ids: tuple):
         self.libraries = tuple(libraries)
         self.functions = tuple(tuple(f.rsplit(".", 1)) for f in functions)
@@ -94,6 +103,8 @@ class _CallWatcher:
         self.calls: list[str] = []
         self.stop_code = None
         self.exempt = None  # the candidate's own code (grading the reference itself is fine)
+        self.own_module = None  # module name of the candidate's code (``__main__`` in notebooks)
+        self.enabled = True
         self.builtins = _forbidden_builtins(self.libraries) if self.libraries else {}
 
     def _module_of(self, frame) -> str:
@@ -121,6 +132,8 @@ class _CallWatcher:
             self.calls.append(what)
 
     def __call__(self, frame, event, arg):
+        if not self.enabled:
+            return
         if event == "call":
             code = frame.f_code
             if code is self.exempt or code.co_name == "<module>":  # importing is not calling
@@ -139,6 +152,11 @@ class _CallWatcher:
                 if code.co_name == name and module.startswith(prefix) and not self._nested(frame):
                     self._record(f"{prefix}.{name}")
         elif event == "c_call":
+            tampering = self.TAMPERING.get(id(arg))
+            if tampering is not None:
+                if self._module_of(frame) == self.own_module:
+                    self._record(tampering)
+                return
             known = self.builtins.get(id(arg))
             if known is not None:
                 if not self._nested(frame):
@@ -219,16 +237,19 @@ def run_guarded(
     forbidden_functions: tuple = (),
     allowed_ids: tuple = (),
     watch_reference: bool = True,
+    reference_codes: dict | None = None,
 ) -> Outcome:
     """Call ``function(*args, **kwargs)`` on copies of the inputs under the guard."""
     outcome = Outcome()
     call_args = _copy_inputs(args)
     call_kwargs = _copy_inputs(kwargs)
     watcher = None
-    if forbidden_libraries or forbidden_functions or watch_reference:
-        codes = registry.reference_functions() if watch_reference else {}
-        watcher = _CallWatcher(forbidden_libraries, forbidden_functions, codes, allowed_ids)
+    if forbidden_libraries or forbidden_functions or watch_reference or reference_codes:
+        if reference_codes is None:
+            reference_codes = registry.reference_functions() if watch_reference else {}
+        watcher = _CallWatcher(forbidden_libraries, forbidden_functions, reference_codes, allowed_ids)
         watcher.exempt = getattr(function, "__code__", None)
+        watcher.own_module = getattr(function, "__module__", None)
     out, err = io.StringIO(), io.StringIO()
     previous_profile = sys.getprofile()
     start = time.perf_counter()
@@ -242,8 +263,10 @@ def run_guarded(
                 try:
                     outcome.value = function(*call_args, **call_kwargs)
                 finally:
-                    if watcher is not None and sys.getprofile() is not watcher:
-                        watcher.calls.append("sys.setprofile (switching off the grader's watch on library calls)")
+                    if watcher is not None:
+                        watcher.enabled = False
+                        if sys.getprofile() is not watcher:
+                            watcher._record("sys.setprofile (switching off the grader's watch)")
                     sys.setprofile(previous_profile)
         except CandidateTimeout:
             outcome.timed_out = True

@@ -1,0 +1,95 @@
+"""cvkit's plugins for nbgrader (configured in ``autograders/nbgrader_config.py``).
+
+- :class:`TrustedChecks` — an autograde preprocessor placed after execution: it decides every
+  ``check(...)`` of the test cells outside the student's kernel (:mod:`cvkit.grading.trusted`)
+  and replaces those cells' outputs by the trusted report and partial credit, which is what
+  nbgrader then records. Flags from the static scan go into the notebook's metadata
+  (``metadata.cvkit.flags``) for the grade export.
+- :class:`HideHiddenTests` — a feedback preprocessor: students see the results of the hidden
+  tests, never their source.
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+from nbformat.v4 import new_output
+from nbgrader.preprocessors import NbGraderPreprocessor
+from traitlets import Bool, Int, Unicode
+
+from .report import MIME_TYPE
+from .trusted import grade_notebook, hide_hidden_tests
+
+TRUSTED_VARIABLE = "CVKIT_TRUSTED_GRADING"
+
+
+def _bundle(report) -> dict:
+    bundle = {"text/plain": report.text(), MIME_TYPE: json.loads(json.dumps(report.to_dict(), default=str))}
+    try:
+        bundle["text/html"] = report._repr_html_()
+    except Exception:  # a report that cannot draw its images still says what is wrong
+        pass
+    return bundle
+
+
+class TrustedChecks(NbGraderPreprocessor):
+    """Replace the outputs of test cells by verdicts computed outside the student's kernel."""
+
+    enabled = Bool(True).tag(config=True)
+    salt = Unicode("", help="grading salt of the hidden cases (keep it for regrading)").tag(config=True)
+    source_directory = Unicode("", help="folder of the instructor's source notebooks").tag(config=True)
+    memory_mb = Int(3072, help="address-space limit of the isolated worker, in MiB").tag(config=True)
+
+    def preprocess(self, nb, resources):
+        info = resources.get("nbgrader", {})
+        student = info.get("student", "student")
+        source_nb = None
+        if self.source_directory and info.get("assignment") and info.get("notebook"):
+            path = Path(self.source_directory) / info["assignment"] / f"{info['notebook']}.ipynb"
+            if path.exists():
+                source_nb = json.loads(path.read_text())
+        grade = grade_notebook(nb, student=student, salt=self.salt or "practice", source_notebook=source_nb,
+                               memory_mb=self.memory_mb)
+        for cell in nb.cells:
+            meta = cell.metadata.get("nbgrader", {})
+            grade_id = meta.get("grade_id")
+            if not (meta.get("grade") and not meta.get("solution")) or grade_id not in grade.reports:
+                continue
+            outputs = [new_output("display_data", data=_bundle(report)) for _, report in grade.reports[grade_id]]
+            credit, reasons = grade.credit(grade_id, float(meta.get("points", 0)))
+            hidden = any(call.hidden for call, _ in grade.reports[grade_id])
+            if hidden:
+                outputs.append(new_output("execute_result", data={"text/plain": repr(credit)},
+                                          execution_count=cell.get("execution_count")))
+            elif credit <= 0:
+                message = "; ".join(reasons) or "failed"
+                outputs.append(new_output("error", ename="AssertionError", evalue=message,
+                                          traceback=[f"AssertionError: {message}"]))
+            cell.outputs = outputs
+        cvkit_meta = dict(nb.metadata.get("cvkit", {}))
+        cvkit_meta.update(trusted=True, flags=grade.flags, worker_problem=grade.worker_problem,
+                          cell_errors=grade.cell_errors[:20])
+        nb.metadata["cvkit"] = cvkit_meta
+        for flag in grade.flags:
+            self.log.warning("cvkit flag for %s: %s", student, flag)
+        return nb, resources
+
+    def preprocess_cell(self, cell, resources, index):  # pragma: no cover - whole-notebook preprocessor
+        return cell, resources
+
+
+class HideHiddenTests(NbGraderPreprocessor):
+    """In feedback, show the hidden tests' results but not their source."""
+
+    enabled = Bool(True).tag(config=True)
+
+    def preprocess_cell(self, cell, resources, index):
+        if cell.cell_type == "code" and "### BEGIN HIDDEN TESTS" in cell.source:
+            cell.source = hide_hidden_tests(cell.source)
+        return cell, resources
+
+
+def trusted_grading_active() -> bool:
+    """True inside a kernel run by the trusted autograder (checks are decided outside)."""
+    return os.environ.get(TRUSTED_VARIABLE) == "1"

@@ -1,0 +1,286 @@
+"""Trusted grading of a notebook: decide every check outside the student's kernel.
+
+:func:`grade_notebook` takes an executed (or not) student notebook, finds the ``check(...)``
+calls of its test cells (taken from the instructor's source notebook when given, as nbgrader's
+autograde does), runs the student's code once in an isolated worker
+(:mod:`cvkit.grading.sandbox`) on all the cases, and builds the reports here, comparing with
+the reference in this trusted process. :func:`scan` flags code that tries to tamper with the
+grader, for the instructor to look at.
+"""
+from __future__ import annotations
+
+import ast
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import registry
+from .checks import FORBIDDEN_LIBRARIES
+from .engine import _arg_names, evaluate, hidden_seed
+from .report import Report
+from .sandbox import run_calls
+
+
+@dataclass
+class CheckCall:
+    """One ``check("<id>", <function>, hidden=..., points=...)`` in a test cell."""
+
+    grade_id: str
+    algorithm_id: str
+    function: str
+    hidden: bool
+    points: float | None
+
+
+@dataclass
+class NotebookGrade:
+    """Trusted reports per test cell, plus the flags raised by the static scan."""
+
+    reports: dict = field(default_factory=dict)       # grade_id -> list[(CheckCall, Report)]
+    flags: list = field(default_factory=list)
+    worker_problem: str | None = None
+    cell_errors: list = field(default_factory=list)
+
+    def credit(self, grade_id: str, points: float) -> tuple[float, list[str]]:
+        """Points of a test cell and the reasons it lost points."""
+        total, reasons = points, []
+        for call, report in self.reports.get(grade_id, []):
+            if call.hidden:
+                value = report.score * float(call.points if call.points is not None else points)
+                total = min(total, value)
+            elif not report.passed:
+                total = 0.0
+                reasons.append(report.summary().splitlines()[0])
+        return round(float(total), 6), reasons
+
+
+def _source(cell) -> str:
+    source = cell["source"] if isinstance(cell, dict) else cell.source
+    return source if isinstance(source, str) else "".join(source)
+
+
+def _meta(cell) -> dict:
+    metadata = cell.get("metadata", {}) if isinstance(cell, dict) else cell.metadata
+    return dict(metadata.get("nbgrader", {}) or {})
+
+
+def check_calls(source: str, grade_id: str) -> list[CheckCall]:
+    """The ``check(...)`` calls of a test cell's source."""
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
+        return []
+    calls = []
+    for node in ast.walk(tree):
+        if not (isinstance(node, ast.Call) and getattr(node.func, "id", getattr(node.func, "attr", None)) == "check"):
+            continue
+        if len(node.args) < 2 or not isinstance(node.args[1], ast.Name):
+            continue
+        try:
+            algorithm_id = ast.literal_eval(node.args[0])
+            keywords = {k.arg: ast.literal_eval(k.value) for k in node.keywords if k.arg in ("hidden", "points")}
+        except ValueError:
+            continue
+        calls.append(CheckCall(grade_id, str(algorithm_id), node.args[1].id,
+                               bool(keywords.get("hidden", False)), keywords.get("points")))
+    return calls
+
+
+def worker_cells(notebook, source_notebook=None) -> list[str]:
+    """The code the worker executes: the setup cell, every answer cell and every code cell
+    the student added or changed — never the test cells, nor the instructor's demo cells."""
+    original = set()
+    if source_notebook is not None:
+        for cell in source_notebook["cells"] if isinstance(source_notebook, dict) else source_notebook.cells:
+            if (cell["cell_type"] if isinstance(cell, dict) else cell.cell_type) == "code" and not _meta(cell).get("solution"):
+                original.add(_source(cell).strip())
+    cells = []
+    for cell in notebook["cells"] if isinstance(notebook, dict) else notebook.cells:
+        if (cell["cell_type"] if isinstance(cell, dict) else cell.cell_type) != "code":
+            continue
+        meta = _meta(cell)
+        source = _source(cell)
+        if meta.get("grade") and not meta.get("solution"):
+            continue  # test cells run only in the trusted process
+        if meta.get("grade_id") == "setup" or meta.get("solution") or source.strip() not in original:
+            if source_notebook is None and not (meta.get("grade_id") == "setup" or meta.get("solution")):
+                continue  # without the source we cannot tell demos from student cells: answers only
+            cells.append(source)
+    return cells
+
+
+# ---------------------------------------------------------------------------- static scan
+_SUSPICIOUS_CALLS = {
+    "sys.setprofile": "switches the grader's profiler", "sys.settrace": "installs a tracer",
+    "sys.getprofile": "reads the grader's profiler", "sys._getframe": "reads interpreter frames",
+    "sys.exit": "exits the interpreter", "os._exit": "kills the interpreter", "exit": "exits the interpreter",
+    "quit": "exits the interpreter", "os.remove": "deletes files", "os.unlink": "deletes files",
+    "os.rmdir": "deletes folders", "shutil.rmtree": "deletes folders", "os.system": "runs shell commands",
+    "os.kill": "sends signals", "os.chmod": "changes permissions", "os.rename": "moves files",
+    "open": "opens files", "exec": "executes generated code", "eval": "evaluates generated code",
+    "compile": "compiles generated code", "__import__": "imports dynamically",
+    "importlib.import_module": "imports dynamically", "gc.get_objects": "walks the interpreter's objects",
+    "gc.get_referrers": "walks the interpreter's objects", "setattr": "sets attributes dynamically",
+    "globals": "reads the global namespace",
+}
+_SUSPICIOUS_MODULES = ("ctypes", "subprocess", "importlib", "inspect", "gc", "signal", "multiprocessing",
+                       "threading", "socket", "shutil", "pickle", "builtins", "cvkit.grading", "cvkit.registry")
+_SUSPICIOUS_ATTRIBUTES = ("__globals__", "__code__", "__builtins__", "__subclasses__", "__closure__",
+                          "f_back", "f_locals", "f_globals", "tb_frame")
+_GRADER_NAMES = ("check", "evaluate", "student")
+
+
+def _dotted(node) -> str:
+    parts = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    if isinstance(node, ast.Name):
+        parts.append(node.id)
+    return ".".join(reversed(parts))
+
+
+def scan(source: str, where: str = "") -> list[str]:
+    """Flags for constructs that have no business in an answer cell (for the instructor)."""
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
+        return []
+    forbidden = tuple(FORBIDDEN_LIBRARIES) + ("cvkit.filters", "cvkit.noise", "cvkit.edges", "cvkit.features")
+    prefix = f"{where}: " if where else ""
+    flags = []
+
+    def add(text):
+        if prefix + text not in flags:
+            flags.append(prefix + text)
+
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            names = [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            names += [a.name if isinstance(node, ast.Import) else f"{node.module}.{a.name}" for a in node.names]
+            for name in names:
+                if name.startswith(_SUSPICIOUS_MODULES):
+                    add(f"imports {name}")
+                if name.startswith(forbidden):
+                    add(f"imports {name} (not allowed in exercises)")
+        elif isinstance(node, ast.Call):
+            name = _dotted(node.func)
+            if name in _SUSPICIOUS_CALLS:
+                add(f"calls {name} ({_SUSPICIOUS_CALLS[name]})")
+        elif isinstance(node, ast.Attribute) and node.attr in _SUSPICIOUS_ATTRIBUTES:
+            add(f"uses .{node.attr}")
+        elif isinstance(node, (ast.Assign, ast.AugAssign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            for target in targets:
+                if isinstance(target, ast.Attribute):
+                    owner = _dotted(target.value)
+                    if owner.split(".")[0] in ("np", "numpy", "cvkit", "sys", "os", "builtins", "math"):
+                        add(f"monkeypatches {owner}.{target.attr}")
+                if isinstance(target, ast.Name) and target.id in _GRADER_NAMES:
+                    add(f"rebinds the grader's name {target.id!r}")
+        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) and node.name in _GRADER_NAMES:
+            add(f"redefines the grader's {node.name}()")
+        elif isinstance(node, ast.Global) and any(n in _GRADER_NAMES for n in node.names):
+            add("rebinds a grader name through `global`")
+    return flags
+
+
+# ---------------------------------------------------------------------------- grading
+def _reference_target(algorithm_id: str) -> str:
+    function = registry.get(algorithm_id).reference
+    return f"{function.__module__}:{function.__qualname__}"
+
+
+def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
+                   memory_mb: int = 3072) -> NotebookGrade:
+    """Decide every check of ``notebook`` in an isolated worker; see the module docstring."""
+    tests_from = source_notebook if source_notebook is not None else notebook
+    cells_of = lambda nb: nb["cells"] if isinstance(nb, dict) else nb.cells  # noqa: E731
+    calls: list[CheckCall] = []
+    for cell in cells_of(tests_from):
+        meta = _meta(cell)
+        if meta.get("grade") and not meta.get("solution"):
+            calls += check_calls(_source(cell), meta.get("grade_id", ""))
+    result = NotebookGrade()
+    for cell in cells_of(notebook):
+        meta = _meta(cell)
+        if (cell["cell_type"] if isinstance(cell, dict) else cell.cell_type) == "code" and not (meta.get("grade") and not meta.get("solution")):
+            result.flags += scan(_source(cell), meta.get("grade_id") or "added cell")
+    if not calls:
+        return result
+
+    plans = []          # per check call: (spec, cases, seed, first request index per (case, attempt))
+    requests = []
+    allowed: dict[str, str] = {}
+    allowed_libraries: set = set()
+    for call in calls:
+        record = registry.get(call.algorithm_id)
+        spec = record.check
+        seed = hidden_seed(call.algorithm_id, student=student, salt=salt) if call.hidden else None
+        cases = spec.hidden_cases(np.random.default_rng(seed)) if call.hidden else spec.public_cases()
+        positions = {}
+        names = list(_arg_names(record.reference, spec))
+        for index, case in enumerate(cases):
+            for attempt in ((0, 1) if spec.seeded else (0,)):
+                positions[(index, attempt)] = len(requests)
+                requests.append({
+                    "function": call.function, "args": case.args, "kwargs": case.kwargs,
+                    "time_limit": spec.time_limit, "allowed": list(spec.allowed), "arg_names": names,
+                    "forbidden_libraries": list(spec.forbidden_libraries) if attempt == 0 else [],
+                    "forbidden_functions": list(spec.forbidden) if attempt == 0 else [],
+                })
+        for algorithm_id in spec.allowed:
+            allowed[algorithm_id] = _reference_target(algorithm_id)
+        allowed_libraries.update(spec.allowed_libraries)
+        plans.append((call, spec, seed, positions))
+    blocked = tuple(p for p in FORBIDDEN_LIBRARIES if p not in allowed_libraries)
+    outcome = run_calls(worker_cells(notebook, source_notebook), requests, allowed=allowed,
+                        blocked=blocked, memory_mb=memory_mb)
+    result.worker_problem = outcome.crashed
+    result.cell_errors = outcome.cell_errors
+
+    def stand_in(*args, **kwargs):  # the candidate lives in the worker
+        raise RuntimeError("trusted grading evaluates outcomes computed by the worker")
+
+    for call, spec, seed, positions in plans:
+        runner = lambda index, case, attempt, positions=positions: (  # noqa: E731
+            outcome.outcomes[positions[(index, attempt)]] if (index, attempt) in positions else None)
+        report = evaluate(call.algorithm_id, stand_in, hidden=call.hidden, seed=seed, runner=runner)
+        if outcome.crashed and not report.passed:
+            for case in report.cases:
+                if not case.passed and case.message.startswith("no result"):
+                    case.message = f"no result: {outcome.crashed}"
+        result.reports.setdefault(call.grade_id, []).append((call, report))
+    _hard_coding_rule(result)
+    return result
+
+
+def _hard_coding_rule(result: NotebookGrade) -> None:
+    """A function that passes the public cases but not a single hidden case has most likely
+    memorised the public answers: its visible test gets no credit either, and it is flagged."""
+    hidden_scores = {}
+    for entries in result.reports.values():
+        for call, report in entries:
+            if call.hidden:
+                hidden_scores[call.algorithm_id] = report.score
+    for entries in result.reports.values():
+        for call, report in entries:
+            if not call.hidden and report.passed and hidden_scores.get(call.algorithm_id) == 0.0:
+                for case in report.cases:
+                    case.passed = False
+                    case.message = ("passes the shown cases but none of the hidden ones: the answers of the "
+                                    "shown cases look memorised")
+                result.flags.append(f"{call.grade_id}: passes only the public cases ({call.algorithm_id})")
+
+
+_HIDDEN_BLOCK = re.compile(r"### BEGIN HIDDEN TESTS.*?### END HIDDEN TESTS\n?", re.S)
+
+
+def hide_hidden_tests(source: str) -> str:
+    """Test-cell source as shown in feedback: the hidden block replaced by a note."""
+    return _HIDDEN_BLOCK.sub("# (hidden tests: their results are shown below)\n", source)
+
+
+__all__ = ["CheckCall", "NotebookGrade", "check_calls", "worker_cells", "scan", "grade_notebook",
+           "hide_hidden_tests", "Report"]
