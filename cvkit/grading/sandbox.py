@@ -45,6 +45,7 @@ class SandboxResult:
     cell_errors: list = field(default_factory=list)
     crashed: str | None = None
     output: str = ""
+    started: bool = True  # the worker got through the notebook's cells
 
 
 def _strip_magics(source: str) -> str:
@@ -90,19 +91,68 @@ def run_calls(
     blocked: tuple = (),
     memory_mb: int = 3072,
     extra_seconds: float = 60.0,
+    max_restarts: int = 8,
 ) -> SandboxResult:
     """Execute ``cells`` in a worker, then each call ``{"function", "args", "kwargs", ...}``.
 
     ``allowed`` maps algorithm ids to ``"module:function"`` reference building blocks that
     some call may use (exposed to the student's code as ``cvkit.<module>.<name>``); each call
     lists the subset it may really use in ``"allowed"``. ``blocked`` are module prefixes the
-    worker must refuse to import.
+    worker must refuse to import. If the student's code kills the worker (``os._exit``, a
+    crash, the memory limit), the call that did it fails with the reason and the remaining
+    calls run in a fresh worker, so one exercise cannot take the others down.
     """
+    encoded = [dict(call, args=wire.encode(tuple(call["args"])), kwargs=wire.encode(dict(call["kwargs"])))
+               for call in calls]
+    outcomes: list = [None] * len(calls)
+    cell_errors: list = []
+    output = ""
+    crashed = None
+    deaths: dict[str, int] = {}
+    pending = list(range(len(calls)))
+    for _ in range(max_restarts + 1):
+        part = _run_worker(cells, [encoded[i] for i in pending], allowed or {}, blocked, memory_mb, extra_seconds)
+        cell_errors = cell_errors or part.cell_errors
+        output = part.output
+        finished = 0
+        for item in part.outcomes:
+            if item is None:
+                break
+            outcomes[pending[finished]] = item
+            finished += 1
+        if part.crashed is None:
+            break
+        crashed = part.crashed
+        dead = pending[finished]  # the call that was running when the worker died
+        died = Outcome(error=f"no result: {part.crashed}", exception="WorkerDied")
+        outcomes[dead] = died
+        remaining = pending[finished + 1:]
+        if not part.started:  # the notebook's cells themselves kill the worker: no retry
+            for index in remaining:
+                outcomes[index] = died
+            break
+        function = calls[dead]["function"]
+        deaths[function] = deaths.get(function, 0) + 1
+        if deaths[function] >= 2:  # this function keeps killing the worker: stop calling it
+            for index in remaining:
+                if calls[index]["function"] == function:
+                    outcomes[index] = died
+            remaining = [i for i in remaining if calls[i]["function"] != function]
+        pending = remaining
+        if not pending:
+            break
+    for index, outcome in enumerate(outcomes):
+        if outcome is None:
+            outcomes[index] = Outcome(error=f"no result: {crashed} (too many restarts)", exception="WorkerDied")
+    return SandboxResult(outcomes, cell_errors, crashed, output)
+
+
+def _run_worker(cells, calls, allowed, blocked, memory_mb, extra_seconds) -> SandboxResult:
+    """One worker process over ``calls``; stops early if the student's code kills it."""
     request = {
         "cells": [_strip_magics(c) for c in cells],
-        "calls": [dict(call, args=wire.encode(tuple(call["args"])), kwargs=wire.encode(dict(call["kwargs"])))
-                  for call in calls],
-        "allowed": allowed or {},
+        "calls": calls,
+        "allowed": allowed,
         "blocked": list(blocked),
         "memory_mb": memory_mb,
         "cpu_seconds": int(sum(c.get("time_limit", 20.0) for c in calls) + extra_seconds),
@@ -137,23 +187,30 @@ def run_calls(
         os.close(read_fd)
         raw = chunks[0] if chunks else b""
     text_output = output[-20000:].decode("utf-8", "replace")
-    try:
-        answer = json.loads(raw.decode("utf-8")) if raw else None
-    except ValueError:
-        answer = None
-    if not isinstance(answer, dict):
-        reason = crashed or (
-            f"the grading worker ended without an answer (exit status {process.returncode}): your code "
-            "may have called exit(), crashed the interpreter or exhausted its memory"
+    outcomes: list = []
+    cell_errors: list = []
+    started = False
+    # the worker streams one JSON line per finished call, so a crash loses only the call running
+    for line in raw.decode("utf-8", "replace").splitlines():
+        try:
+            item = json.loads(line)
+        except ValueError:
+            break
+        if not isinstance(item, dict):
+            break
+        if "cell_errors" in item:
+            started = True
+            cell_errors = [str(e) for e in item["cell_errors"]][:50]
+        elif "outcome" in item and len(outcomes) < len(calls):
+            outcomes.append(_outcome_from(item["outcome"]) if isinstance(item["outcome"], dict) else None)
+    finished = len(outcomes) == len(calls)
+    if not finished and crashed is None:
+        crashed = (
+            f"the grading worker ended early (exit status {process.returncode}): the code called exit(), "
+            "crashed the interpreter or exhausted its memory"
         )
-        return SandboxResult([None] * len(calls), [], reason, text_output)
-    outcomes = []
-    for item in answer.get("outcomes", []):
-        outcomes.append(None if item is None else _outcome_from(item))
     outcomes += [None] * (len(calls) - len(outcomes))
-    if crashed is None and any(o is None for o in outcomes):
-        crashed = answer.get("crashed") or "the grading worker stopped before all cases ran"
-    return SandboxResult(outcomes[: len(calls)], list(answer.get("cell_errors", [])), crashed, text_output)
+    return SandboxResult(outcomes, cell_errors, None if finished else crashed, text_output, started)
 
 
 def _read_all(fd: int) -> bytes:
@@ -298,18 +355,32 @@ def _worker_main(result_fd: int) -> None:  # pragma: no cover - runs in the work
                 continue
             cell_errors.append(f"cell {index}: {type(exc).__name__}: {str(exc)[:200]}")
 
-    outcomes = []
+    def emit(item) -> None:
+        data = (json.dumps(item) + "\n").encode()
+        view = memoryview(data)
+        while view:
+            written = os.write(result_fd, view)
+            view = view[written:]
+
+    emit({"cell_errors": cell_errors})
+    timeouts: dict[str, int] = {}
     for call in request["calls"]:
+        group = call.get("group", call["function"])
+        if timeouts.get(group, 0) >= 2:
+            emit({"outcome": {"error": "skipped: two earlier cases of this exercise ran out of time; "
+                                       "vectorize with NumPy instead of looping over pixels",
+                              "exception": "Timeout", "timed_out": True}})
+            continue
         function = namespace.get(call["function"])
         if not callable(function):
-            outcomes.append({"error": f"no function called {call['function']!r} is defined (did its cell run?)",
-                             "exception": "NameError"})
+            emit({"outcome": {"error": f"no function called {call['function']!r} is defined (did its cell run?)",
+                              "exception": "NameError"}})
             continue
         try:
             args = wire.decode(call["args"])
             kwargs = wire.decode(call["kwargs"])
         except wire.WireError as exc:
-            outcomes.append({"error": f"grader error decoding the case: {exc}"})
+            emit({"outcome": {"error": f"grader error decoding the case: {exc}"}})
             continue
         outcome = _guard.run_guarded(
             function, args, kwargs,
@@ -331,12 +402,9 @@ def _worker_main(result_fd: int) -> None:  # pragma: no cover - runs in the work
                 item["value"] = wire.encode(outcome.value)
             except wire.WireError as exc:
                 item["error"] = f"returned something that cannot be graded: {exc}"
-        outcomes.append(item)
-    data = json.dumps({"outcomes": outcomes, "cell_errors": cell_errors}).encode()
-    view = memoryview(data)
-    while view:
-        written = os.write(result_fd, view)
-        view = view[written:]
+        if outcome.timed_out:
+            timeouts[group] = timeouts.get(group, 0) + 1
+        emit({"outcome": item})
     os.close(result_fd)
     sys.stdout.flush()
     os._exit(0)

@@ -225,7 +225,8 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
             for attempt in ((0, 1) if spec.seeded else (0,)):
                 positions[(index, attempt)] = len(requests)
                 requests.append({
-                    "function": call.function, "args": case.args, "kwargs": case.kwargs,
+                    "function": call.function, "group": f"{call.function}:{call.algorithm_id}",
+                    "args": case.args, "kwargs": case.kwargs,
                     "time_limit": spec.time_limit, "allowed": list(spec.allowed), "arg_names": names,
                     "forbidden_libraries": list(spec.forbidden_libraries) if attempt == 0 else [],
                     "forbidden_functions": list(spec.forbidden) if attempt == 0 else [],
@@ -247,10 +248,6 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
         runner = lambda index, case, attempt, positions=positions: (  # noqa: E731
             outcome.outcomes[positions[(index, attempt)]] if (index, attempt) in positions else None)
         report = evaluate(call.algorithm_id, stand_in, hidden=call.hidden, seed=seed, runner=runner)
-        if outcome.crashed and not report.passed:
-            for case in report.cases:
-                if not case.passed and case.message.startswith("no result"):
-                    case.message = f"no result: {outcome.crashed}"
         result.reports.setdefault(call.grade_id, []).append((call, report))
     _hard_coding_rule(result)
     return result

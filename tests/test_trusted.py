@@ -1,0 +1,275 @@
+"""Trusted grading: the attack suite at the notebook level.
+
+Every attack is a real student notebook graded by :func:`cvkit.grading.trusted.grade_notebook`
+(the function nbgrader's TrustedChecks preprocessor calls): the student's code runs in an
+isolated worker, outputs come back as data, the verdict is made here. Each attack must be
+graded exactly as it deserves — zero for the cheated exercise, full marks for the honest one
+next to it — and flagged where the static scan can see it.
+"""
+import dataclasses
+import json
+import os
+import textwrap
+
+import numpy as np
+import pytest
+
+from cvkit import registry
+from cvkit.grading import sandbox, wire
+from cvkit.grading.trusted import grade_notebook, hide_hidden_tests, scan
+
+SETUP = textwrap.dedent("""\
+    %matplotlib inline
+    import numpy as np
+    import cvkit
+    from cvkit import filters, noise
+    from cvkit.grading import check
+    from cvkit.registry import student
+    """)
+
+HONEST_KERNEL = textwrap.dedent("""\
+    @student("filters.mean_kernel")
+    def mean_kernel(size):
+        return np.full((size, size), 1.0 / (size * size))
+    """)
+
+HONEST_MEDIAN = textwrap.dedent("""\
+    @student("filters.median")
+    def median(image, size, border="reflect101"):
+        image = np.asarray(image, dtype=float)
+        modes = {"zero": "constant", "replicate": "edge", "reflect": "symmetric", "reflect101": "reflect"}
+        r = size // 2
+        width = ((r, r), (r, r)) + ((0, 0),) * (image.ndim - 2)
+        if border == "zero":
+            padded = np.pad(image, width, mode="constant")
+        else:
+            padded = np.pad(image, width, mode=modes[border])
+        windows = np.lib.stride_tricks.sliding_window_view(padded, (size, size), axis=(0, 1))
+        return np.median(windows, axis=(-2, -1))
+    """)
+
+
+def _code(source, grade_id=None, solution=False, grade=False, points=None):
+    meta = {}
+    if grade_id:
+        meta = {"nbgrader": {"grade_id": grade_id, "solution": solution, "grade": grade, "locked": not solution,
+                             "schema_version": 3}}
+        if points is not None:
+            meta["nbgrader"]["points"] = points
+    return {"cell_type": "code", "source": source, "metadata": meta, "outputs": [], "execution_count": None}
+
+
+def notebook(kernel_answer=HONEST_KERNEL, median_answer=HONEST_MEDIAN, extra_cells=()):
+    cells = [_code(SETUP, "setup")]
+    cells.append(_code(kernel_answer, "mean_kernel_answer", solution=True))
+    cells.append(_code('check("filters.mean_kernel", mean_kernel)', "mean_kernel_visible", grade=True, points=1))
+    cells.append(_code('### BEGIN HIDDEN TESTS\ncheck("filters.mean_kernel", mean_kernel, hidden=True, points=2)\n'
+                       '### END HIDDEN TESTS', "mean_kernel_hidden", grade=True, points=2))
+    cells += [_code(c) for c in extra_cells]
+    cells.append(_code(median_answer, "median_answer", solution=True))
+    cells.append(_code('check("filters.median", median)', "median_visible", grade=True, points=1))
+    cells.append(_code('### BEGIN HIDDEN TESTS\ncheck("filters.median", median, hidden=True, points=2)\n'
+                       '### END HIDDEN TESTS', "median_hidden", grade=True, points=2))
+    return {"cells": cells, "metadata": {}, "nbformat": 4, "nbformat_minor": 5}
+
+
+SOURCE = notebook()
+
+
+def grade(nb, student="mallory"):
+    result = grade_notebook(nb, student=student, salt="attack-suite", source_notebook=SOURCE)
+    scores = {gid: result.credit(gid, points)[0] for gid, points in
+              (("mean_kernel_visible", 1), ("mean_kernel_hidden", 2), ("median_visible", 1), ("median_hidden", 2))}
+    return scores, result
+
+
+def exercise(scores, name):
+    return scores[f"{name}_visible"] + scores[f"{name}_hidden"]
+
+
+@pytest.fixture
+def quick_median():
+    """The median check with a 1-second time limit (the loops below must not take minutes)."""
+    record = registry.get("filters.median")
+    original = record.check
+    record._check = dataclasses.replace(original, time_limit=1.0)
+    yield
+    record._check = original
+
+
+def test_honest_notebook_gets_full_marks():
+    scores, result = grade(notebook())
+    assert exercise(scores, "mean_kernel") == 3 and exercise(scores, "median") == 3
+    assert result.flags == [] and result.worker_problem is None
+
+
+def test_calling_the_reference_scores_zero():
+    cheat = HONEST_MEDIAN.replace("image = np.asarray(image, dtype=float)", "return filters.median(image, size, border)")
+    scores, result = grade(notebook(median_answer=cheat))
+    assert exercise(scores, "median") == 0 and exercise(scores, "mean_kernel") == 3
+    messages = [c.message for _, r in result.reports["median_visible"] for c in r.cases]
+    assert any("not available while your code is graded" in m for m in messages)
+
+
+@pytest.mark.parametrize("library", ["scipy.ndimage", "skimage.filters", "cv2", "sklearn.neighbors"])
+def test_forbidden_libraries_cannot_be_imported(library):
+    cheat = f"import {library}\n" + HONEST_MEDIAN
+    scores, result = grade(notebook(median_answer=cheat))
+    assert exercise(scores, "median") in (0, 3)  # the import fails at cell level ...
+    assert any(library.split(".")[0] in e for e in result.cell_errors)  # ... and is reported
+    assert any("not allowed in exercises" in f for f in result.flags)
+    inside = HONEST_MEDIAN.replace("image = np.asarray(image, dtype=float)",
+                                   f"import {library}\n    image = np.asarray(image, dtype=float)")
+    scores, _ = grade(notebook(median_answer=inside))
+    assert exercise(scores, "median") == 0 and exercise(scores, "mean_kernel") == 3
+
+
+def test_monkeypatching_the_grader_changes_nothing():
+    cheat = textwrap.dedent("""\
+        import cvkit.grading
+        cvkit.grading.check = lambda *args, **kwargs: 2.0
+        np.allclose = lambda *args, **kwargs: True
+        np.testing.assert_allclose = lambda *args, **kwargs: None
+        def check(*args, **kwargs):
+            return 2.0
+
+        @student("filters.median")
+        def median(image, size, border="reflect101"):
+            return np.asarray(image, dtype=float)
+        """)
+    scores, result = grade(notebook(median_answer=cheat))
+    plain = cheat[cheat.index('@student("filters.median")'):]  # the same wrong answer, no cheating
+    honest_scores, _ = grade(notebook(median_answer=plain))
+    assert scores == honest_scores and exercise(scores, "median") < 1 and exercise(scores, "mean_kernel") == 3
+    flags = " | ".join(result.flags)
+    assert "monkeypatches np.allclose" in flags and "redefines the grader's check()" in flags
+    assert "imports cvkit.grading" in flags
+
+
+def test_hard_coded_public_outputs_score_zero_and_are_flagged():
+    check = registry.get("filters.median").check
+    table = {}
+    for case in check.public_cases():
+        with registry.use("reference"):
+            out = registry.get("filters.median").reference(*case.args, **case.kwargs)
+        key = f"{np.asarray(case.args[0], dtype=float).tobytes().hex()}|{case.args[1]}|{case.kwargs.get('border', 'reflect101')}"
+        table[key] = out.tolist()
+    cheat = textwrap.dedent(f"""\
+        ANSWERS = {json.dumps(table)}
+
+        @student("filters.median")
+        def median(image, size, border="reflect101"):
+            key = f"{{np.asarray(image, dtype=float).tobytes().hex()}}|{{size}}|{{border}}"
+            return np.array(ANSWERS.get(key, np.zeros(np.shape(image)).tolist()))
+        """)
+    scores, result = grade(notebook(median_answer=cheat))
+    assert exercise(scores, "median") == 0 and exercise(scores, "mean_kernel") == 3
+    assert any("passes only the public cases" in f for f in result.flags)
+
+
+def test_infinite_loop_costs_only_that_exercise(quick_median):
+    cheat = HONEST_MEDIAN.replace("image = np.asarray(image, dtype=float)", "while True:\n        pass")
+    scores, result = grade(notebook(median_answer=cheat))
+    assert exercise(scores, "median") == 0 and exercise(scores, "mean_kernel") == 3
+    messages = [c.message for _, r in result.reports["median_hidden"] for c in r.cases]
+    assert any("vectorize" in m for m in messages)
+
+
+def test_huge_allocation_is_refused():
+    cheat = HONEST_MEDIAN.replace("image = np.asarray(image, dtype=float)",
+                                  "np.ones(100 * 2**30 // 8)\n    image = np.asarray(image, dtype=float)")
+    scores, result = grade(notebook(median_answer=cheat))
+    assert exercise(scores, "median") == 0 and exercise(scores, "mean_kernel") == 3
+    messages = [c.message for _, r in result.reports["median_visible"] for c in r.cases]
+    assert any("MemoryError" in m for m in messages)
+
+
+@pytest.mark.parametrize("exit_call", ["os._exit(0)", "sys.exit(0)", "exit()"])
+def test_exiting_costs_only_that_exercise(exit_call):
+    cheat = "import os, sys\n" + HONEST_MEDIAN.replace("image = np.asarray(image, dtype=float)", exit_call)
+    # the exiting exercise comes first, the honest one after it
+    nb = notebook(median_answer=cheat)
+    nb["cells"] = nb["cells"][:1] + nb["cells"][4:] + nb["cells"][1:4]
+    scores, result = grade(nb)
+    assert exercise(scores, "median") == 0
+    assert exercise(scores, "mean_kernel") == 3
+    assert any("exit" in f for f in result.flags)
+
+
+def test_exit_at_cell_level_is_reported():
+    scores, result = grade(notebook(extra_cells=["import os\nos._exit(3)"]))
+    assert sum(scores.values()) == 0
+    assert result.worker_problem and "ended early" in result.worker_problem
+
+
+def test_fake_output_and_warnings_change_nothing():
+    noisy = HONEST_MEDIAN.replace(
+        "image = np.asarray(image, dtype=float)",
+        "import warnings\n    print('All tests passed! 3/3')\n    warnings.warn('just a warning')\n"
+        "    image = np.asarray(image, dtype=float)")
+    scores, _ = grade(notebook(median_answer=noisy))
+    assert exercise(scores, "median") == 3
+    wrong = HONEST_MEDIAN.replace("np.median(", "np.mean(")
+    scores, _ = grade(notebook(median_answer="print('All tests passed!')\n" + wrong))
+    silent, _ = grade(notebook(median_answer=wrong))
+    assert scores == silent and exercise(scores, "median") < 1
+
+
+@pytest.mark.skipif(not sandbox._can_drop_privileges(), reason="needs root to run the worker as nobody")
+def test_worker_cannot_touch_course_files(tmp_path):
+    course = tmp_path / "course"
+    course.mkdir(mode=0o700)
+    victim = course / "gradebook.db"
+    victim.write_text("precious")
+    other = course / "other_student.ipynb"
+    other.write_text("their work")
+    cheat = HONEST_MEDIAN.replace(
+        "image = np.asarray(image, dtype=float)",
+        "import os\n"
+        f"    for path in ({str(victim)!r}, {str(other)!r}):\n"
+        "        try:\n            os.remove(path)\n        except OSError:\n            pass\n"
+        f"    try:\n        open({str(victim)!r}, 'w').write('pwned')\n    except OSError:\n        pass\n"
+        "    image = np.asarray(image, dtype=float)")
+    scores, result = grade(notebook(median_answer=cheat))
+    assert victim.read_text() == "precious" and other.read_text() == "their work"
+    assert exercise(scores, "median") == 3  # the honest computation still counts ...
+    assert any("deletes files" in f for f in result.flags)  # ... and the attempt is flagged
+
+
+def test_student_added_helper_cells_are_used():
+    helper = "def window_median(windows):\n    return np.median(windows, axis=(-2, -1))"
+    answer = HONEST_MEDIAN.replace("return np.median(windows, axis=(-2, -1))", "return window_median(windows)")
+    scores, _ = grade(notebook(median_answer=answer, extra_cells=[helper]))
+    assert exercise(scores, "median") == 3
+
+
+def test_hidden_cases_differ_between_students():
+    _, a = grade(notebook(), student="ada")
+    _, b = grade(notebook(), student="bob")
+    seeds = lambda r: [rep.seed for _, rep in r.reports["median_hidden"]]  # noqa: E731
+    assert seeds(a) != seeds(b)
+
+
+def test_wire_format_refuses_objects_and_roundtrips_arrays():
+    value = (np.arange(6.0).reshape(2, 3), {"k": [1, 2.5, None, True]}, np.uint8(7), "text")
+    back = wire.loads(wire.dumps(value))
+    assert np.array_equal(back[0], value[0]) and back[1] == {"k": [1, 2.5, None, True]}
+    assert int(back[2]) == 7 and back[3] == "text"
+    rng = np.random.default_rng(5)
+    assert wire.decode(wire.encode(rng)).random() == np.random.default_rng(5).random()
+    with pytest.raises(wire.WireError):
+        wire.encode(np.array([object()]))
+    with pytest.raises(wire.WireError):
+        wire.encode(lambda: 0)
+    with pytest.raises(wire.WireError):
+        wire.decode({"t": "nd", "dtype": "|O", "shape": [1], "data": ""})
+
+
+def test_scan_flags_and_hidden_test_source_is_hidden():
+    flags = scan("import ctypes\nimport subprocess\nx.__globals__\nos.remove('a')\nsys.setprofile(None)")
+    text = " | ".join(flags)
+    for expected in ("imports ctypes", "imports subprocess", ".__globals__", "deletes files", "sys.setprofile"):
+        assert expected in text
+    assert scan(HONEST_MEDIAN) == []
+    shown = hide_hidden_tests('x = 1\n### BEGIN HIDDEN TESTS\ncheck("a.b", f, hidden=True)\n### END HIDDEN TESTS\n')
+    assert "check(" not in shown and "hidden tests" in shown
