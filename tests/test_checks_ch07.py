@@ -1,0 +1,293 @@
+"""The Chapter 7 checks are worth their points: the reference and correct alternatives pass,
+every mistake of every bank fails and is named, the comparators say what is wrong, and the
+guard catches what it should.
+
+Mistake functions of the banks are built on the reference implementations (they run under
+the reference provider when the grader compares outputs). To grade a mistake *as a candidate*
+the tests therefore allow every reference building block (``allowed=`` all Ch. 7 ids); the
+guard itself is tested separately below on the checks as registered.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import cvkit.camera
+from cvkit import registry
+from cvkit.camera.checks import FloatClose, Parts
+from cvkit.grading import evaluate
+
+try:
+    from . import alternatives_ch07 as alt
+except ImportError:  # tests/ is not a package: pytest puts it on sys.path
+    import alternatives_ch07 as alt
+
+SEEDS = (101, 202, 303)
+CH07 = [f"camera.{name}" for name in cvkit.camera.__all__]
+
+
+def _check(algorithm_id):
+    return registry.get(algorithm_id).check
+
+
+def _reference(algorithm_id):
+    return registry.get(algorithm_id).reference
+
+
+MISTAKES = [(aid, m.name) for aid in CH07 for m in _check(aid).mistakes]
+
+
+def _grade_everywhere(algorithm_id, candidate, check=None):
+    """Reports on the public cases and on the hidden cases of every seed."""
+    reports = [evaluate(algorithm_id, candidate, check=check)]
+    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
+    return reports
+
+
+def _hidden(algorithm_id, seed):
+    return _check(algorithm_id).hidden_cases(np.random.default_rng(seed))
+
+
+# --------------------------------------------------------------------------------------------
+# the shape of every check
+# --------------------------------------------------------------------------------------------
+def test_every_catalog_id_of_the_chapter_is_registered_with_its_section():
+    sections = {
+        "to_homogeneous": "7.4.1", "from_homogeneous": "7.4.1", "intrinsic_matrix": "7.5.2",
+        "rotation_matrix": "7.3", "extrinsic_matrix": "7.5.3", "projection_matrix": "7.6", "project": "7.6",
+        "decompose_projection": "7.6.1", "distort": "7.7.2", "undistort_points": "7.7", "project_full": "7.7.3",
+    }
+    assert set(cvkit.camera.__all__) == set(sections)
+    for name, section in sections.items():
+        record = registry.get(f"camera.{name}")
+        assert record.section == section and record.reference is getattr(cvkit.camera, name)
+
+
+@pytest.mark.parametrize("algorithm_id", CH07)
+def test_check_is_complete(algorithm_id):
+    spec = _check(algorithm_id)
+    public = spec.public_cases()
+    assert 1 <= len(public) <= 6
+    assert len(spec.mistakes) >= 4
+    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
+    for m in spec.mistakes:
+        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
+    for seed in SEEDS:
+        hidden = spec.hidden_cases(np.random.default_rng(seed))
+        assert 8 <= len(hidden) <= 14
+        assert all(case.label for case in public + hidden)
+
+
+@pytest.mark.parametrize("algorithm_id", CH07)
+def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
+    first, again, other = _hidden(algorithm_id, 7), _hidden(algorithm_id, 7), _hidden(algorithm_id, 8)
+
+    def flat(cases):
+        return [repr(np.asarray(v, dtype=object).tolist()) if isinstance(v, (np.ndarray, list, tuple)) else repr(v)
+                for c in cases for v in list(c.args) + list(c.kwargs.values())]
+
+    assert flat(first) == flat(again)
+    assert flat(first) != flat(other), "the hidden cases do not depend on the seed"
+
+
+def _arrays(case):
+    return [np.asarray(v) for v in case.args if isinstance(v, np.ndarray)]
+
+
+@pytest.mark.parametrize("algorithm_id", CH07)
+def test_hidden_cases_include_awkward_inputs(algorithm_id):
+    """Integer dtypes and single points wherever points or matrices go in."""
+    for seed in SEEDS:
+        cases = _hidden(algorithm_id, seed)
+        if algorithm_id in ("camera.intrinsic_matrix", "camera.rotation_matrix"):
+            assert any(all(isinstance(a, (int, np.integer)) for a in c.args) for c in cases)
+            continue
+        assert any(a.dtype.kind in "iu" for c in cases for a in _arrays(c)), "no integer input"
+        if algorithm_id not in ("camera.extrinsic_matrix", "camera.projection_matrix", "camera.decompose_projection"):
+            assert any(np.ndim(c.args[-1 if algorithm_id == "camera.project" else 0]) == 1
+                       or np.shape(c.args[-1 if algorithm_id == "camera.project" else 0])[0] == 1 for c in cases)
+
+
+@pytest.mark.parametrize("algorithm_id", ["camera.distort", "camera.undistort_points", "camera.project_full"])
+def test_hidden_cases_use_every_number_of_coefficients(algorithm_id):
+    for seed in SEEDS:
+        cases = _hidden(algorithm_id, seed)
+        index = 4 if algorithm_id == "camera.project_full" else 1
+        lengths = {np.size(c.args[index]) for c in cases if len(c.args) > index}
+        assert lengths == {1, 2, 3}
+        tangential = [np.any(np.asarray(c.args[index + 1]) != 0) for c in cases if len(c.args) > index + 1]
+        assert any(tangential) and not all(tangential)
+
+
+def test_hidden_cases_of_decompose_use_both_signs_and_extreme_scales():
+    for seed in SEEDS:
+        dets = [np.linalg.det(np.asarray(c.args[0], dtype=float)[:, :3]) for c in _hidden("camera.decompose_projection", seed)]
+        assert any(d > 0 for d in dets) and any(d < 0 for d in dets)
+        scales = [abs(d) ** (1 / 3) for d in dets]
+        assert min(scales) < 1e-3 and max(scales) > 1e7
+
+
+def test_hidden_cases_of_project_include_infinity_and_homogeneous_input():
+    for seed in SEEDS:
+        cases = _hidden("camera.project", seed)
+        outputs = [cvkit.camera.project(*c.args) for c in cases]
+        assert any(np.asarray(c.args[1]).shape[1] == 4 and np.any(np.asarray(c.args[1])[:, 3] == 0) for c in cases)
+        assert any(not np.all(np.isfinite(o)) for o in outputs)
+        dets = [np.linalg.det(np.asarray(c.args[0], dtype=float)[:, :3]) for c in cases]
+        assert any(d < 0 for d in dets)
+
+
+# --------------------------------------------------------------------------------------------
+# right answers pass, wrong ones fail and are named
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("algorithm_id", CH07)
+def test_reference_passes(algorithm_id):
+    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id)):
+        assert report.passed, report.text()
+        assert report.mistake is None
+
+
+@pytest.mark.parametrize("algorithm_id", CH07)
+def test_stub_scores_zero(algorithm_id):
+    def stub(*args, **kwargs):
+        raise NotImplementedError
+
+    for report in _grade_everywhere(algorithm_id, stub):
+        assert report.score == 0.0
+        assert "not implemented" in report.cases[0].message
+
+
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+def test_mistake_fails_and_is_named(algorithm_id, name):
+    spec = _check(algorithm_id)
+    mistake = spec.mistake(name)
+    allowing = dataclasses.replace(spec, allowed=tuple(CH07))
+    public = evaluate(algorithm_id, mistake.function, check=allowing)
+    assert not public.passed, f"the public cases do not catch {name!r}"
+    for seed in SEEDS:
+        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
+        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
+        assert report.mistake == name, (
+            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
+            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
+        )
+        assert report.hint == mistake.hint
+
+
+ALTERNATIVE_IDS = list(alt.ALTERNATIVES.items()) + list(alt.EXTRA_ALTERNATIVES)
+
+
+@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS,
+                         ids=[f"{a}:{f.__name__}" for a, f in ALTERNATIVE_IDS])
+def test_correct_alternative_passes(algorithm_id, function):
+    for report in _grade_everywhere(algorithm_id, function):
+        assert report.passed, report.text()
+
+
+def test_every_algorithm_has_an_alternative():
+    assert set(alt.ALTERNATIVES) == set(CH07)
+
+
+# --------------------------------------------------------------------------------------------
+# the comparators
+# --------------------------------------------------------------------------------------------
+def test_float_close_wants_float_where_float_is_expected():
+    compare = FloatClose(rtol=0.0, atol=0.0)
+    expected = np.array([[1.0, 2.0, 1.0]])
+    as_int = np.array([[1, 2, 1]])
+    mismatch = compare(as_int, expected)
+    assert mismatch is not None and "dtype" in mismatch.message and "int64" in mismatch.message
+    assert compare(as_int, as_int.copy()) is None          # an integer mistake can still be named
+    assert compare(expected.copy(), expected) is None
+    assert "Mismatched" in compare(expected + 1, expected).message
+    inf = np.array([np.inf, np.nan, -np.inf])
+    assert compare(inf.copy(), inf) is None
+    assert compare(np.array([np.inf, np.nan, np.inf]), inf) is not None
+
+
+def test_parts_names_the_wrong_part():
+    compare = Parts(names=("A", "R", "t"), inner=FloatClose(rtol=1e-7, atol=1e-8))
+    expected = (np.eye(3), np.eye(3), np.zeros(3))
+    assert compare(tuple(e.copy() for e in expected), expected) is None
+    wrong = (np.eye(3), -np.eye(3), np.zeros(3))
+    assert compare(wrong, expected).message.startswith("R: ")
+    assert "tuple (A, R, t)" in compare(np.eye(3), expected).message
+    assert "tuple of 2" in compare((np.eye(3), np.eye(3)), expected).message
+
+
+def test_a_failing_report_shows_the_part_and_the_hint():
+    def decompose_projection(P):  # forgets A⁻¹ for t
+        A, R, t = alt.decompose_projection(P)
+        M = np.asarray(P, dtype=float)[:, :3]
+        lam = np.sign(np.linalg.det(M)) * np.linalg.norm(M[2])
+        return A, R, np.asarray(P, dtype=float)[:, 3] / lam
+
+    report = evaluate("camera.decompose_projection", decompose_projection)
+    assert not report.passed and report.mistake == "t read off the last column (A⁻¹ not applied)"
+    assert any(c.message.startswith("t: ") for c in report.cases if not c.passed)
+    assert "solve" in report.text()
+
+
+# --------------------------------------------------------------------------------------------
+# the guard on Chapter 7 checks (as registered)
+# --------------------------------------------------------------------------------------------
+def test_opencv_is_forbidden_and_named():
+    cv2 = pytest.importorskip("cv2")
+
+    def project_full(points_world, A, R, t, k=(0.0, 0.0, 0.0), p=(0.0, 0.0)):
+        k = list(np.atleast_1d(k)) + [0.0, 0.0]
+        out, _ = cv2.projectPoints(np.asarray(points_world, dtype=float), cv2.Rodrigues(np.asarray(R, dtype=float))[0],
+                                   np.asarray(t, dtype=float).reshape(3), np.asarray(A, dtype=float),
+                                   np.array([k[0], k[1], p[0], p[1], k[2]], dtype=float))
+        return out[:, 0]
+
+    report = evaluate("camera.project_full", project_full)
+    assert report.score == 0.0
+    assert all("cv2" in c.message for c in report.cases), report.text()
+
+
+def test_calling_the_reference_is_forbidden_but_building_blocks_are_allowed():
+    def project(P, points_world):
+        return cvkit.camera.project(P, points_world)
+
+    report = evaluate("camera.project", project, hidden=True, seed=SEEDS[0])
+    assert report.score == 0.0 and "'camera.project'" in report.cases[0].message
+
+    def project_via_blocks(P, points_world):
+        pts = np.asarray(points_world, dtype=float)
+        if pts.shape[1] == 3:
+            pts = cvkit.camera.to_homogeneous(pts)
+        return cvkit.camera.from_homogeneous(pts @ np.asarray(P, dtype=float).T)
+
+    for report in _grade_everywhere("camera.project", project_via_blocks):
+        assert report.passed, report.text()
+
+    def project_full(points_world, A, R, t, k=(0.0, 0.0, 0.0), p=(0.0, 0.0)):
+        cam = np.asarray(points_world, dtype=float) @ np.asarray(R, dtype=float).T + np.asarray(t, dtype=float).reshape(3)
+        xy = cvkit.camera.distort(cam[:, :2] / cam[:, 2:], k, p)
+        return cvkit.camera.from_homogeneous(cvkit.camera.to_homogeneous(xy) @ np.asarray(A, dtype=float).T)
+
+    report = evaluate("camera.project_full", project_full)
+    assert not report.passed and all("camera.to_homogeneous" in c.message for c in report.cases)
+
+
+def test_modifying_the_input_fails():
+    def from_homogeneous(points_h):
+        points_h[..., :-1] /= points_h[..., -1:]   # in place: the caller's array changes
+        return np.asarray(points_h[..., :-1], dtype=float)
+
+    report = evaluate("camera.from_homogeneous", from_homogeneous)
+    assert report.score == 0.0
+    assert "modified its input" in report.cases[0].message
+
+
+def test_integer_output_is_refused_and_named():
+    def to_homogeneous(points):
+        pts = np.asarray(points)
+        return np.hstack([pts, np.ones_like(pts[..., :1])]) if pts.ndim == 2 else np.append(pts, np.ones_like(pts[:1]))
+
+    report = evaluate("camera.to_homogeneous", to_homogeneous)
+    assert not report.passed and report.mistake == "integer dtype kept (np.ones_like)"
+    assert any("dtype" in c.message for c in report.cases if not c.passed)
