@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import datetime as _dt
+import hashlib
 import json
 import os
 import re
@@ -59,10 +60,99 @@ class JobResult:
     returncode: int
     attempts: int = 1
     log: str = ""
+    executed: bool = True  # False: the notebook could not run, the raw submission was graded
 
     @property
     def ok(self) -> bool:
         return self.returncode == 0
+
+
+@dataclass
+class ExecutedSubmission:
+    """A submission's notebooks after execution in isolation (JSON text by file name)."""
+
+    student: str
+    assignment: str
+    notebooks: dict
+    ok: bool
+    log: str = ""
+
+
+def template_gradebook(project, assignment: str) -> bytes:
+    """An SQLite gradebook holding only ``assignment``'s structure (its source cells), made
+    once per grading run and copied into every scratch course of that assignment."""
+    import tempfile
+
+    project = Path(project)
+    with tempfile.TemporaryDirectory(prefix="cvkit-template-") as name:
+        scratch = Path(name)
+        shutil.copy(project / "autograders" / "nbgrader_config.py", scratch / "nbgrader_config.py")
+        env = {k: v for k, v in os.environ.items() if not k.startswith("CVKIT_")}
+        env.update(CVKIT_COURSE_ROOT=str(scratch), CVKIT_SOURCE_DIR=str(project / "lectures"),
+                   CVKIT_DB_URL=f"sqlite:///{scratch / 'gradebook.db'}")
+        env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
+        for step in (("db", "assignment", "add", assignment), ("generate_assignment", assignment, "--force")):
+            done = subprocess.run([sys.executable, "-m", "nbgrader", *step], cwd=scratch, env=env,
+                                  capture_output=True, text=True)
+            if done.returncode != 0:
+                raise RuntimeError(f"nbgrader {' '.join(step)} failed:\n{done.stderr[-2000:]}")
+        return (scratch / "gradebook.db").read_bytes()
+
+
+def execute_submission(project, student: str, assignment: str, files: dict, template: bytes | None = None) -> ExecutedSubmission:
+    """Run a submission's notebooks in a scratch copy of the course (picklable, for Dask).
+
+    The scratch course has its own gradebook and only this submission; the process runs with
+    no grading salt and no path of the real course in its environment and, when started as
+    root, as the unprivileged user ``nobody``, so the student's code cannot reach the real
+    gradebook, other submissions or cvkit's own files. Grades are not decided here: checks in
+    the kernel are no-ops and the trusted checks run later, in :meth:`Course.record`.
+    """
+    import tempfile
+
+    from .grading.sandbox import NOBODY, _can_drop_privileges, _drop_privileges
+
+    project = Path(project)
+    drop = _can_drop_privileges()
+    with tempfile.TemporaryDirectory(prefix="cvkit-grade-") as scratch_name:
+        scratch = Path(scratch_name)
+        shutil.copy(project / "autograders" / "nbgrader_config.py", scratch / "nbgrader_config.py")
+        if template is None:
+            template = template_gradebook(project, assignment)
+        (scratch / "gradebook.db").write_bytes(template)
+        folder = scratch / "submitted" / student / assignment
+        for name, data in files.items():
+            target = folder / name
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_bytes(data)
+        if drop:
+            for path in [scratch, *scratch.rglob("*")]:
+                os.chown(path, NOBODY, NOBODY)
+        env = {k: v for k, v in os.environ.items() if not k.startswith("CVKIT_")}
+        env.update(
+            CVKIT_COURSE_ROOT=str(scratch), CVKIT_SOURCE_DIR=str(project / "lectures"),
+            CVKIT_DB_URL=f"sqlite:///{scratch / 'gradebook.db'}", CVKIT_STUDENT_ID=student,
+            HOME=str(scratch), JUPYTER_RUNTIME_DIR=str(scratch / ".jupyter"), IPYTHONDIR=str(scratch / ".ipython"),
+            MPLCONFIGDIR=str(scratch / ".mpl"), MPLBACKEND="Agg", OMP_NUM_THREADS="1",
+            OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1",
+        )
+        env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
+
+        def nbgrader(*args):
+            return subprocess.run([sys.executable, "-m", "nbgrader", *args], cwd=scratch, env=env,
+                                  capture_output=True, text=True, preexec_fn=_drop_privileges if drop else None,
+                                  start_new_session=True)
+
+        log = ""
+        steps = (("autograde", assignment, "--student", student, "--force", "--TrustedChecks.enabled=False"),)
+        for step in steps:
+            done = nbgrader(*step)
+            log += (done.stdout + done.stderr)[-3000:]
+            if done.returncode != 0:
+                return ExecutedSubmission(student, assignment, {}, False, log)
+        graded = scratch / "autograded" / student / assignment
+        notebooks = {str(p.relative_to(graded)): p.read_text() for p in graded.rglob("*.ipynb")}
+        return ExecutedSubmission(student, assignment, notebooks, bool(notebooks), log)
 
 
 @dataclass
@@ -98,6 +188,8 @@ class Course:
         base = self.project / "autograders"
         self.root = Path(self.root or base).resolve()
         self.root.mkdir(parents=True, exist_ok=True)
+        # graders only: the isolated student processes (user nobody) cannot look inside
+        self.root.chmod(0o700)
         config = self.root / "nbgrader_config.py"
         if self.root != base and not config.exists():
             config.write_text(
@@ -127,6 +219,7 @@ class Course:
         path = self.root / ".grading_salt"
         if not path.exists():
             path.write_text(secrets.token_hex(16))
+            path.chmod(0o600)
         return path.read_text().strip()
 
     def env(self, student: str | None = None) -> dict:
@@ -217,17 +310,68 @@ class Course:
         return made
 
     # ------------------------------------------------------------------ autograde
-    def autograde_one(self, student: str, assignment: str, retries: int = 2) -> JobResult:
-        attempts, log = 0, ""
-        while attempts <= retries:
-            attempts += 1
-            done = self.nbgrader("autograde", assignment, "--student", student, "--force", student=student)
-            log = (done.stdout + done.stderr)[-4000:]
-            if done.returncode == 0:
-                return JobResult(student, assignment, 0, attempts, log)
-            if "database is locked" not in log and attempts > 1:
-                break
-        return JobResult(student, assignment, done.returncode, attempts, log)
+    def _journal_path(self) -> Path:
+        return self.root / ".cvkit" / "journal.json"
+
+    def _journal(self) -> dict:
+        path = self._journal_path()
+        try:
+            return json.loads(path.read_text()) if path.exists() else {}
+        except ValueError:
+            return {}
+
+    def _submission_hash(self, student: str, assignment: str) -> str:
+        digest = hashlib.sha256()
+        folder = self.root / "submitted" / student / assignment
+        for path in sorted(folder.rglob("*")):
+            if path.is_file():
+                digest.update(str(path.relative_to(folder)).encode())
+                digest.update(path.read_bytes())
+        return digest.hexdigest()
+
+    def is_graded(self, student: str, assignment: str) -> bool:
+        """Graded already, from this very submission (an interrupted run resumes after it)."""
+        key = f"{student}/{assignment}"
+        return (self._journal().get(key) == self._submission_hash(student, assignment)
+                and not self.audit([(student, assignment)]))
+
+    def autograde_one(self, student: str, assignment: str) -> JobResult:
+        """Execute one submission in isolation, then record its trusted grades."""
+        executed = execute_submission(self.project, student, assignment, self._submission_files(student, assignment))
+        return self.record(executed)
+
+    def _submission_files(self, student: str, assignment: str) -> dict[str, bytes]:
+        folder = self.root / "submitted" / student / assignment
+        return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+    def record(self, executed: "ExecutedSubmission") -> JobResult:
+        """The single writer: nbgrader's own autograde, without execution, on the executed
+        notebooks; the trusted checks decide every grade here and only this process writes
+        the gradebook. Falls back to the raw submission if execution failed, so a grade is
+        never lost."""
+        student, assignment = executed.student, executed.assignment
+        staging = self.root / ".cvkit" / "staging"
+        folder = staging / student / assignment
+        shutil.rmtree(folder, ignore_errors=True)
+        folder.mkdir(parents=True)
+        files = executed.notebooks if executed.ok else {}
+        for name, data in self._submission_files(student, assignment).items():
+            target = folder / name
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_bytes(files[name].encode() if name in files else data)
+        done = self.nbgrader(
+            "autograde", assignment, "--student", student, "--force",
+            f"--CourseDirectory.submitted_directory={staging}",
+            "--Execute.enabled=False", "--ClearOutput.enabled=False",
+        )
+        shutil.rmtree(folder, ignore_errors=True)
+        log = (executed.log[-2000:] + "\n" + done.stdout + done.stderr)[-4000:]
+        if done.returncode == 0:
+            journal = self._journal()
+            journal[f"{student}/{assignment}"] = self._submission_hash(student, assignment)
+            self._journal_path().parent.mkdir(parents=True, exist_ok=True)
+            self._journal_path().write_text(json.dumps(journal, indent=1))
+        return JobResult(student, assignment, done.returncode, 1, log, executed=executed.ok)
 
     def grade(
         self,
@@ -235,33 +379,39 @@ class Course:
         workers: int = 2,
         scheduler: str | None = None,
         progress: bool = False,
+        regrade: bool = False,
     ) -> list[JobResult]:
-        """Autograde every submission (in parallel), then feedback and CSV export.
+        """Autograde every submission, then write feedback and the CSV exports.
 
-        ``scheduler`` is the address of a Dask distributed scheduler whose workers share this
-        course folder (e.g. over NFS); default: local worker processes.
+        Notebooks of different submissions execute concurrently (``workers`` local processes,
+        or the workers of the Dask distributed ``scheduler``; they only need the project, not
+        this course folder); their results come back to this process, which alone writes the
+        gradebook. Submissions graded before from the same files are skipped unless
+        ``regrade``.
         """
         jobs = self.submissions(assignments)
+        todo = [(s, a) for s, a in jobs if regrade or not self.is_graded(s, a)]
+        templates = {a: template_gradebook(self.project, a) for a in sorted({a for _, a in todo})}
+        payloads = [(str(self.project), s, a, self._submission_files(s, a), templates[a]) for s, a in todo]
         results: list[JobResult] = []
-        if scheduler:
-            from dask.distributed import Client
+        if scheduler and payloads:
+            from dask.distributed import Client, as_completed
 
             with Client(scheduler) as client:
-                futures = client.map(
-                    _autograde_job, [str(self.root)] * len(jobs), [self.db_url] * len(jobs),
-                    [s for s, _ in jobs], [a for _, a in jobs], pure=False,
-                )
-                results = client.gather(futures)
-        else:
+                futures = [client.submit(execute_submission, *payload, pure=False) for payload in payloads]
+                for future in _progress(as_completed(futures), "autograde", progress, total=len(futures)):
+                    results.append(self.record(future.result()))
+        elif payloads:
             with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-                futures = [pool.submit(self.autograde_one, s, a) for s, a in jobs]
+                futures = [pool.submit(execute_submission, *payload) for payload in payloads]
                 for future in _progress(concurrent.futures.as_completed(futures), "autograde", progress, total=len(futures)):
-                    results.append(future.result())
-        # second chance, one at a time, for anything that failed (e.g. a locked SQLite gradebook)
-        results = [r if r.ok else self.autograde_one(r.student, r.assignment) for r in results]
+                    results.append(self.record(future.result()))
         missing = self.audit(jobs)
-        if missing:
-            results += [JobResult(s, a, 1, 0, "no grade recorded after autograding") for s, a in missing]
+        for student, assignment in missing:  # never lose a grade: one more, plain attempt
+            results = [r for r in results if (r.student, r.assignment) != (student, assignment)]
+            results.append(self.autograde_one(student, assignment))
+        missing = self.audit(jobs)
+        results += [JobResult(s, a, 1, 0, "no grade recorded after autograding") for s, a in missing]
         for assignment in sorted({a for _, a in jobs}):
             self.nbgrader("generate_feedback", assignment, "--force")
         self.export()
@@ -335,11 +485,6 @@ class Course:
 
 def _student_order(student: str) -> tuple:
     return (SAMPLE_STUDENTS.index(student), student) if student in SAMPLE_STUDENTS else (len(SAMPLE_STUDENTS), student)
-
-
-def _autograde_job(root: str, db_url: str, student: str, assignment: str) -> JobResult:
-    """Picklable entry point for distributed workers."""
-    return Course(Path(root), db_url=db_url).autograde_one(student, assignment)
 
 
 def _reported_mistakes(folder: Path) -> dict[str, list[str]]:
