@@ -1,0 +1,1411 @@
+"""Checks of Chapter 4's edge detectors: cases, comparators and mistake banks for the grader.
+
+One module-level :class:`~cvkit.grading.Check` per algorithm, named like the reference
+function (``cvkit.edges.checks:sobel`` grades ``edges.sobel``). Two comparators are defined
+here because edges need them:
+
+- :class:`Angles` compares directions modulo 2π (``atan2`` may return π where another correct
+  formula returns −π);
+- :class:`EdgeF1` compares boolean edge maps by their F1 score within a pixel tolerance
+  (:func:`edge_f1`), so that a Canny detector that differs from the reference by a rounding
+  tie on one pixel still passes, while a systematic mistake does not.
+
+Public cases are tiny fixed arrays that already tell every mistake of the bank from the right
+answer. Hidden cases are drawn from the grading seed: non-square, tiny (1×N, 2×3), constant,
+uint8 and ±1e6 inputs, every option value, and for every mistake inputs that expose it even
+where natural images hide it: an anti-aliased disk (every edge orientation at once) with
+tight *relative* thresholds (an L1 magnitude is up to √2 off along the diagonals), integer
+magnitudes equal to a threshold (≥ instead of >), plateaus along axis-aligned and diagonal
+gradients (strict instead of non-strict maxima), magnitudes that are not ``hypot(ix, iy)``
+(NMS that recomputes them), diagonal and long weak chains (4-connected or single-pass
+hysteresis), integer responses with exact ties and zeros (zero crossings).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..data._synthetic import disk_image, oriented_step_image, square_image
+from ..filters._linear import correlate as _correlate
+from ..filters._linear import gaussian as _gaussian
+from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
+from ..grading.compare import _as_numeric, _shape_advice
+from ._canny import _components
+from ._canny import hysteresis as _hysteresis
+from ._canny import non_max_suppression as _nms
+from ._gradient import direction as _direction
+from ._gradient import gradient as _gradient
+from ._gradient import magnitude as _magnitude
+from ._gradient import prewitt as _prewitt
+from ._gradient import sobel as _sobel
+from ._laplacian import dog as _dog
+from ._laplacian import laplacian as _laplacian
+from ._laplacian import log as _log
+
+__all__ = [
+    "Angles", "EdgeF1", "edge_f1",
+    "gradient", "magnitude", "direction", "prewitt", "sobel", "non_max_suppression",
+    "hysteresis", "canny", "laplacian", "log_kernel", "log", "zero_crossings", "dog", "BORDERS",
+]
+
+BORDERS = ("zero", "replicate", "reflect", "reflect101")
+_SWAP = {"reflect": "reflect101", "reflect101": "reflect"}
+_NAMES = {"f": "float", "b": "bool", "i": "integer", "u": "unsigned integer"}
+
+
+# --------------------------------------------------------------------------------------------
+# comparators
+# --------------------------------------------------------------------------------------------
+def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
+    """``mask`` grown by ``radius`` pixels in every direction (a (2r+1)² square)."""
+    if radius <= 0:
+        return mask.copy()
+    h, w = mask.shape
+    padded = np.zeros((h + 2 * radius, w + 2 * radius), dtype=bool)
+    padded[radius:radius + h, radius:radius + w] = mask
+    out = np.zeros_like(mask)
+    for dy in range(2 * radius + 1):
+        for dx in range(2 * radius + 1):
+            out |= padded[dy:dy + h, dx:dx + w]
+    return out
+
+
+def edge_f1(got, expected, radius: int = 1) -> tuple[float, float, float]:
+    """``(F1, precision, recall)`` of the edge map ``got`` against ``expected``.
+
+    A pixel of ``got`` is a true positive when an ``expected`` edge pixel lies within
+    ``radius`` pixels (Chebyshev distance: the (2r+1)² square around it); an ``expected``
+    pixel is recalled when a ``got`` pixel lies within ``radius`` of it. Precision and recall
+    are the fractions of such pixels; F1 is their harmonic mean. Two empty maps score 1.
+
+    >>> import numpy as np
+    >>> a = np.zeros((5, 5), bool); a[2, 1:4] = True
+    >>> b = np.zeros((5, 5), bool); b[3, 1:4] = True
+    >>> edge_f1(a, b, radius=0), edge_f1(a, b, radius=1)
+    ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))
+    """
+    g = np.asarray(got, dtype=bool)
+    e = np.asarray(expected, dtype=bool)
+    if g.shape != e.shape or g.ndim != 2:
+        raise ValueError(f"got and expected must be 2-D maps of the same shape, got {g.shape} and {e.shape}")
+    n_got, n_exp = int(g.sum()), int(e.sum())
+    if n_got == 0 and n_exp == 0:
+        return 1.0, 1.0, 1.0
+    if n_got == 0 or n_exp == 0:
+        return 0.0, 0.0 if n_got else 1.0, 0.0 if n_exp else 1.0
+    precision = float((g & _dilate(e, radius)).sum()) / n_got
+    recall = float((e & _dilate(g, radius)).sum()) / n_exp
+    if precision + recall == 0:
+        return 0.0, precision, recall
+    return 2 * precision * recall / (precision + recall), precision, recall
+
+
+@dataclass
+class EdgeF1(Comparator):
+    """Boolean edge maps agree when their F1 score within ``radius`` pixels is ≥ ``min_f1``.
+
+    The output must be a bool array of the expected shape. The report gives the F1 score,
+    precision and recall and the first spurious and first missing edge pixel.
+    """
+
+    radius: int = 0
+    min_f1: float = 0.98
+
+    def describe(self) -> str:
+        return f"edge maps with F1 >= {self.min_f1:g} within {self.radius} px"
+
+    def __call__(self, got, expected, case=None):
+        exp = np.asarray(expected)
+        arr, problem = _as_numeric(got)
+        if problem:
+            return Mismatch(problem)
+        if arr.dtype.kind != "b":
+            return Mismatch(f"dtype mismatch: expected a bool edge map, got {arr.dtype} "
+                            "(return a comparison such as `strength > threshold`, or use .astype(bool))")
+        if arr.shape != exp.shape:
+            return Mismatch(f"shape mismatch: expected {exp.shape}, got {arr.shape}{_shape_advice(arr.shape, exp.shape)}")
+        f1, precision, recall = edge_f1(arr, exp, self.radius)
+        if f1 >= self.min_f1:
+            return None
+        tolerance = "exactly" if self.radius == 0 else f"within {self.radius} px"
+        spurious = arr & ~_dilate(exp.astype(bool), self.radius)
+        missing = exp.astype(bool) & ~_dilate(arr, self.radius)
+        lines = [
+            f"Edge maps differ: F1 = {f1:.3f} (precision {precision:.3f}, recall {recall:.3f}) matching "
+            f"pixels {tolerance}; at least {self.min_f1:g} is needed",
+            f"Your edge pixels: {int(arr.sum())}, expected: {int(exp.sum())}; "
+            f"spurious: {int(spurious.sum())}, missing: {int(missing.sum())}",
+        ]
+        worst = None
+        if spurious.any():
+            worst = tuple(int(i) for i in np.argwhere(spurious)[0])
+            lines.append(f"First spurious edge pixel at {list(worst)}")
+        if missing.any():
+            first = tuple(int(i) for i in np.argwhere(missing)[0])
+            worst = worst or first
+            lines.append(f"First missing edge pixel at {list(first)}")
+        return Mismatch("\n".join(lines), worst=worst, mismatched=int(spurious.sum() + missing.sum()), total=int(exp.size))
+
+
+@dataclass
+class Angles(Comparator):
+    """Angles in radians agree when they differ by at most ``atol`` modulo 2π.
+
+    The output must be a float array of the expected shape; NaN where a finite angle is
+    expected is a mismatch.
+    """
+
+    atol: float = 1e-9
+
+    def describe(self) -> str:
+        return f"angles equal modulo 2π within {self.atol:g} rad"
+
+    def __call__(self, got, expected, case=None):
+        exp = np.asarray(expected, dtype=np.float64)
+        arr, problem = _as_numeric(got)
+        if problem:
+            return Mismatch(problem)
+        if arr.dtype.kind != "f":
+            return Mismatch(f"dtype mismatch: expected a float array, got {arr.dtype}")
+        if arr.shape != exp.shape:
+            return Mismatch(f"shape mismatch: expected {exp.shape}, got {arr.shape}{_shape_advice(arr.shape, exp.shape)}")
+        a = arr.astype(np.float64)
+        with np.errstate(all="ignore"):
+            wrapped = np.mod(a - exp + np.pi, 2 * np.pi) - np.pi
+            err = np.abs(wrapped)
+            bad = ~(err <= self.atol)
+        n = int(bad.sum())
+        if n == 0:
+            return None
+        score = np.where(np.isnan(err), np.inf, err)
+        flat = int(np.argmax(score))
+        worst = tuple(int(i) for i in np.unravel_index(flat, exp.shape)) if exp.ndim else ()
+        largest = float(score.flat[flat])
+        lines = [
+            f"Not equal modulo 2π to tolerance atol={self.atol:g} rad",
+            f"Mismatched elements: {n} / {exp.size} ({100 * n / exp.size:.3g}%)",
+        ]
+        if np.isfinite(largest):
+            lines.append(f"Max angular difference: {largest:.6g} rad ({math.degrees(largest):.4g}°) at {list(worst)} "
+                         f"(yours {a.flat[flat]:.6g}, expected {exp.flat[flat]:.6g})")
+        else:
+            lines.append(f"NaN or inf where an angle is expected, first at {list(worst)} (expected {exp.flat[flat]:.6g})")
+        return Mismatch("\n".join(lines), max_abs=largest, worst=worst, mismatched=n, total=int(exp.size))
+
+
+#: linear filters: sums of products agree to ~1e-12 of the image's scale
+_LINEAR = close(rtol=1e-7, atol=1e-10, kind="f", scaled=True)
+#: pointwise formulas
+_POINTWISE = close(rtol=1e-9, atol=1e-12, kind="f", scaled=True)
+#: boolean maps computed by exact rules
+_EXACT_BOOL = close(rtol=0.0, atol=0.0, kind="b")
+
+
+# --------------------------------------------------------------------------------------------
+# case helpers
+# --------------------------------------------------------------------------------------------
+def _distinct(h: int, w: int, *, seed: int = 7, scale: float = 1.0, dtype=np.float64) -> np.ndarray:
+    """Distinct integers 0..h·w−1 (times ``scale``) in a fixed shuffled order: every sign, swap,
+    shift and border rule shows in the output."""
+    values = np.random.default_rng(seed).permutation(h * w).reshape(h, w)
+    return (values * scale).astype(dtype)
+
+
+def _size(rng: np.random.Generator, lo: int, hi: int) -> int:
+    return int(rng.integers(lo, hi + 1))
+
+
+def _image(rng: np.random.Generator, h: int, w: int, kind: str = "unit") -> np.ndarray:
+    shape = (int(h), int(w))
+    if kind == "unit":
+        return rng.random(shape)
+    if kind == "uint8":
+        return rng.integers(0, 256, shape, dtype=np.uint8)
+    if kind == "big":
+        return rng.uniform(-1e6, 1e6, shape)
+    if kind == "normal":
+        return rng.normal(0.0, 3.0, shape)
+    if kind == "const":
+        return np.full(shape, float(np.round(rng.uniform(-5, 5), 3)))
+    raise ValueError(kind)  # pragma: no cover
+
+
+def _sigma(rng: np.random.Generator, lo: float, hi: float, *, frac=(0.1, 0.9)) -> float:
+    """σ in [lo, hi], σ ≠ 1, 3σ far from an integer (ceil/floor/round of 3σ unambiguous)."""
+    for _ in range(1000):
+        s = float(np.round(rng.uniform(lo, hi), 3))
+        f = 3 * s - math.floor(3 * s)
+        if frac[0] <= f <= frac[1] and abs(s - 1.0) > 0.05:
+            return s
+    raise RuntimeError("no suitable sigma")  # pragma: no cover
+
+
+def _disk(rng: np.random.Generator, h: int, w: int, *, noise: float = 0.0, contrast=(0.5, 0.9)) -> np.ndarray:
+    """An anti-aliased disk with an off-grid centre (no exact symmetry), optionally noisy."""
+    radius = float(rng.uniform(0.28, 0.36) * min(h, w))
+    cx = (w - 1) / 2 + float(rng.uniform(-0.4, 0.4))
+    cy = (h - 1) / 2 + float(rng.uniform(-0.4, 0.4))
+    inside = float(rng.uniform(*contrast))
+    outside = float(rng.uniform(0.0, 0.15))
+    if rng.random() < 0.5:
+        inside, outside = outside, inside
+    img = disk_image((h, w), centre=(cx, cy), radius=radius, inside=inside, outside=outside)
+    if noise:
+        img = img + rng.normal(0.0, noise, img.shape)
+    return img
+
+
+def _square(rng: np.random.Generator, h: int, w: int, *, noise: float = 0.05) -> np.ndarray:
+    angle = float(rng.uniform(0.15, 0.6))
+    side = float(rng.uniform(0.45, 0.6) * min(h, w))
+    img = square_image((h, w), centre=((w - 1) / 2 + 0.3, (h - 1) / 2 - 0.2), side=side, angle=angle,
+                       inside=float(rng.uniform(0.6, 0.9)), outside=float(rng.uniform(0.05, 0.25)))
+    return img + rng.normal(0.0, noise, img.shape)
+
+
+def _random_border(rng: np.random.Generator, choices=BORDERS) -> str:
+    return str(rng.choice(choices))
+
+
+# --------------------------------------------------------------------------------------------
+# edges.gradient (§4.5)
+# --------------------------------------------------------------------------------------------
+def _grad_not_halved(image, scheme="central", border="reflect101"):
+    ix, iy = _gradient(image, scheme, border)
+    return (2 * ix, 2 * iy) if scheme == "central" else (ix, iy)
+
+
+def _grad_swapped(image, scheme="central", border="reflect101"):
+    ix, iy = _gradient(image, scheme, border)
+    return iy, ix
+
+
+def _grad_sign(image, scheme="central", border="reflect101"):
+    ix, iy = _gradient(image, scheme, border)
+    return -ix, -iy
+
+
+def _grad_fwd_bwd(image, scheme="central", border="reflect101"):
+    other = {"forward": "backward", "backward": "forward"}.get(scheme, scheme)
+    return _gradient(image, other, border)
+
+
+def _grad_numpy(image, scheme="central", border="reflect101"):
+    if scheme != "central":
+        return _gradient(image, scheme, border)
+    iy, ix = np.gradient(np.asarray(image, dtype=np.float64))
+    return ix, iy
+
+
+def _grad_zero(image, scheme="central", border="reflect101"):
+    return _gradient(image, scheme, "zero")
+
+
+def _grad_swap_reflect(image, scheme="central", border="reflect101"):
+    return _gradient(image, scheme, _SWAP.get(border, border))
+
+
+def _gradient_hidden(rng):
+    def img(h, w, kind="unit"):
+        return _image(rng, h, w, kind)
+
+    return [
+        Case((img(_size(rng, 6, 10), _size(rng, 8, 14)),), {"scheme": "central", "border": "zero"},
+             "central, zero border"),
+        Case((img(_size(rng, 7, 12), _size(rng, 6, 10)),), {"scheme": "central", "border": "replicate"},
+             "central, replicate"),
+        Case((img(_size(rng, 6, 11), _size(rng, 7, 12)),), {"scheme": "central", "border": "reflect"},
+             "central, reflect"),
+        Case((img(_size(rng, 8, 12), _size(rng, 6, 9)),), {}, "default scheme and border (central, reflect101)"),
+        Case((img(_size(rng, 6, 10), _size(rng, 8, 13)),), {"scheme": "forward", "border": "reflect101"},
+             "forward, reflect101"),
+        Case((img(_size(rng, 6, 10), _size(rng, 6, 10)),), {"scheme": "backward", "border": "replicate"},
+             "backward, replicate"),
+        Case((img(_size(rng, 7, 11), _size(rng, 8, 12), "uint8"),), {"scheme": "forward", "border": "zero"},
+             "uint8 image, forward, zero border (not rescaled)"),
+        Case((img(_size(rng, 10, 20), _size(rng, 10, 20), "big"),), {"scheme": "backward", "border": "reflect"},
+             "±1e6 values, backward, reflect"),
+        Case((img(_size(rng, 5, 8), _size(rng, 5, 8), "const"),), {"scheme": "central", "border": "zero"},
+             "constant image, zero border"),
+        Case((img(1, _size(rng, 7, 12)),), {"scheme": "central", "border": _random_border(rng, BORDERS[1:])},
+             "single row 1×N"),
+        Case((img(_size(rng, 6, 10), 1),), {"scheme": "forward", "border": "reflect"}, "single column N×1, forward"),
+        Case((img(2, 3, "normal"),), {"scheme": str(rng.choice(["central", "backward"])), "border": "reflect101"},
+             "tiny 2×3 image"),
+    ]
+
+
+gradient = Check(
+    public=[
+        Case((_distinct(5, 6),), {}, "5×6 image, central differences, reflect101 (defaults)"),
+        Case((_distinct(6, 5),), {"scheme": "forward", "border": "replicate"}, "forward differences, replicate"),
+        Case((_distinct(5, 7),), {"scheme": "backward", "border": "zero"}, "backward differences, zero border"),
+        Case((_distinct(6, 6, seed=3),), {"border": "reflect"}, "central differences, reflect"),
+    ],
+    hidden=_gradient_hidden,
+    compare=_LINEAR,
+    mistakes=[
+        Mistake("central difference not divided by 2", _grad_not_halved,
+                "The central difference is (I(x+1) − I(x−1)) / 2: correlate with [-1, 0, 1] / 2"),
+        Mistake("x and y swapped", _grad_swapped,
+                "Return (ix, iy): ix differentiates along the columns (axis 1, x), iy down the rows (axis 0, y)"),
+        Mistake("sign flipped (kernel convolved, not correlated)", _grad_sign,
+                "A derivative is positive where the image gets brighter: Ix = I(x+1) − I(x−1), not I(x−1) − I(x+1)"),
+        Mistake("forward and backward swapped", _grad_fwd_bwd,
+                "forward: I(x+1) − I(x); backward: I(x) − I(x−1) (the same along y, rows going down)"),
+        Mistake("one-sided differences at the border (numpy.gradient)", _grad_numpy,
+                "Use the same formula at every pixel and read the missing neighbour through `border` "
+                "(pad the image); numpy.gradient switches to one-sided differences at the border"),
+        Mistake("border ignored (always zero)", _grad_zero,
+                "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
+        Mistake("reflect and reflect101 swapped", _grad_swap_reflect,
+                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+    ],
+    allowed=("filters.pad",),
+)
+
+
+# --------------------------------------------------------------------------------------------
+# edges.magnitude (§4.5)
+# --------------------------------------------------------------------------------------------
+def _mag_always_l2(ix, iy, norm="l2"):
+    return _magnitude(ix, iy, "l2")
+
+
+def _mag_squared(ix, iy, norm="l2"):
+    if norm != "l2":
+        return _magnitude(ix, iy, norm)
+    gx, gy = np.asarray(ix, dtype=np.float64), np.asarray(iy, dtype=np.float64)
+    return gx * gx + gy * gy
+
+
+def _mag_l1_no_abs(ix, iy, norm="l2"):
+    if norm != "l1":
+        return _magnitude(ix, iy, norm)
+    return np.asarray(ix, dtype=np.float64) + np.asarray(iy, dtype=np.float64)
+
+
+def _mag_max_no_abs(ix, iy, norm="l2"):
+    if norm != "max":
+        return _magnitude(ix, iy, norm)
+    return np.maximum(np.asarray(ix, dtype=np.float64), np.asarray(iy, dtype=np.float64))
+
+
+def _mag_l1_max_swapped(ix, iy, norm="l2"):
+    return _magnitude(ix, iy, {"l1": "max", "max": "l1"}.get(norm, norm))
+
+
+def _pair_of(rng, shape, kind="normal"):
+    if kind == "int":
+        return (rng.integers(-40, 41, shape).astype(np.float64), rng.integers(-40, 41, shape).astype(np.float64))
+    if kind == "int64":
+        return rng.integers(-1020, 1021, shape), rng.integers(-1020, 1021, shape)
+    if kind == "big":
+        return rng.uniform(-1e6, 1e6, shape), rng.uniform(-1e6, 1e6, shape)
+    return rng.normal(0.0, 2.0, shape), rng.normal(0.0, 2.0, shape)
+
+
+def _magnitude_hidden(rng):
+    cases = []
+    for norm in ("l2", "l1", "max"):
+        shape = (_size(rng, 4, 9), _size(rng, 5, 11))
+        cases.append(Case(_pair_of(rng, shape), {"norm": norm}, f"random derivatives, norm={norm!r}"))
+        shape = (_size(rng, 3, 7), _size(rng, 6, 10))
+        cases.append(Case(_pair_of(rng, shape, "int64"), {"norm": norm},
+                          f"integer (int64) derivatives, norm={norm!r} (result in float)"))
+    ix, iy = _pair_of(rng, (_size(rng, 5, 8), _size(rng, 5, 8)), "big")
+    cases.append(Case((ix, iy), {"norm": str(rng.choice(["l2", "l1", "max"]))}, "±1e6 derivatives"))
+    ix, iy = _pair_of(rng, (_size(rng, 4, 7), _size(rng, 4, 7)), "int")
+    ix[::2] = 0.0
+    iy[:, ::3] = 0.0
+    cases.append(Case((ix, iy), {}, "zeros among the derivatives, default norm (l2)"))
+    ix, iy = _pair_of(rng, (1, _size(rng, 6, 12)))
+    cases.append(Case((ix, iy), {"norm": "l1"}, "single row 1×N, l1"))
+    ix, iy = _pair_of(rng, (_size(rng, 3, 5), _size(rng, 3, 5), 3))
+    cases.append(Case((ix, iy), {"norm": "max"}, "3-D arrays (H, W, 3), max"))
+    return cases
+
+
+magnitude = Check(
+    public=[
+        Case((np.array([[3.0, -1.0, 0.0, 2.5], [-4.0, 6.0, -0.5, 1.0], [1.0, 0.0, -2.0, -3.0]]),
+              np.array([[-4.0, 2.0, 1.5, -0.5], [3.0, -2.0, 0.0, 4.0], [-1.0, -5.0, 2.0, -3.0]])), {},
+             "3×4 derivatives, default norm (l2)"),
+        Case((np.array([[3.0, -1.0, 0.0, 2.5], [-4.0, 6.0, -0.5, 1.0]]),
+              np.array([[-4.0, 2.0, 1.5, -0.5], [3.0, -2.0, 0.0, 4.0]])), {"norm": "l1"}, "norm='l1'"),
+        Case((np.array([[3.0, -1.0, 0.0, 2.5], [-4.0, 6.0, -0.5, 1.0]]),
+              np.array([[-4.0, 2.0, 1.5, -0.5], [3.0, -7.0, 0.0, 4.0]])), {"norm": "max"}, "norm='max'"),
+    ],
+    hidden=_magnitude_hidden,
+    compare=_POINTWISE,
+    mistakes=[
+        Mistake("norm ignored (always L2)", _mag_always_l2,
+                "Use the `norm` argument: l2 = sqrt(Ix² + Iy²), l1 = |Ix| + |Iy|, max = max(|Ix|, |Iy|)"),
+        Mistake("L2 without the square root", _mag_squared, "l2 is sqrt(Ix² + Iy²), not Ix² + Iy²"),
+        Mistake("L1 without absolute values", _mag_l1_no_abs, "l1 adds absolute values: |Ix| + |Iy|"),
+        Mistake("max without absolute values", _mag_max_no_abs, "max compares absolute values: max(|Ix|, |Iy|)"),
+        Mistake("l1 and max swapped", _mag_l1_max_swapped, "l1 = |Ix| + |Iy| (the sum), max = max(|Ix|, |Iy|)"),
+    ],
+)
+
+
+# --------------------------------------------------------------------------------------------
+# edges.direction (§4.3)
+# --------------------------------------------------------------------------------------------
+def _dir_atan(ix, iy):
+    return np.arctan(np.asarray(iy, dtype=np.float64) / np.asarray(ix, dtype=np.float64))
+
+
+def _dir_swapped(ix, iy):
+    return np.arctan2(np.asarray(ix, dtype=np.float64), np.asarray(iy, dtype=np.float64))
+
+
+def _dir_y_up(ix, iy):
+    return np.arctan2(-np.asarray(iy, dtype=np.float64), np.asarray(ix, dtype=np.float64))
+
+
+def _dir_degrees(ix, iy):
+    return np.degrees(_direction(ix, iy))
+
+
+def _direction_hidden(rng):
+    cases = []
+    for label in ("random derivatives (all four quadrants)", "random derivatives, other size"):
+        cases.append(Case(_pair_of(rng, (_size(rng, 4, 9), _size(rng, 5, 11))), {}, label))
+    cases.append(Case(_pair_of(rng, (_size(rng, 3, 7), _size(rng, 6, 10)), "int64"), {},
+                      "integer (int64) derivatives (result in float)"))
+    cases.append(Case(_pair_of(rng, (_size(rng, 4, 7), _size(rng, 4, 7)), "big"), {}, "±1e6 derivatives"))
+    n = _size(rng, 6, 10)
+    values = rng.integers(1, 9, n).astype(np.float64) * rng.choice([-1.0, 1.0], n)
+    ix = np.where(np.arange(n) % 2 == 0, values, 0.0)[None, :].repeat(2, axis=0)
+    iy = np.where(np.arange(n) % 2 == 1, values, 0.0)[None, :].repeat(2, axis=0)
+    cases.append(Case((ix, iy), {}, "axis-aligned gradients (Ix = 0 or Iy = 0, both signs)"))
+    ix = -rng.integers(1, 9, (3, _size(rng, 4, 8))).astype(np.float64)
+    cases.append(Case((ix, np.zeros_like(ix)), {}, "gradients pointing left (Iy = 0, Ix < 0: ±π)"))
+    ix, iy = _pair_of(rng, (_size(rng, 4, 6), _size(rng, 4, 6)), "int")
+    ix[0, 0] = iy[0, 0] = 0.0
+    cases.append(Case((ix, iy), {}, "a zero gradient among others (atan2(0, 0) = 0)"))
+    cases.append(Case(_pair_of(rng, (1, _size(rng, 6, 12))), {}, "single row 1×N"))
+    cases.append(Case(_pair_of(rng, (_size(rng, 3, 5), _size(rng, 3, 5), 3)), {}, "3-D arrays (H, W, 3)"))
+    return cases
+
+
+direction = Check(
+    public=[
+        Case((np.array([[1.0, 0.0, -1.0, 0.0], [2.0, -3.0, -1.0, 4.0], [0.5, -2.0, 3.0, -1.0]]),
+              np.array([[0.0, 1.0, 0.5, -2.0], [2.0, 1.0, -1.0, -3.0], [-0.5, -0.5, 1.0, 2.0]])), {},
+             "3×4 derivatives in all four quadrants and on the axes"),
+        Case((np.array([[-2.0, -1.0, -4.0], [3.0, -0.5, 2.0]]), np.array([[1.0, -3.0, 0.0], [-1.0, 2.0, 2.0]])), {},
+             "negative Ix (the left half-plane)"),
+    ],
+    hidden=_direction_hidden,
+    compare=Angles(atol=1e-9),
+    mistakes=[
+        Mistake("atan instead of atan2", _dir_atan,
+                "arctan(Iy / Ix) cannot tell a gradient from its opposite (and divides by zero): use np.arctan2(iy, ix)"),
+        Mistake("x and y swapped (atan2(Ix, Iy))", _dir_swapped,
+                "The angle from the x axis is atan2(Iy, Ix): the y component comes first"),
+        Mistake("y pointing up (Iy negated)", _dir_y_up,
+                "Images have y pointing down the rows: use atan2(Iy, Ix) as computed, without negating Iy"),
+        Mistake("degrees instead of radians", _dir_degrees, "Return radians, as np.arctan2 does (no np.degrees)"),
+    ],
+)
+
+
+# --------------------------------------------------------------------------------------------
+# edges.prewitt and edges.sobel (§4.7)
+# --------------------------------------------------------------------------------------------
+def _derivative_mistakes(reference, other, other_name: str, scale: int, what: str):
+    def signs(image, border="reflect101"):
+        gx, gy = reference(image, border)
+        return -gx, -gy
+
+    def swapped(image, border="reflect101"):
+        gx, gy = reference(image, border)
+        return gy, gx
+
+    def y_up(image, border="reflect101"):
+        gx, gy = reference(image, border)
+        return gx, -gy
+
+    def other_weights(image, border="reflect101"):
+        return other(image, border)
+
+    def normalised(image, border="reflect101"):
+        gx, gy = reference(image, border)
+        return gx / scale, gy / scale
+
+    def zero(image, border="reflect101"):
+        return reference(image, "zero")
+
+    def swap_reflect(image, border="reflect101"):
+        return reference(image, _SWAP.get(border, border))
+
+    centre = "1" if other_name == "Prewitt" else "2"
+    return [
+        Mistake("signs flipped (kernels convolved, not correlated)", signs,
+                "Correlate, do not convolve: gx = I ⋆ K with K's −1 column on the left, so gx > 0 where "
+                "the image gets brighter to the right"),
+        Mistake("gx and gy swapped", swapped,
+                "gx differentiates along x (the columns, kernel [-1, 0, 1] in each row); gy is its transpose"),
+        Mistake("y pointing up (gy negated)", y_up,
+                "y points down the rows: gy's kernel has −1s in the top row and +1s in the bottom row"),
+        Mistake(f"centre weight {centre} (that is {other_name})", other_weights,
+                f"{what}: the smoothing across the derivative is "
+                + ("[1, 2, 1]" if other_name == "Prewitt" else "[1, 1, 1]")),
+        Mistake(f"normalised by 1/{scale}", normalised,
+                f"Do not normalise: the kernels have integer weights (a unit step gives {scale // 2})"),
+        Mistake("border ignored (always zero)", zero,
+                "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
+        Mistake("reflect and reflect101 swapped", swap_reflect,
+                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+    ]
+
+
+def _derivative_hidden(rng):
+    def img(h, w, kind="unit"):
+        return _image(rng, h, w, kind)
+
+    step = oriented_step_image((_size(rng, 8, 12), _size(rng, 9, 14)), angle=float(rng.uniform(-np.pi, np.pi)),
+                               offset=float(rng.uniform(-1, 1)), low=0.2, high=0.9)
+    return [
+        Case((img(_size(rng, 6, 10), _size(rng, 8, 14)),), {"border": "zero"}, "zero border"),
+        Case((img(_size(rng, 7, 12), _size(rng, 6, 10)),), {"border": "replicate"}, "replicate"),
+        Case((img(_size(rng, 6, 11), _size(rng, 7, 12)),), {"border": "reflect"}, "reflect"),
+        Case((img(_size(rng, 8, 12), _size(rng, 6, 9)),), {}, "default border (reflect101)"),
+        Case((img(_size(rng, 7, 11), _size(rng, 8, 12), "uint8"),), {"border": "reflect101"},
+             "uint8 image (not rescaled)"),
+        Case((img(_size(rng, 10, 20), _size(rng, 10, 20), "big"),), {"border": "reflect"}, "±1e6 values"),
+        Case((img(_size(rng, 5, 8), _size(rng, 5, 8), "const"),), {"border": "zero"}, "constant image, zero border"),
+        Case((step,), {"border": _random_border(rng, BORDERS[1:])}, "an anti-aliased step edge at a random angle"),
+        Case((img(1, _size(rng, 7, 12)),), {"border": _random_border(rng, BORDERS[1:])}, "single row 1×N"),
+        Case((img(_size(rng, 6, 10), 1),), {"border": "reflect"}, "single column N×1"),
+        Case((img(2, 3, "normal"),), {"border": _random_border(rng, BORDERS[1:])}, "tiny 2×3 image"),
+    ]
+
+
+_DERIVATIVE_PUBLIC = [
+    Case((_distinct(5, 6),), {}, "5×6 image, default border (reflect101)"),
+    Case((_distinct(6, 5, seed=3),), {"border": "replicate"}, "6×5 image, replicate"),
+    Case((_distinct(5, 7, seed=5),), {"border": "zero"}, "zero border"),
+    Case((_distinct(6, 6, seed=9),), {"border": "reflect"}, "reflect"),
+]
+
+prewitt = Check(
+    public=_DERIVATIVE_PUBLIC,
+    hidden=_derivative_hidden,
+    compare=_LINEAR,
+    mistakes=_derivative_mistakes(_prewitt, _sobel, "Sobel", 6, "Prewitt averages the three rows (columns) equally"),
+    allowed=("filters.pad",),
+)
+
+sobel = Check(
+    public=_DERIVATIVE_PUBLIC,
+    hidden=_derivative_hidden,
+    compare=_LINEAR,
+    mistakes=_derivative_mistakes(_sobel, _prewitt, "Prewitt", 8, "Sobel weighs the centre row (column) twice"),
+    allowed=("filters.pad",),
+)
+
+
+# --------------------------------------------------------------------------------------------
+# edges.laplacian (§4.12)
+# --------------------------------------------------------------------------------------------
+_EIGHT = np.array([[1.0, 1.0, 1.0], [1.0, -8.0, 1.0], [1.0, 1.0, 1.0]])
+
+
+def _lap_eight(image, border="reflect101"):
+    return _correlate(image, _EIGHT, border)
+
+
+def _lap_sign(image, border="reflect101"):
+    return -_laplacian(image, border)
+
+
+def _lap_x_only(image, border="reflect101"):
+    return _correlate(image, np.array([[1.0, -2.0, 1.0]]), border)
+
+
+def _lap_zero(image, border="reflect101"):
+    return _laplacian(image, "zero")
+
+
+def _lap_swap_reflect(image, border="reflect101"):
+    return _laplacian(image, _SWAP.get(border, border))
+
+
+laplacian = Check(
+    public=[
+        Case((_distinct(5, 6),), {}, "5×6 image, default border (reflect101)"),
+        Case((_distinct(6, 5, seed=3),), {"border": "reflect"}, "reflect"),
+        Case((_distinct(5, 7, seed=5),), {"border": "zero"}, "zero border"),
+    ],
+    hidden=_derivative_hidden,
+    compare=_LINEAR,
+    mistakes=[
+        Mistake("8-neighbour Laplacian", _lap_eight,
+                "The 4-neighbour Laplacian uses only the up, down, left and right neighbours: [[0,1,0],[1,-4,1],[0,1,0]]"),
+        Mistake("sign flipped", _lap_sign, "Ixx + Iyy = (sum of the 4 neighbours) − 4·I(p), not 4·I(p) − (...)"),
+        Mistake("only Ixx (no Iyy)", _lap_x_only,
+                "The Laplacian adds both second derivatives: Ixx + Iyy, i.e. all four neighbours"),
+        Mistake("border ignored (always zero)", _lap_zero,
+                "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
+        Mistake("reflect and reflect101 swapped", _lap_swap_reflect,
+                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+    ],
+    allowed=("filters.pad",),
+)
+
+
+# --------------------------------------------------------------------------------------------
+# edges.log_kernel, edges.log (§4.12)
+# --------------------------------------------------------------------------------------------
+def _default_radius(sigma):
+    return max(0, math.ceil(3.0 * sigma))
+
+
+def _lk(sigma, radius=None, *, centred=True, scale=False, sign=1.0, variance=False, rule=None):
+    """The LoG kernel with knobs for the mistakes."""
+    if radius is None:
+        radius = {None: _default_radius, "floor": lambda s: int(math.floor(3 * s))}[rule](sigma)
+    x = np.arange(-radius, radius + 1, dtype=np.float64)
+    r2 = x[:, None] ** 2 + x[None, :] ** 2
+    s2 = sigma if variance else sigma * sigma
+    k = (r2 - 2 * s2) / (2 * math.pi * s2 ** 3) * np.exp(-r2 / (2 * s2))
+    if centred:
+        k = k - k.mean()
+    if scale:
+        k = k * s2
+    return sign * k
+
+
+log_kernel = Check(
+    public=[
+        Case((1.4,), {}, "σ = 1.4 (3σ = 4.2: radius 5)"),
+        Case((0.8,), {}, "σ = 0.8 (3σ = 2.4: radius 3)"),
+        Case((2.0,), {"radius": 3}, "σ = 2 with radius 3"),
+    ],
+    hidden=lambda rng: [
+        Case((_sigma(rng, 0.4, 0.9),), {}, "default radius, σ < 1"),
+        Case((_sigma(rng, 1.1, 1.9),), {}, "default radius, 1 < σ < 2"),
+        Case((_sigma(rng, 2.0, 3.0),), {}, "default radius, σ > 2"),
+        Case((_sigma(rng, 1.1, 2.5, frac=(0.1, 0.45)),), {}, "default radius, 3σ just above an integer"),
+        Case((_sigma(rng, 0.6, 2.5), None), {}, "radius=None given explicitly"),
+        Case((_sigma(rng, 1.2, 2.5), _size(rng, 1, 3)), {}, "explicit radius smaller than 3σ"),
+        Case((_sigma(rng, 0.5, 1.5), _size(rng, 6, 8)), {}, "explicit radius larger than 3σ"),
+        Case((_sigma(rng, 0.5, 2.0),), {"radius": 0}, "radius 0 (the kernel [[0.0]])"),
+        Case((0.5,), {}, "σ = 0.5 (radius 2)"),
+        Case((_sigma(rng, 3.0, 4.0),), {}, "large σ (small values: relative precision counts)"),
+    ],
+    compare=close(rtol=1e-7, atol=1e-13, kind="f", scaled=True),
+    mistakes=[
+        Mistake("mean not subtracted (the kernel does not sum to 0)", lambda sigma, radius=None: _lk(sigma, radius, centred=False),
+                "Subtract the mean of the sampled kernel so that it sums to 0 (a flat region must give 0)"),
+        Mistake("scale-normalised (multiplied by σ²)", lambda sigma, radius=None: _lk(sigma, radius, scale=True),
+                "Return ∇²G itself, (x²+y²−2σ²)/(2πσ⁶)·exp(−(x²+y²)/(2σ²)), without a σ² factor"),
+        Mistake("sign flipped", lambda sigma, radius=None: _lk(sigma, radius, sign=-1.0),
+                "The LoG is negative at the centre: (x² + y² − 2σ²) is −2σ² there"),
+        Mistake("σ used as variance", lambda sigma, radius=None: _lk(sigma, radius, variance=True),
+                "σ is the standard deviation: the formula uses σ² and σ⁶"),
+        Mistake("radius floor(3σ) instead of ceil", lambda sigma, radius=None: _lk(sigma, radius, rule="floor"),
+                "The default radius rounds 3σ up: r = ceil(3σ), a (2r+1)×(2r+1) kernel"),
+        Mistake("radius argument ignored", lambda sigma, radius=None: _lk(sigma, None),
+                "Use the given radius; only radius=None means ceil(3σ)"),
+    ],
+)
+
+
+def _log_with(image, sigma, border, kernel):
+    return _correlate(image, kernel, border)
+
+
+def _log_uncentred(image, sigma, border="reflect101"):
+    return _log_with(image, sigma, border, _lk(sigma, centred=False))
+
+
+def _log_sign(image, sigma, border="reflect101"):
+    return -_log(image, sigma, border)
+
+
+def _log_two_steps(image, sigma, border="reflect101"):
+    return _laplacian(_gaussian(image, sigma, border), border)
+
+
+def _log_zero(image, sigma, border="reflect101"):
+    return _log(image, sigma, "zero")
+
+
+def _log_scaled(image, sigma, border="reflect101"):
+    return sigma * sigma * _log(image, sigma, border)
+
+
+def _log_swap_reflect(image, sigma, border="reflect101"):
+    return _log(image, sigma, _SWAP.get(border, border))
+
+
+def _log_hidden(rng):
+    def img(h, w, kind="unit"):
+        return _image(rng, h, w, kind)
+
+    return [
+        Case((img(_size(rng, 8, 12), _size(rng, 9, 14)), _sigma(rng, 0.6, 1.4)), {"border": "zero"}, "zero border"),
+        Case((img(_size(rng, 9, 13), _size(rng, 8, 12)), _sigma(rng, 0.6, 1.4)), {"border": "replicate"}, "replicate"),
+        Case((img(_size(rng, 9, 14), _size(rng, 9, 14)), _sigma(rng, 1.1, 1.9)), {"border": "reflect"}, "reflect"),
+        Case((img(_size(rng, 10, 14), _size(rng, 9, 13)), _sigma(rng, 0.6, 1.4)), {}, "default border (reflect101)"),
+        Case((img(_size(rng, 9, 13), _size(rng, 9, 13), "uint8"), _sigma(rng, 0.6, 1.3)), {"border": "reflect101"},
+             "uint8 image (not rescaled)"),
+        Case((img(_size(rng, 12, 18), _size(rng, 12, 18), "big"), _sigma(rng, 1.1, 2.0)), {"border": "reflect"},
+             "±1e6 values, larger σ"),
+        Case((img(_size(rng, 6, 9), _size(rng, 6, 9), "const"), _sigma(rng, 0.6, 1.2)), {"border": "zero"},
+             "constant image, zero border"),
+        Case((_disk(rng, _size(rng, 14, 18), _size(rng, 14, 18)), _sigma(rng, 0.8, 1.6)),
+             {"border": _random_border(rng, BORDERS[1:])}, "an anti-aliased disk"),
+        Case((img(1, _size(rng, 8, 14)), _sigma(rng, 0.5, 1.2)), {"border": _random_border(rng, BORDERS[1:])},
+             "single row 1×N"),
+        Case((img(2, 3, "normal"), _sigma(rng, 0.4, 0.65)), {"border": _random_border(rng, BORDERS[1:])},
+             "tiny 2×3 image"),
+    ]
+
+
+log = Check(
+    public=[
+        Case((_distinct(8, 9, scale=1 / 71), 0.8), {}, "8×9 image, σ = 0.8, default border (reflect101)"),
+        Case((_distinct(9, 8, seed=3, scale=1 / 71), 1.2), {"border": "reflect"}, "σ = 1.2, reflect"),
+        Case((_distinct(7, 9, seed=5, dtype=np.uint8), 0.7), {"border": "zero"}, "uint8 image, σ = 0.7, zero border"),
+    ],
+    hidden=_log_hidden,
+    compare=_LINEAR,
+    mistakes=[
+        Mistake("kernel not zero-mean", _log_uncentred,
+                "Subtract the mean of the sampled LoG kernel (it must sum to 0), then correlate"),
+        Mistake("sign flipped", _log_sign,
+                "Correlate with ∇²G = (x²+y²−2σ²)/(2πσ⁶)·exp(−(x²+y²)/2σ²), negative at the centre"),
+        Mistake("Gaussian then 4-neighbour Laplacian (not the LoG kernel)", _log_two_steps,
+                "Correlate once with the sampled LoG kernel log_kernel(σ), not smoothing then a 3×3 Laplacian"),
+        Mistake("border ignored (always zero)", _log_zero,
+                "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
+        Mistake("scale-normalised (multiplied by σ²)", _log_scaled, "Return the LoG response itself, without a σ² factor"),
+        Mistake("reflect and reflect101 swapped", _log_swap_reflect,
+                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+    ],
+    allowed=("filters.pad", "filters.correlate", "filters.convolve", "edges.log_kernel"),
+)
+
+
+# --------------------------------------------------------------------------------------------
+# edges.dog (§4.12)
+# --------------------------------------------------------------------------------------------
+def _dog_swapped(image, sigma, k=1.6, border="reflect101"):
+    return -_dog(image, sigma, k, border)
+
+
+def _dog_plus_k(image, sigma, k=1.6, border="reflect101"):
+    return _gaussian(image, sigma + k, border) - _gaussian(image, sigma, border)
+
+
+def _dog_k_ignored(image, sigma, k=1.6, border="reflect101"):
+    return _dog(image, sigma, 1.6, border)
+
+
+def _dog_k_squared(image, sigma, k=1.6, border="reflect101"):
+    return _dog(image, sigma, k * k, border)
+
+
+def _dog_zero(image, sigma, k=1.6, border="reflect101"):
+    return _dog(image, sigma, k, "zero")
+
+
+def _dog_swap_reflect(image, sigma, k=1.6, border="reflect101"):
+    return _dog(image, sigma, k, _SWAP.get(border, border))
+
+
+def _k(rng, lo=1.2, hi=2.0):
+    for _ in range(1000):
+        k = float(np.round(rng.uniform(lo, hi), 2))
+        if abs(k - 1.6) > 0.05:
+            return k
+    raise RuntimeError("no suitable k")  # pragma: no cover
+
+
+def _dog_hidden(rng):
+    def img(h, w, kind="unit"):
+        return _image(rng, h, w, kind)
+
+    return [
+        Case((img(_size(rng, 8, 12), _size(rng, 9, 14)), _sigma(rng, 0.6, 1.2), _k(rng)), {"border": "zero"},
+             "zero border"),
+        Case((img(_size(rng, 9, 13), _size(rng, 8, 12)), _sigma(rng, 0.6, 1.2)), {"border": "replicate"},
+             "default k = 1.6, replicate"),
+        Case((img(_size(rng, 9, 14), _size(rng, 9, 14)), _sigma(rng, 0.6, 1.2), _k(rng)), {"border": "reflect"},
+             "reflect"),
+        Case((img(_size(rng, 10, 14), _size(rng, 9, 13)), _sigma(rng, 0.6, 1.2)), {"k": _k(rng, 1.1, 1.5)},
+             "k given by keyword, default border (reflect101)"),
+        Case((img(_size(rng, 9, 13), _size(rng, 9, 13), "uint8"), _sigma(rng, 0.6, 1.2), _k(rng)),
+             {"border": "reflect101"}, "uint8 image (not rescaled)"),
+        Case((img(_size(rng, 12, 18), _size(rng, 12, 18), "big"), _sigma(rng, 1.1, 1.6), _k(rng)),
+             {"border": "reflect"}, "±1e6 values"),
+        Case((img(_size(rng, 6, 9), _size(rng, 6, 9), "const"), _sigma(rng, 0.6, 1.2), _k(rng)), {"border": "zero"},
+             "constant image, zero border"),
+        Case((_disk(rng, _size(rng, 14, 18), _size(rng, 14, 18)), _sigma(rng, 0.8, 1.4), _k(rng, 1.3, 2.0)),
+             {"border": _random_border(rng, BORDERS[1:])}, "an anti-aliased disk"),
+        Case((img(1, _size(rng, 8, 14)), _sigma(rng, 0.5, 1.2), _k(rng)), {"border": _random_border(rng, BORDERS[1:])},
+             "single row 1×N"),
+        Case((img(2, 3, "normal"), _sigma(rng, 0.4, 0.65), _k(rng)), {"border": _random_border(rng, BORDERS[1:])},
+             "tiny 2×3 image"),
+    ]
+
+
+dog = Check(
+    public=[
+        Case((_distinct(8, 9, scale=1 / 71), 0.9, 1.5), {}, "8×9 image, σ = 0.9, k = 1.5, default border"),
+        Case((_distinct(9, 8, seed=3, scale=1 / 71), 0.7), {"border": "reflect"}, "σ = 0.7, default k = 1.6, reflect"),
+        Case((_distinct(7, 9, seed=5, dtype=np.uint8), 0.8, 2.0), {"border": "zero"}, "uint8 image, k = 2, zero border"),
+    ],
+    hidden=_dog_hidden,
+    compare=_LINEAR,
+    mistakes=[
+        Mistake("order swapped (G_σ − G_kσ)", _dog_swapped,
+                "DoG = G_{kσ} ∗ I − G_σ ∗ I: the wider Gaussian first (same sign as the LoG)"),
+        Mistake("second σ is σ + k instead of k·σ", _dog_plus_k, "The wider Gaussian has standard deviation k·σ"),
+        Mistake("k ignored (always 1.6)", _dog_k_ignored, "Use the `k` argument: the second σ is k·σ"),
+        Mistake("k squared (k²·σ)", _dog_k_squared, "The wider Gaussian has standard deviation k·σ, not k²·σ"),
+        Mistake("border ignored (always zero)", _dog_zero,
+                "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
+        Mistake("reflect and reflect101 swapped", _dog_swap_reflect,
+                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+    ],
+    allowed=("filters.pad", "filters.gaussian_kernel", "filters.gaussian"),
+)
+
+
+# --------------------------------------------------------------------------------------------
+# edges.zero_crossings (§4.11)
+# --------------------------------------------------------------------------------------------
+def _zc_variant(response, threshold=0.0, *, place="smaller", zeros=False, vertical=True, use_threshold=True,
+                diagonal=False, ties="first"):
+    r = np.asarray(response, dtype=np.float64)
+    out = np.zeros(r.shape, dtype=bool)
+    pairs = [((slice(None), slice(None, -1)), (slice(None), slice(1, None)))]
+    if vertical:
+        pairs.append(((slice(None, -1), slice(None)), (slice(1, None), slice(None))))
+    if diagonal:
+        pairs.append(((slice(None, -1), slice(None, -1)), (slice(1, None), slice(1, None))))
+        pairs.append(((slice(None, -1), slice(1, None)), (slice(1, None), slice(None, -1))))
+    for first, second in pairs:
+        a, b = r[first], r[second]
+        crossing = (a * b <= 0) & (a != b) if zeros else (np.sign(a) * np.sign(b) < 0)
+        if use_threshold:
+            crossing &= np.abs(a - b) > threshold
+        if place == "both":
+            out[first] |= crossing
+            out[second] |= crossing
+            continue
+        if place == "positive":
+            on_first = a > b
+        elif place == "larger":
+            on_first = np.abs(a) >= np.abs(b)
+        elif ties == "first":
+            on_first = np.abs(a) <= np.abs(b)
+        else:
+            on_first = np.abs(a) < np.abs(b)
+        out[first] |= crossing & on_first
+        out[second] |= crossing & ~on_first
+    return out
+
+
+def _zc(**knobs):
+    def wrong(response, threshold=0.0):
+        return _zc_variant(response, threshold, **knobs)
+    return wrong
+
+
+def _int_response(rng, h, w, lo=-4, hi=4):
+    return rng.integers(lo, hi + 1, (h, w)).astype(np.float64)
+
+
+def _zero_crossings_hidden(rng):
+    disk = _disk(rng, _size(rng, 14, 20), _size(rng, 14, 20))
+    return [
+        Case((rng.normal(0, 1, (_size(rng, 6, 10), _size(rng, 7, 12))),), {}, "random response, threshold 0"),
+        Case((rng.normal(0, 1, (_size(rng, 6, 10), _size(rng, 7, 12))), float(np.round(rng.uniform(0.8, 1.6), 2))), {},
+             "random response with a threshold"),
+        Case((_int_response(rng, _size(rng, 6, 9), _size(rng, 6, 9)),), {},
+             "integer response: exact zeros and ties |a| = |b|"),
+        Case((_int_response(rng, _size(rng, 6, 9), _size(rng, 6, 9), -2, 2), 2.0), {},
+             "integer response, threshold equal to some jumps (|a − b| > threshold)"),
+        Case((_log(disk, _sigma(rng, 0.8, 1.5)),), {"threshold": 0.0}, "the LoG of an anti-aliased disk"),
+        Case((_dog(disk, _sigma(rng, 0.8, 1.2)), 0.01), {}, "the DoG of a disk, small threshold"),
+        Case((rng.normal(0, 1, (1, _size(rng, 8, 14))),), {}, "single row 1×N"),
+        Case((rng.normal(0, 1, (_size(rng, 6, 10), 1)),), {}, "single column N×1"),
+        Case((np.full((_size(rng, 3, 6), _size(rng, 3, 6)), float(rng.choice([-2.0, 0.0, 3.0]))),), {},
+             "constant response (no crossings)"),
+        Case((rng.uniform(-1e6, 1e6, (_size(rng, 5, 8), _size(rng, 5, 8))), float(rng.uniform(1e5, 5e5))), {},
+             "±1e6 values and threshold"),
+    ]
+
+
+zero_crossings = Check(
+    public=[
+        Case((np.array([[3.0, 1.0, -2.0, -1.0, 0.0, 5.0],
+                        [-2.0, 2.0, -2.0, 4.0, -3.0, 1.0],
+                        [1.0, -1.0, 0.0, 2.0, 1.0, -1.0],
+                        [0.0, 3.0, -4.0, 0.0, -2.0, 2.0],
+                        [2.0, -1.0, 1.0, -3.0, 3.0, -0.5]]),), {},
+             "5×6 integer response with exact zeros and ties"),
+        Case((np.array([[0.9, -0.2, -1.5, 0.4, 1.1],
+                        [0.3, 0.8, -0.6, -0.1, 0.7],
+                        [-1.2, 0.5, 1.3, -0.9, -0.3],
+                        [0.6, -0.4, -0.7, 1.6, 0.2]]), 1.0), {}, "4×5 response, threshold 1.0"),
+        Case((_log(disk_image((12, 13), centre=(6.3, 5.8), radius=3.6), 1.0),), {},
+             "the LoG (σ = 1) of a small disk"),
+    ],
+    hidden=_zero_crossings_hidden,
+    compare=_EXACT_BOOL,
+    mistakes=[
+        Mistake("both pixels of a crossing marked", _zc(place="both"),
+                "Mark only one pixel per crossing pair: the one whose |value| is smaller"),
+        Mistake("edge always on the positive pixel", _zc(place="positive"),
+                "Put the edge on the pixel of the pair with the smaller absolute value, whatever its sign"),
+        Mistake("edge on the pixel farther from zero", _zc(place="larger"),
+                "The edge goes on the pixel closer to the zero crossing: the smaller |value|"),
+        Mistake("ties put on the lower/right pixel", _zc(ties="second"),
+                "When |a| = |b| the edge goes on the upper (vertical pair) or left (horizontal pair) pixel"),
+        Mistake("exact zeros counted as crossings (a·b ≤ 0)", _zc(zeros=True),
+                "A crossing needs strictly opposite signs, a·b < 0: a pixel equal to 0 is not part of a pair"),
+        Mistake("horizontal pairs only", _zc(vertical=False), "Check vertically adjacent pairs as well"),
+        Mistake("threshold ignored", _zc(use_threshold=False), "Keep a pair only when |a − b| > threshold"),
+        Mistake("diagonal pairs included", _zc(diagonal=True),
+                "Only horizontally or vertically adjacent pairs count (4-neighbours), not diagonal ones"),
+    ],
+)
+
+
+# --------------------------------------------------------------------------------------------
+# edges.non_max_suppression (§4.8)
+# --------------------------------------------------------------------------------------------
+def _nms_variant(magnitude, ix, iy, interpolate=True, *, strict=False, swap_weights=False, border=False):
+    mag = np.asarray(magnitude, dtype=np.float64)
+    gx = np.asarray(ix, dtype=np.float64)
+    gy = np.asarray(iy, dtype=np.float64)
+    h, w = mag.shape
+    padded = np.zeros((h + 2, w + 2))
+    padded[1:-1, 1:-1] = mag
+
+    def at(dy, dx):
+        return padded[1 + dy: 1 + dy + h, 1 + dx: 1 + dx + w]
+
+    ax, ay = np.abs(gx), np.abs(gy)
+    if interpolate:
+        vertical = ay > ax
+        same = (gx > 0) == (gy > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            weight = np.minimum(ax, ay) / np.maximum(ax, ay)
+        if swap_weights:
+            weight = 1.0 - weight
+        plus = weight * np.where(same, at(1, 1), np.where(vertical, at(1, -1), at(-1, 1))) \
+            + (1 - weight) * np.where(vertical, at(1, 0), at(0, 1))
+        minus = weight * np.where(same, at(-1, -1), np.where(vertical, at(-1, 1), at(1, -1))) \
+            + (1 - weight) * np.where(vertical, at(-1, 0), at(0, -1))
+    else:
+        sector = np.floor((np.degrees(np.arctan2(gy, gx)) % 180.0 + 22.5) / 45.0).astype(int) % 4
+        offsets = ((0, 1), (1, 1), (1, 0), (1, -1))
+        plus = np.select([sector == k for k in range(4)], [at(dy, dx) for dy, dx in offsets])
+        minus = np.select([sector == k for k in range(4)], [at(-dy, -dx) for dy, dx in offsets])
+    compare = np.greater if strict else np.greater_equal
+    with np.errstate(invalid="ignore"):
+        keep = (mag > 0) & compare(mag, plus) & compare(mag, minus) & ((ax > 0) | (ay > 0))
+    out = np.where(keep, mag, 0.0)
+    if border:
+        out[0] = out[-1] = 0.0
+        out[:, 0] = out[:, -1] = 0.0
+    return out
+
+
+def _nms_nearest(magnitude, ix, iy, interpolate=True):
+    return _nms(magnitude, ix, iy, False)
+
+
+def _nms_always_interpolated(magnitude, ix, iy, interpolate=True):
+    return _nms(magnitude, ix, iy, True)
+
+
+def _nms_along_edge(magnitude, ix, iy, interpolate=True):
+    return _nms(magnitude, -np.asarray(iy, dtype=np.float64), ix, interpolate)
+
+
+def _nms_xy_swapped(magnitude, ix, iy, interpolate=True):
+    return _nms(magnitude, iy, ix, interpolate)
+
+
+def _nms_y_up(magnitude, ix, iy, interpolate=True):
+    return _nms(magnitude, ix, -np.asarray(iy, dtype=np.float64), interpolate)
+
+
+def _nms_recomputed(magnitude, ix, iy, interpolate=True):
+    return _nms(_magnitude(ix, iy), ix, iy, interpolate)
+
+
+def _nms_strict(magnitude, ix, iy, interpolate=True):
+    return _nms_variant(magnitude, ix, iy, interpolate, strict=True)
+
+
+def _gradient_field(rng, h, w, *, scale=1.0):
+    """Random derivatives and their L2 magnitude: no ties, every direction."""
+    ix = rng.normal(0.0, scale, (h, w))
+    iy = rng.normal(0.0, scale, (h, w))
+    return np.hypot(ix, iy), ix, iy
+
+
+def _plateau_field(rng, h, w):
+    """Integer magnitudes with two-pixel plateaus along axis-aligned and diagonal gradients
+    (interpolation weights 0 or 1, so every formula is exact): a strict maximum loses them."""
+    mag = rng.integers(1, 4, (h, w)).astype(np.float64)
+    ix = np.zeros((h, w))
+    iy = np.zeros((h, w))
+    kind = rng.integers(0, 4, (h, w))
+    ix[kind == 0] = 1.0
+    iy[kind == 1] = -2.0
+    ix[kind >= 2] = 3.0
+    iy[kind == 2] = 3.0
+    iy[kind == 3] = -3.0
+    ix *= rng.choice([-1.0, 1.0], (h, w))
+    # plant horizontal, vertical and diagonal plateaus of equal values
+    for _ in range(3):
+        r, c = _size(rng, 1, h - 3), _size(rng, 1, w - 3)
+        value = float(rng.integers(5, 8))
+        which = int(rng.integers(0, 3))
+        if which == 0:
+            mag[r, c:c + 2] = value
+            ix[r, c:c + 2], iy[r, c:c + 2] = 1.0, 0.0
+        elif which == 1:
+            mag[r:r + 2, c] = value
+            ix[r:r + 2, c], iy[r:r + 2, c] = 0.0, 2.0
+        else:
+            mag[r, c] = mag[r + 1, c + 1] = value
+            ix[r, c] = ix[r + 1, c + 1] = -1.0
+            iy[r, c] = iy[r + 1, c + 1] = -1.0
+    return mag, ix, iy
+
+
+def _sobel_field(image):
+    gx, gy = _sobel(_gaussian(image, 1.0))
+    return _magnitude(gx, gy), gx, gy
+
+
+def _nms_public():
+    rng = np.random.default_rng(11)
+    field = _gradient_field(rng, 7, 8)
+    plateau = _plateau_field(np.random.default_rng(5), 7, 8)
+    r = np.random.default_rng(17)
+    other = (np.round(r.uniform(0.5, 3.0, (6, 7)), 2), r.normal(0, 1, (6, 7)), r.normal(0, 1, (6, 7)))
+    return [
+        Case(field, {}, "7×8 random gradient field, M = hypot(ix, iy), interpolated (default)"),
+        Case(field, {"interpolate": False}, "the same field, interpolate=False (four directions)"),
+        Case(plateau, {}, "integer magnitudes with plateaus along axis-aligned and diagonal gradients"),
+        Case(other, {}, "a magnitude that is not hypot(ix, iy): use the one you are given"),
+    ]
+
+
+def _nms_hidden(rng):
+    h, w = _size(rng, 8, 12), _size(rng, 9, 14)
+    field = _gradient_field(rng, h, w)
+    disk = _sobel_field(_disk(rng, _size(rng, 16, 22), _size(rng, 16, 22), noise=0.01))
+    mag_l1 = _magnitude(disk[1], disk[2], "l1")
+    plateau1 = _plateau_field(rng, _size(rng, 7, 10), _size(rng, 7, 10))
+    plateau2 = _plateau_field(rng, _size(rng, 7, 10), _size(rng, 7, 10))
+    big = _gradient_field(rng, _size(rng, 7, 10), _size(rng, 7, 10), scale=1e6)
+    axes = _gradient_field(rng, _size(rng, 7, 10), _size(rng, 8, 11))
+    axes[1][::3] = 0.0  # Ix = 0 on some rows: vertical gradients, weight exactly 0
+    axes[2][:, ::4] = 0.0
+    axes = (_magnitude(axes[1], axes[2]), axes[1], axes[2])
+    sparse = _gradient_field(rng, _size(rng, 7, 10), _size(rng, 7, 10))
+    off = rng.random(sparse[0].shape) < 0.3
+    sparse = (np.where(off, 0.0, sparse[0]), np.where(off, 0.0, sparse[1]), np.where(off, 0.0, sparse[2]))
+    return [
+        Case(field, {}, "random gradient field, interpolated"),
+        Case(field, {"interpolate": False}, "random gradient field, interpolate=False"),
+        Case(disk, {}, "Sobel gradient of a smoothed disk (every orientation)"),
+        Case(disk, {"interpolate": False}, "Sobel gradient of a disk, interpolate=False"),
+        Case((mag_l1,) + disk[1:], {}, "L1 magnitude of the disk's gradient (not hypot(ix, iy))"),
+        Case(plateau1, {}, "integer plateaus along axis-aligned and diagonal gradients"),
+        Case(plateau2, {"interpolate": False}, "integer plateaus, interpolate=False"),
+        Case(big, {"interpolate": bool(rng.random() < 0.5)}, "±1e6 derivatives"),
+        Case(axes, {}, "exactly horizontal and vertical gradients among others"),
+        Case(sparse, {"interpolate": True}, "zero gradient (and magnitude) at 30% of the pixels"),
+        Case(_gradient_field(rng, 1, _size(rng, 7, 12)), {}, "single row 1×N"),
+        Case(_gradient_field(rng, 2, 3), {"interpolate": bool(rng.random() < 0.5)}, "tiny 2×3"),
+    ]
+
+
+non_max_suppression = Check(
+    public=_nms_public,
+    hidden=_nms_hidden,
+    compare=close(rtol=0.0, atol=0.0, kind="f"),
+    mistakes=[
+        Mistake("no interpolation (nearest of four directions)", _nms_nearest,
+                "With interpolate=True compare with (1−w)·axis neighbour + w·diagonal neighbour, "
+                "w = min(|Ix|,|Iy|)/max(|Ix|,|Iy|), instead of rounding the direction"),
+        Mistake("interpolate=False ignored (always interpolated)", _nms_always_interpolated,
+                "With interpolate=False round the direction to 0°, 45°, 90° or 135° and compare with those two neighbours"),
+        Mistake("compared along the edge, not across it", _nms_along_edge,
+                "Compare with the neighbours along the gradient (ix, iy), which crosses the edge; not along the edge"),
+        Mistake("x and y swapped in the direction", _nms_xy_swapped,
+                "ix is the step along the columns (x), iy along the rows (y): the + neighbour is at (row + sy, col + sx)"),
+        Mistake("y pointing up (Iy negated)", _nms_y_up,
+                "y points down the rows: a gradient with Iy > 0 points to the row below (row + 1)"),
+        Mistake("strict maximum (> instead of ≥)", _nms_strict,
+                "Keep a pixel when M ≥ both side values: a plateau of equal values keeps both pixels"),
+        Mistake("magnitude recomputed from ix and iy", _nms_recomputed,
+                "Use the magnitude you are given (it may be an L1 or smoothed magnitude), do not recompute hypot(ix, iy)"),
+        Mistake("interpolation weights swapped", lambda magnitude, ix, iy, interpolate=True:
+                _nms_variant(magnitude, ix, iy, interpolate, swap_weights=True),
+                "The diagonal neighbour gets weight w = min/max and the axis neighbour 1 − w"),
+        Mistake("image border suppressed", lambda magnitude, ix, iy, interpolate=True:
+                _nms_variant(magnitude, ix, iy, interpolate, border=True),
+                "Border pixels are kept when they are maxima: neighbours outside the image count as 0"),
+    ],
+)
+
+
+# --------------------------------------------------------------------------------------------
+# edges.hysteresis (§4.10)
+# --------------------------------------------------------------------------------------------
+def _hyst_variant(magnitude, low, high, *, connectivity=8, inclusive=False, mode="link"):
+    mag = np.asarray(magnitude, dtype=np.float64)
+    strong = mag >= high if inclusive else mag > high
+    candidates = mag >= low if inclusive else mag > low
+    if mode == "strong":
+        return strong
+    if mode == "weak":
+        return candidates
+    if mode == "single":
+        return strong | (candidates & _dilate(strong, 1))
+    out = np.zeros(mag.shape, dtype=bool)
+    if not strong.any():
+        return out
+    flat, label = _components(candidates, connectivity)
+    linked = np.zeros(flat.size, dtype=bool)
+    linked[label[strong.reshape(-1)[flat]]] = True
+    out.reshape(-1)[flat[linked[label]]] = True
+    return out
+
+
+def _hyst(**knobs):
+    def wrong(magnitude, low, high):
+        return _hyst_variant(magnitude, low, high, **knobs)
+    return wrong
+
+
+_HYST_PUBLIC = np.array([
+    [9, 0, 0, 0, 0, 0, 0, 4],
+    [0, 5, 0, 0, 3, 3, 0, 0],
+    [0, 0, 5, 0, 0, 0, 6, 0],
+    [0, 0, 0, 5, 5, 5, 0, 0],
+    [2, 0, 0, 0, 0, 0, 5, 8],
+    [3, 6, 0, 4, 4, 0, 3, 0],
+    [0, 0, 0, 4, 0, 0, 0, 8],
+], dtype=np.float64)
+
+
+def _chain_field(rng, h, w):
+    """Long weak chains (straight and diagonal) with one strong pixel each, plus clutter."""
+    mag = np.where(rng.random((h, w)) < 0.15, rng.integers(1, 4, (h, w)), 0).astype(np.float64)
+    r = _size(rng, 1, h - 2)
+    mag[r, 1:w - 1] = 5.0
+    mag[r, int(rng.integers(1, w - 1))] = 9.0
+    n = min(h, w) - 1
+    c0 = _size(rng, 0, max(0, w - n))
+    for k in range(n):
+        mag[k, c0 + k] = max(mag[k, c0 + k], 5.0)
+    mag[0, c0] = 9.0
+    return mag
+
+
+def _hysteresis_hidden(rng):
+    disk = _nms(*_sobel_field(_disk(rng, _size(rng, 18, 24), _size(rng, 18, 24), noise=0.03)))
+    top = float(disk.max())
+    square = _nms(*_sobel_field(_square(rng, _size(rng, 18, 24), _size(rng, 18, 24), noise=0.06)))
+    sq_top = float(square.max())
+    ints = rng.integers(0, 9, (_size(rng, 8, 12), _size(rng, 8, 12))).astype(np.float64)
+    return [
+        Case((disk, 0.2 * top, 0.6 * top), {}, "NMS output of a noisy disk"),
+        Case((square, 0.15 * sq_top, 0.5 * sq_top), {}, "NMS output of a noisy rotated square"),
+        Case((_chain_field(rng, _size(rng, 9, 13), _size(rng, 9, 13)), 4.0, 8.0), {},
+             "long straight and diagonal weak chains"),
+        Case((_chain_field(rng, _size(rng, 9, 13), _size(rng, 9, 13)), 2.5, 6.0), {}, "weak chains and clutter"),
+        Case((ints, 3.0, 6.0), {}, "integer magnitudes equal to the thresholds"),
+        Case((ints * 0.5, 1.0, 1.0), {}, "low == high"),
+        Case((rng.random((_size(rng, 6, 9), _size(rng, 6, 9))), 0.8, 1.5), {}, "no strong pixel (empty result)"),
+        Case((rng.uniform(-1e6, 1e6, (_size(rng, 8, 11), _size(rng, 8, 11))), 2e5, 7e5), {}, "±1e6 values"),
+        Case((rng.integers(0, 6, (1, _size(rng, 10, 16))).astype(np.float64), 1.0, 4.0), {}, "single row 1×N"),
+        Case((rng.integers(0, 6, (2, 3)).astype(np.float64), 1.0, 3.0), {}, "tiny 2×3"),
+    ]
+
+
+hysteresis = Check(
+    public=[
+        Case((_HYST_PUBLIC, 3.0, 5.0), {}, "7×8 magnitudes: diagonal and straight chains, values equal to the thresholds"),
+        Case((_HYST_PUBLIC.T.copy(), 2.0, 7.0), {}, "the transpose, other thresholds"),
+        Case((np.array([[0.2, 0.7, 0.0, 0.9, 0.4],
+                        [0.0, 0.45, 0.0, 0.35, 0.0],
+                        [0.6, 0.0, 0.0, 0.0, 0.3],
+                        [0.0, 0.5, 0.55, 0.0, 0.8]]), 0.3, 0.75), {}, "4×5 float magnitudes"),
+    ],
+    hidden=_hysteresis_hidden,
+    compare=_EXACT_BOOL,
+    mistakes=[
+        Mistake("4-connected linking", _hyst(connectivity=4),
+                "Link through all 8 neighbours, diagonals included (edges after NMS are often diagonal chains)"),
+        Mistake("single pass (only direct neighbours of strong pixels)", _hyst(mode="single"),
+                "Follow whole chains: a weak pixel is kept if it is connected to a strong pixel through other "
+                "weak pixels (repeat until nothing changes, or label connected components)"),
+        Mistake("thresholds inclusive (≥ instead of >)", _hyst(inclusive=True),
+                "Strong means magnitude > high and candidate means magnitude > low (strictly)"),
+        Mistake("weak pixels kept without linking", _hyst(mode="weak"),
+                "A weak pixel (low < M ≤ high) is kept only if it is connected to a strong one"),
+        Mistake("only strong pixels (no linking)", _hyst(mode="strong"),
+                "Also keep the weak pixels (> low) connected to strong pixels"),
+    ],
+)
+
+
+# --------------------------------------------------------------------------------------------
+# edges.canny (§4.10)
+# --------------------------------------------------------------------------------------------
+def _canny_variant(image, sigma=1.4, low=0.1, high=0.2, relative=True, *, norm="l2", smooth=True,
+                   nms="interpolate", link="8", as_relative=None):
+    img = np.asarray(image, dtype=np.float64)
+    s = _gaussian(img, sigma) if smooth else img
+    gx, gy = _sobel(s)
+    mag = _magnitude(gx, gy, norm)
+    largest = float(mag.max())
+    if not largest > 1e-12 * max(1.0, float(np.abs(img).max())):
+        return np.zeros(img.shape, dtype=bool)
+    if (relative if as_relative is None else as_relative):
+        low, high = low * largest, high * largest
+    if nms == "interpolate":
+        thin = _nms(mag, gx, gy, True)
+    elif nms == "nearest":
+        thin = _nms(mag, gx, gy, False)
+    else:
+        thin = mag
+    if link == "8":
+        return _hysteresis(thin, low, high)
+    if link == "4":
+        return _hyst_variant(thin, low, high, connectivity=4)
+    return thin > high
+
+
+def _cv(**knobs):
+    def wrong(image, sigma=1.4, low=0.1, high=0.2, relative=True):
+        return _canny_variant(image, sigma, low, high, relative, **knobs)
+    return wrong
+
+
+def _shaded_disk(rng: np.random.Generator, h: int, w: int, *, noise: float = 0.0) -> np.ndarray:
+    """A disk lit from one side: its contrast fades from 1 to ~0.1 across it, so only part of
+    its contour is strong and the rest must be linked through weak, often only diagonally
+    connected, pixels."""
+    radius = float(rng.uniform(0.3, 0.36) * min(h, w))
+    cx = (w - 1) / 2 + float(rng.uniform(-0.4, 0.4))
+    cy = (h - 1) / 2 + float(rng.uniform(-0.4, 0.4))
+    inside = disk_image((h, w), centre=(cx, cy), radius=radius)
+    light = float(rng.uniform(-np.pi, np.pi))
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    t = ((x - cx) * math.cos(light) + (y - cy) * math.sin(light)) / radius  # -1 .. 1 across the disk
+    contrast = 0.1 + 0.9 * np.clip((t + 1) / 2, 0, 1) ** 2
+    img = 0.1 + 0.8 * inside * contrast
+    return img + rng.normal(0.0, noise, img.shape) if noise else img
+
+
+def _absolute_thresholds(image, sigma, low_fraction, high_fraction):
+    """Thresholds in magnitude units: fractions of the image's largest Sobel magnitude, rounded."""
+    gx, gy = _sobel(_gaussian(image, sigma))
+    top = float(_magnitude(gx, gy).max())
+    digits = max(0, 2 - int(math.floor(math.log10(top))))
+    return round(low_fraction * top, digits), round(high_fraction * top, digits)
+
+
+def _canny_public():
+    disk = disk_image((28, 30), centre=(14.3, 13.6), radius=9.3, inside=0.85, outside=0.1)
+    rng = np.random.default_rng(4)
+    shaded = _shaded_disk(np.random.default_rng(12), 28, 28)
+    square = square_image((24, 24), centre=(11.8, 11.3), side=13.0, angle=0.35, inside=0.8, outside=0.15)
+    u8 = np.clip(np.round(255 * (square + rng.normal(0, 0.02, square.shape))), 0, 255).astype(np.uint8)
+    low, high = _absolute_thresholds(u8, 1.2, 0.2, 0.5)
+    step = oriented_step_image((20, 22), angle=math.radians(23.0), offset=0.35, low=0.15, high=0.8)
+    return [
+        Case((disk, 1.5, 0.83, 0.87), {}, "anti-aliased disk, tight relative thresholds 0.83 / 0.87"),
+        Case((shaded, 1.2, 0.15, 0.8), {}, "disk lit from one side: weak contour linked to strong parts"),
+        Case((u8, 1.2, low, high), {"relative": False}, f"uint8 square, absolute thresholds {low:g} / {high:g}"),
+        Case((u8, 1.2), {}, "the uint8 square, default relative thresholds 0.1 / 0.2"),
+        Case((step, 1.0, 0.3, 0.6), {}, "straight step edge at 23° (between two NMS directions)"),
+    ]
+
+
+def _canny_hidden(rng):
+    def disk(noise=0.0):
+        return _disk(rng, _size(rng, 26, 32), _size(rng, 26, 32), noise=noise)
+
+    def tight():
+        low = float(np.round(rng.uniform(0.82, 0.84), 3))
+        return low, low + 0.04
+
+    u8 = np.clip(np.round(255 * _square(rng, _size(rng, 22, 28), _size(rng, 22, 28), noise=0.02)), 0, 255)
+    u8 = u8.astype(np.uint8)
+    sigma_u8 = _sigma(rng, 1.1, 1.5)
+    square = 100.0 * _square(rng, _size(rng, 22, 28), _size(rng, 22, 28), noise=0.03)
+    sigma_sq = _sigma(rng, 1.1, 1.5)
+    angle = math.radians(float(rng.choice([22.0, 24.0, 66.0, 68.0, 112.0, 158.0])))
+    return [
+        Case((disk(), _sigma(rng, 1.3, 1.7), *tight()), {}, "disk, tight relative thresholds"),
+        Case((disk(0.005), _sigma(rng, 1.3, 1.7), *tight()), {}, "slightly noisy disk, tight relative thresholds"),
+        Case((_shaded_disk(rng, _size(rng, 24, 30), _size(rng, 24, 30)), _sigma(rng, 1.1, 1.4), 0.15, 0.8), {},
+             "disk lit from one side (weak contour linked to strong parts)"),
+        Case((_shaded_disk(rng, _size(rng, 24, 30), _size(rng, 24, 30), noise=0.01), _sigma(rng, 1.1, 1.4), 0.12, 0.7),
+             {}, "noisy disk lit from one side"),
+        Case((_square(rng, _size(rng, 22, 28), _size(rng, 22, 28), noise=0.06), _sigma(rng, 1.1, 1.6)), {},
+             "noisy rotated square, default thresholds"),
+        Case((oriented_step_image((_size(rng, 18, 24), _size(rng, 18, 24)), angle=angle,
+                                  offset=float(rng.uniform(-1, 1)), low=0.1, high=0.85),
+              _sigma(rng, 0.9, 1.3), 0.3, 0.6), {}, "straight step between two NMS directions"),
+        Case((u8, sigma_u8, *_absolute_thresholds(u8, sigma_u8, 0.2, 0.5)), {"relative": False},
+             "uint8 square, absolute thresholds"),
+        Case((square, sigma_sq, *_absolute_thresholds(square, sigma_sq, 0.15, 0.45)), {"relative": False},
+             "float square in 0..100, absolute thresholds (magnitude units)"),
+        Case((np.round(255 * disk(0.01)).clip(0, 255).astype(np.uint8), _sigma(rng, 1.1, 1.6)), {"low": 0.2, "high": 0.4},
+             "uint8 disk, relative thresholds given by keyword"),
+        Case((np.full((_size(rng, 10, 14), _size(rng, 10, 14)), float(rng.uniform(0.2, 0.9))),), {},
+             "constant image (no edges)"),
+        Case((rng.random((1, _size(rng, 12, 18))), 0.7), {}, "single row 1×N"),
+        Case((rng.random((_size(rng, 12, 16), _size(rng, 18, 24))), _sigma(rng, 0.5, 0.9), 0.2, 0.5), {},
+             "random texture, small σ"),
+    ]
+
+
+canny = Check(
+    public=_canny_public,
+    hidden=_canny_hidden,
+    compare=EdgeF1(radius=0, min_f1=0.97),
+    mistakes=[
+        Mistake("L1 magnitude instead of L2", _cv(norm="l1"),
+                "The edge strength is the L2 norm sqrt(gx² + gy²): |gx| + |gy| favours diagonal edges by up to √2"),
+        Mistake("thresholds used as absolute values", _cv(as_relative=False),
+                "With relative=True multiply low and high by the largest gradient magnitude of the image"),
+        Mistake("thresholds always relative (relative=False ignored)", _cv(as_relative=True),
+                "With relative=False use low and high as they are, in magnitude units"),
+        Mistake("no Gaussian smoothing", _cv(smooth=False), "Smooth the image with a Gaussian of standard deviation σ first"),
+        Mistake("no non-maximum suppression", _cv(nms="none"),
+                "Thin the magnitude with non-maximum suppression before the hysteresis thresholds"),
+        Mistake("NMS without interpolation", _cv(nms="nearest"),
+                "Use interpolated non-maximum suppression (interpolate=True)"),
+        Mistake("4-connected hysteresis", _cv(link="4"),
+                "Link weak pixels through all 8 neighbours: thin diagonal edges are only 8-connected"),
+        Mistake("single threshold (no hysteresis)", _cv(link="none"),
+                "Keep the weak pixels (> low) connected to strong pixels (> high), not just the strong ones"),
+    ],
+    allowed=("filters.pad", "filters.gaussian_kernel", "filters.gaussian", "filters.correlate",
+             "edges.sobel", "edges.magnitude", "edges.non_max_suppression", "edges.hysteresis"),
+)

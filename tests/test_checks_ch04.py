@@ -1,0 +1,332 @@
+"""The Chapter 4 checks are worth their points: the reference and correct alternatives pass,
+every mistake of every bank fails (public and hidden cases) and is named, mistakes that hide on
+natural images are still caught, and the comparators say clearly how outputs differ.
+
+Mistake functions are built on the reference implementations; to grade a mistake *as a
+candidate* the tests allow every reference building block (the guard is tested separately).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import scipy.ndimage
+
+import cvkit.edges
+import cvkit.filters
+from cvkit import data, registry
+from cvkit.edges.checks import Angles, EdgeF1, edge_f1
+from cvkit.grading import evaluate
+
+try:
+    from . import alternatives_ch04 as alt
+except ImportError:  # tests/ is not a package: pytest puts it on sys.path
+    import alternatives_ch04 as alt
+
+SEEDS = (101, 202, 303)
+BORDERS = {"zero", "replicate", "reflect", "reflect101"}
+CH04 = [
+    "edges.gradient", "edges.magnitude", "edges.direction", "edges.prewitt", "edges.sobel",
+    "edges.non_max_suppression", "edges.hysteresis", "edges.canny", "edges.laplacian",
+    "edges.log_kernel", "edges.log", "edges.zero_crossings", "edges.dog",
+]
+WITH_BORDER = ["edges.gradient", "edges.prewitt", "edges.sobel", "edges.laplacian", "edges.log", "edges.dog"]
+EVERY_ID = tuple(a.id for a in registry.algorithms())
+
+
+def _check(algorithm_id):
+    return registry.get(algorithm_id).check
+
+
+def _reference(algorithm_id):
+    return registry.get(algorithm_id).reference
+
+
+MISTAKES = [(aid, m.name) for aid in CH04 for m in _check(aid).mistakes]
+
+
+def _grade_everywhere(algorithm_id, candidate, check=None):
+    reports = [evaluate(algorithm_id, candidate, check=check)]
+    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
+    return reports
+
+
+# --------------------------------------------------------------------------------------------
+# the shape of every check
+# --------------------------------------------------------------------------------------------
+def test_every_edges_algorithm_has_a_check():
+    assert sorted(a.id for a in registry.algorithms() if a.module == "edges") == sorted(CH04)
+
+
+@pytest.mark.parametrize("algorithm_id", CH04)
+def test_check_is_complete(algorithm_id):
+    spec = _check(algorithm_id)
+    public = spec.public_cases()
+    assert 1 <= len(public) <= 6
+    assert len(spec.mistakes) >= 4
+    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
+    for m in spec.mistakes:
+        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
+    for seed in SEEDS:
+        hidden = spec.hidden_cases(np.random.default_rng(seed))
+        assert 8 <= len(hidden) <= 14
+        assert all(case.label for case in public + hidden)
+
+
+@pytest.mark.parametrize("algorithm_id", CH04)
+def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
+    spec = _check(algorithm_id)
+    first = spec.hidden_cases(np.random.default_rng(7))
+    again = spec.hidden_cases(np.random.default_rng(7))
+    other = spec.hidden_cases(np.random.default_rng(8))
+    assert [c.describe() for c in first] == [c.describe() for c in again]
+    for a, b in zip(first, again):
+        for x, y in zip(a.args, b.args):
+            if isinstance(x, np.ndarray):
+                assert np.array_equal(x, y)
+    differs = [c.describe() for c in first] != [c.describe() for c in other] or any(
+        isinstance(x, np.ndarray) and (x.shape != y.shape or not np.array_equal(x, y))
+        for a, b in zip(first, other) for x, y in zip(a.args, b.args)
+    )
+    assert differs
+
+
+@pytest.mark.parametrize("algorithm_id", WITH_BORDER)
+def test_hidden_cases_use_every_border(algorithm_id):
+    for seed in SEEDS:
+        cases = _check(algorithm_id).hidden_cases(np.random.default_rng(seed))
+        assert {case.kwargs.get("border", "reflect101") for case in cases} == BORDERS
+
+
+def _options(cases, name, index, default):
+    return {c.kwargs.get(name, c.args[index] if len(c.args) > index else default) for c in cases}
+
+
+def test_hidden_cases_use_every_option_value():
+    for seed in SEEDS:
+        rng = np.random.default_rng(seed)
+        assert _options(_check("edges.gradient").hidden_cases(rng), "scheme", 1, "central") == {"central", "forward", "backward"}
+        assert _options(_check("edges.magnitude").hidden_cases(rng), "norm", 2, "l2") == {"l2", "l1", "max"}
+        assert _options(_check("edges.non_max_suppression").hidden_cases(rng), "interpolate", 3, True) == {True, False}
+        assert _options(_check("edges.canny").hidden_cases(rng), "relative", 4, True) == {True, False}
+
+
+def test_sigma_is_never_one():
+    """σ = 1 would hide "σ used as variance"; k = 1.6 would hide "k ignored" (except once)."""
+    for seed in SEEDS:
+        for case in _check("edges.log_kernel").hidden_cases(np.random.default_rng(seed)):
+            assert abs(case.args[0] - 1.0) > 0.01
+        dog_cases = _check("edges.dog").hidden_cases(np.random.default_rng(seed))
+        ks = [c.kwargs.get("k", c.args[2] if len(c.args) > 2 else 1.6) for c in dog_cases]
+        assert sum(abs(k - 1.6) < 1e-9 for k in ks) == 1
+
+
+def test_separating_inputs_are_in_the_hidden_cases():
+    """The awkward inputs the mistakes need: integer plateaus (NMS ≥), magnitudes that are
+    not hypot (NMS), diagonal chains and values equal to thresholds (hysteresis), ties and
+    zeros (zero crossings), tight relative thresholds on a disk (Canny L1)."""
+    for seed in SEEDS:
+        rng = np.random.default_rng(seed)
+        labels = " | ".join(c.label for c in _check("edges.non_max_suppression").hidden_cases(rng))
+        assert "plateaus" in labels and "not hypot" in labels
+        hyst = _check("edges.hysteresis").hidden_cases(rng)
+        assert any(np.any(c.args[0] == c.args[1]) and np.any(c.args[0] == c.args[2]) for c in hyst)
+        zc = _check("edges.zero_crossings").hidden_cases(rng)
+        assert any(np.any(c.args[0] == 0) for c in zc)
+        canny_labels = " | ".join(c.label for c in _check("edges.canny").hidden_cases(rng))
+        assert "tight relative thresholds" in canny_labels and "constant image" in canny_labels
+
+
+# --------------------------------------------------------------------------------------------
+# right answers pass, wrong ones fail and are named
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("algorithm_id", CH04)
+def test_reference_passes(algorithm_id):
+    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id)):
+        assert report.passed, report.text()
+        assert report.mistake is None
+
+
+@pytest.mark.parametrize("algorithm_id", CH04)
+def test_stub_scores_zero(algorithm_id):
+    def stub(*args, **kwargs):
+        raise NotImplementedError
+
+    for report in _grade_everywhere(algorithm_id, stub):
+        assert report.score == 0.0
+        assert "not implemented" in report.cases[0].message
+
+
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+def test_mistake_fails_and_is_named(algorithm_id, name):
+    spec = _check(algorithm_id)
+    mistake = spec.mistake(name)
+    allowing = dataclasses.replace(spec, allowed=EVERY_ID)
+    public = evaluate(algorithm_id, mistake.function, check=allowing)
+    assert not public.passed, f"the public cases do not catch {name!r}"
+    assert public.mistake == name, f"public: named {public.mistake!r} instead of {name!r}"
+    for seed in SEEDS:
+        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
+        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
+        assert report.mistake == name, (
+            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
+            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
+        )
+        assert report.hint == mistake.hint
+
+
+@pytest.mark.parametrize(("algorithm_id", "function"), list(alt.ALTERNATIVES.items()),
+                         ids=[f"{a}:{f.__name__}" for a, f in alt.ALTERNATIVES.items()])
+def test_correct_alternative_passes(algorithm_id, function):
+    for report in _grade_everywhere(algorithm_id, function):
+        assert report.passed, report.text()
+
+
+def test_every_algorithm_has_an_alternative():
+    assert set(alt.ALTERNATIVES) == set(CH04)
+
+
+def test_a_mistake_hidden_by_natural_images_is_still_caught():
+    """Canny with an L1 magnitude agrees with the right edges on the camera image (F1 ≈ 0.98
+    within 1 px), yet fails the check: the hidden disks with tight relative thresholds expose it."""
+    camera = data.resize_half(data.camera())
+    wrong = _check("edges.canny").mistake("L1 magnitude instead of L2").function
+    f1 = edge_f1(wrong(camera, 1.4), cvkit.edges.canny(camera, 1.4), radius=1)[0]
+    assert 0.95 < f1 < 0.995
+    allowing = dataclasses.replace(_check("edges.canny"), allowed=EVERY_ID)
+    for seed in SEEDS:
+        report = evaluate("edges.canny", wrong, hidden=True, seed=seed, check=allowing)
+        failed = [c.label for c in report.cases if not c.passed]
+        assert any("disk" in label for label in failed)
+
+
+def test_a_canny_built_from_the_students_own_pieces_passes():
+    """What the notebook solution does: its own Gaussian, Sobel, NMS and hysteresis."""
+    for report in _grade_everywhere("edges.canny", alt.canny):
+        assert report.passed
+
+
+# --------------------------------------------------------------------------------------------
+# comparators
+# --------------------------------------------------------------------------------------------
+def test_edge_f1_definition():
+    a = np.zeros((6, 6), bool)
+    a[2, 1:5] = True
+    b = np.zeros((6, 6), bool)
+    b[3, 1:5] = True
+    b[0, 0] = True
+    assert edge_f1(a, a, 0) == (1.0, 1.0, 1.0)
+    assert edge_f1(a, b, 0)[0] == 0.0
+    f1, precision, recall = edge_f1(a, b, 1)
+    assert precision == 1.0 and recall == 0.8 and math.isclose(f1, 2 * 0.8 / 1.8)
+    empty = np.zeros((6, 6), bool)
+    assert edge_f1(empty, empty, 0) == (1.0, 1.0, 1.0)
+    assert edge_f1(empty, a, 1)[0] == 0.0 and edge_f1(a, empty, 1)[0] == 0.0
+
+
+def test_edge_f1_comparator_messages():
+    compare = EdgeF1(radius=0, min_f1=0.97)
+    expected = np.zeros((8, 8), bool)
+    expected[3, :] = True
+    assert compare(expected.copy(), expected) is None
+    shifted = np.roll(expected, 1, axis=0)
+    mismatch = compare(shifted, expected)
+    assert "F1 = 0.000" in mismatch.message and "spurious: 8, missing: 8" in mismatch.message
+    assert "First spurious edge pixel at [4, 0]" in mismatch.message
+    assert EdgeF1(radius=1, min_f1=0.97)(shifted, expected) is None
+    assert "bool" in compare(expected.astype(np.uint8), expected).message
+    assert "shape mismatch" in compare(expected[:, :5], expected).message
+    assert "None" in compare(None, expected).message
+    one_off = expected.copy()
+    one_off[3, 0] = False  # recall 7/8: F1 0.933
+    assert compare(one_off, expected) is not None
+    big = np.zeros((40, 40), bool)
+    big[5:35, 20] = True
+    almost = big.copy()
+    almost[5, 20] = False  # F1 0.983 >= 0.97: a single tie does not fail a correct detector
+    assert compare(almost, big) is None
+
+
+def test_angles_comparator_wraps_around():
+    compare = Angles(atol=1e-9)
+    expected = np.array([np.pi, -np.pi / 2, 0.0, 3.0])
+    assert compare(np.array([-np.pi, 3 * np.pi / 2, 2 * np.pi, 3.0 - 2 * np.pi]), expected) is None
+    mismatch = compare(np.array([0.0, -np.pi / 2, 0.0, 3.0]), expected)
+    assert "Mismatched elements: 1 / 4" in mismatch.message and "180°" in mismatch.message
+    mismatch = compare(np.array([np.nan, -np.pi / 2, 0.0, 3.0]), expected)
+    assert "NaN" in mismatch.message
+    assert "float" in compare(np.array([3, 0, 0, 3]), expected).message
+
+
+# --------------------------------------------------------------------------------------------
+# the guard on Chapter 4 checks (as registered)
+# --------------------------------------------------------------------------------------------
+def test_scipy_ndimage_is_forbidden_and_named():
+    def sobel(image, border="reflect101"):
+        mode = {"zero": "constant", "replicate": "nearest", "reflect": "reflect", "reflect101": "mirror"}[border]
+        image = np.asarray(image, dtype=np.float64)
+        return scipy.ndimage.sobel(image, axis=1, mode=mode), scipy.ndimage.sobel(image, axis=0, mode=mode)
+
+    report = evaluate("edges.sobel", sobel)
+    assert report.score == 0.0
+    assert all("scipy.ndimage" in c.message for c in report.cases), report.text()
+    open_check = dataclasses.replace(_check("edges.sobel"), allowed_libraries=("scipy.ndimage",))
+    assert evaluate("edges.sobel", sobel, check=open_check).passed
+
+
+def test_calling_the_reference_is_forbidden_and_named():
+    def hysteresis(magnitude, low, high):
+        return cvkit.edges.hysteresis(magnitude, low, high)
+
+    report = evaluate("edges.hysteresis", hysteresis, hidden=True, seed=SEEDS[0])
+    assert report.score == 0.0
+    assert "'edges.hysteresis'" in report.cases[0].message
+
+
+def test_canny_may_call_the_allowed_building_blocks():
+    def canny(image, sigma=1.4, low=0.1, high=0.2, relative=True):
+        smooth = cvkit.filters.gaussian(image, sigma)
+        gx, gy = cvkit.edges.sobel(smooth)
+        strength = cvkit.edges.magnitude(gx, gy)
+        top = strength.max()
+        if top <= 1e-12 * max(1.0, np.abs(np.asarray(image, dtype=float)).max()):
+            return np.zeros(np.shape(image), dtype=bool)
+        if relative:
+            low, high = low * top, high * top
+        return cvkit.edges.hysteresis(cvkit.edges.non_max_suppression(strength, gx, gy), low, high)
+
+    for report in _grade_everywhere("edges.canny", canny):
+        assert report.passed, report.text()
+
+    def canny_cheat(image, sigma=1.4, low=0.1, high=0.2, relative=True):
+        return cvkit.edges.canny(image, sigma, low, high, relative)
+
+    assert evaluate("edges.canny", canny_cheat).score == 0.0
+
+
+def test_log_may_call_its_kernel_and_correlate():
+    def log(image, sigma, border="reflect101"):
+        return cvkit.filters.correlate(image, cvkit.edges.log_kernel(sigma), border)
+
+    for report in _grade_everywhere("edges.log", log):
+        assert report.passed, report.text()
+
+
+def test_integer_output_is_refused():
+    def magnitude(ix, iy, norm="l2"):
+        return np.abs(np.asarray(ix)) + np.abs(np.asarray(iy)) if norm == "l1" else alt.magnitude(ix, iy, norm)
+
+    report = evaluate("edges.magnitude", magnitude, hidden=True, seed=SEEDS[0])
+    assert not report.passed
+    assert any("dtype" in c.message for c in report.cases if not c.passed)
+
+
+def test_canny_returning_0_1_integers_is_told_to_return_bool():
+    def canny(image, sigma=1.4, low=0.1, high=0.2, relative=True):
+        return alt.canny(image, sigma, low, high, relative).astype(np.uint8)
+
+    report = evaluate("edges.canny", canny)
+    assert report.score == 0.0
+    assert "bool" in report.cases[0].message
