@@ -255,6 +255,11 @@ def test_wire_format_refuses_objects_and_roundtrips_arrays():
     back = wire.loads(wire.dumps(value))
     assert np.array_equal(back[0], value[0]) and back[1] == {"k": [1, 2.5, None, True]}
     assert int(back[2]) == 7 and back[3] == "text"
+    zero_d = wire.loads(wire.dumps(np.array(2.5)))
+    assert isinstance(zero_d, np.ndarray) and zero_d.shape == () and zero_d == 2.5
+    assert wire.loads(wire.dumps(np.float32(1.5))) == 1.5  # NumPy scalars travel as plain numbers
+    fortran = np.asfortranarray(np.arange(6.0).reshape(2, 3))
+    assert np.array_equal(wire.loads(wire.dumps(fortran)), fortran)
     rng = np.random.default_rng(5)
     assert wire.decode(wire.encode(rng)).random() == np.random.default_rng(5).random()
     with pytest.raises(wire.WireError):

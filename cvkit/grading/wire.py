@@ -37,11 +37,12 @@ def encode(value: Any, _depth: int = 0) -> Any:
         arr = np.asarray(value)
         if arr.dtype.kind not in _ARRAY_KINDS:
             raise WireError(f"array of dtype {arr.dtype} cannot be graded (numeric or bool arrays only)")
-        arr = np.ascontiguousarray(arr)
         if arr.nbytes > MAX_BYTES:
             raise WireError(f"array of {arr.nbytes} bytes is too large to grade")
+        # tobytes() is C-ordered for any layout and keeps 0-d arrays 0-d
         return {"t": "nd", "dtype": arr.dtype.str, "shape": list(arr.shape),
-                "data": base64.b64encode(arr.tobytes()).decode("ascii")}
+                "scalar": isinstance(value, np.generic),
+                "data": base64.b64encode(arr.tobytes(order="C")).decode("ascii")}
     if isinstance(value, tuple):
         return {"t": "tuple", "v": [encode(v, _depth + 1) for v in value]}
     if isinstance(value, list):
@@ -81,7 +82,8 @@ def decode(data: Any, _depth: int = 0) -> Any:
         expected = dtype.itemsize * (math.prod(shape) if shape else 1)
         if len(raw) != expected:
             raise WireError("array data does not match its shape")
-        return np.frombuffer(raw, dtype=dtype).reshape(shape).copy()
+        arr = np.frombuffer(raw, dtype=dtype).reshape(shape).copy()
+        return arr[()] if data.get("scalar") and arr.ndim == 0 else arr
     if kind == "tuple":
         return tuple(decode(v, _depth + 1) for v in data["v"])
     if kind == "list":
