@@ -1,0 +1,267 @@
+"""The Chapter 2 checks are worth their points: the reference and correct alternatives pass,
+every mistake of every bank fails (public and hidden cases) and is named, a stub scores 0.
+
+Mistake functions are built on the reference implementations (they run under the reference
+provider when the grader compares outputs), so to grade a mistake *as a candidate* the tests
+allow every reference building block; the guard itself is tested on the checks as registered.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import cvkit.formation
+import cvkit.stereo
+from cvkit import registry
+from cvkit.grading import evaluate
+from cvkit.stereo.checks import DisparityMaps
+
+try:
+    from . import alternatives_ch02 as alt
+except ImportError:  # tests/ is not a package: pytest puts it on sys.path
+    import alternatives_ch02 as alt
+
+SEEDS = (101, 202, 303)
+CH02 = [
+    "formation.project_pinhole", "formation.depth_from_disparity", "stereo.block_matching",
+    "formation.thin_lens_image_distance", "formation.blur_circle_diameter", "formation.snr_db",
+    "formation.dynamic_range_db", "formation.bayer_mosaic", "formation.demosaic_bilinear",
+]
+ALL_IDS = CH02 + ["formation.quantize", "formation.image_memory_bits"]
+
+
+def _check(algorithm_id):
+    return registry.get(algorithm_id).check
+
+
+def _reference(algorithm_id):
+    return registry.get(algorithm_id).reference
+
+
+MISTAKES = [(aid, m.name) for aid in CH02 for m in _check(aid).mistakes]
+
+
+def _grade_everywhere(algorithm_id, candidate, check=None):
+    reports = [evaluate(algorithm_id, candidate, check=check)]
+    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
+    return reports
+
+
+# --------------------------------------------------------------------------------------------
+# the shape of every check
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("algorithm_id", CH02)
+def test_check_is_complete(algorithm_id):
+    spec = _check(algorithm_id)
+    public = spec.public_cases()
+    assert 1 <= len(public) <= 6
+    assert len(spec.mistakes) >= 3
+    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
+    for m in spec.mistakes:
+        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
+    for seed in SEEDS:
+        hidden = spec.hidden_cases(np.random.default_rng(seed))
+        assert 8 <= len(hidden) <= 14
+        assert all(case.label for case in public + hidden)
+
+
+@pytest.mark.parametrize("algorithm_id", CH02)
+def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
+    spec = _check(algorithm_id)
+    first = spec.hidden_cases(np.random.default_rng(7))
+    again = spec.hidden_cases(np.random.default_rng(7))
+    other = spec.hidden_cases(np.random.default_rng(8))
+
+    def arrays(cases):
+        return [np.asarray(x) for c in cases for x in list(c.args) + list(c.kwargs.values())
+                if not isinstance(x, str)]
+
+    assert [c.describe() for c in first] == [c.describe() for c in again]
+    assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(arrays(first), arrays(again)))
+    assert any(a.shape != b.shape or not np.array_equal(a, b, equal_nan=True)
+               for a, b in zip(arrays(first), arrays(other))), "the hidden cases do not depend on the seed"
+
+
+def test_bayer_cases_use_every_pattern_and_odd_sizes():
+    for name in ("formation.bayer_mosaic", "formation.demosaic_bilinear"):
+        for seed in SEEDS:
+            cases = _check(name).hidden_cases(np.random.default_rng(seed))
+            patterns = {c.kwargs.get("pattern", c.args[1] if len(c.args) > 1 else "RGGB") for c in cases}
+            assert patterns == set(cvkit.formation.PATTERNS)
+            assert any(np.shape(c.args[0])[0] % 2 and np.shape(c.args[0])[1] % 2 for c in cases)
+
+
+def test_block_matching_cases_cover_every_cost_and_the_awkward_inputs():
+    for seed in SEEDS:
+        cases = _check("stereo.block_matching").hidden_cases(np.random.default_rng(seed))
+        costs = {c.kwargs.get("cost", "sad") for c in cases}
+        assert costs == set(cvkit.stereo.COSTS)
+        assert any(np.asarray(c.args[0]).dtype == np.uint8 for c in cases)
+        assert any(c.kwargs.get("block_size", 7) == 1 for c in cases)
+        assert any(c.args[2] == 0 for c in cases)
+        assert any(c.args[2] >= np.shape(c.args[0])[1] for c in cases)
+        assert any("block_size" not in c.kwargs and "cost" not in c.kwargs for c in cases)
+        # flat windows: every candidate ties there, and only d = 0 is right
+        assert any(np.ptp(np.asarray(c.args[0], dtype=float)[:3]) == 0 for c in cases)
+
+
+def test_quantize_is_not_tested_on_ambiguous_half_way_values():
+    """Only values whose position between two levels is exact in any order of arithmetic may
+    sit exactly half-way (1 bit, x = vmax/2)."""
+    spec = _check("formation.quantize")
+    for seed in SEEDS:
+        for case in spec.hidden_cases(np.random.default_rng(seed)):
+            x = np.asarray(case.args[0], dtype=np.float64)
+            bits = case.args[1]
+            vmax = float(case.kwargs.get("vmax", 1.0))
+            t = np.clip(x, 0, vmax) * (2 ** bits - 1) / vmax
+            frac = np.abs(t - np.floor(t) - 0.5)
+            if bits == 1:
+                continue
+            assert frac.min() > 1e-7, case.label
+
+
+# --------------------------------------------------------------------------------------------
+# right answers pass, wrong ones fail and are named
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("algorithm_id", CH02)
+def test_reference_passes(algorithm_id):
+    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id)):
+        assert report.passed, report.text()
+        assert report.mistake is None
+
+
+@pytest.mark.parametrize("algorithm_id", CH02)
+def test_stub_scores_zero(algorithm_id):
+    def stub(*args, **kwargs):
+        raise NotImplementedError
+
+    for report in _grade_everywhere(algorithm_id, stub):
+        assert report.score == 0.0
+        assert "not implemented" in report.cases[0].message
+
+
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+def test_mistake_fails_and_is_named(algorithm_id, name):
+    spec = _check(algorithm_id)
+    mistake = spec.mistake(name)
+    allowing = dataclasses.replace(spec, allowed=tuple(ALL_IDS))
+    public = evaluate(algorithm_id, mistake.function, check=allowing)
+    assert not public.passed, f"the public cases do not catch {name!r}"
+    assert public.mistake == name, f"public cases: named {public.mistake!r} instead of {name!r}"
+    for seed in SEEDS:
+        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
+        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
+        assert report.mistake == name, (
+            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
+            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
+        )
+        assert report.hint == mistake.hint
+
+
+ALTERNATIVE_IDS = [(aid, f) for aid, f in alt.ALTERNATIVES.items() if aid in CH02] + list(alt.EXTRA_ALTERNATIVES.items())
+
+
+@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS,
+                         ids=[f"{a}:{f.__name__}" for a, f in ALTERNATIVE_IDS])
+def test_correct_alternative_passes(algorithm_id, function):
+    for report in _grade_everywhere(algorithm_id, function):
+        assert report.passed, report.text()
+
+
+def test_every_algorithm_has_an_alternative():
+    assert set(CH02) <= set(alt.ALTERNATIVES)
+
+
+# --------------------------------------------------------------------------------------------
+# the disparity comparator
+# --------------------------------------------------------------------------------------------
+def _bm_case():
+    return _check("stereo.block_matching").public_cases()[0]
+
+
+def test_disparity_comparator_accepts_only_genuine_ties():
+    compare = DisparityMaps()
+    left = np.array([[1.0, 2.0, 1.0, 2.0, 1.0, 2.0]])
+    right = left.copy()
+    from cvkit.grading import Case
+
+    case = Case((left, right, 3), {"block_size": 1, "cost": "sad"}, "period 2")
+    expected = cvkit.stereo.block_matching(left, right, 3, block_size=1)
+    np.testing.assert_array_equal(expected, [[0, 0, 0, 0, 0, 0]])
+    # d = 2 costs exactly as much as d = 0 here (period 2), but ties are exact on integer
+    # images: the smallest d is the only right answer
+    got = expected.copy()
+    got[0, 4] = 2
+    assert compare(got, expected, case) is not None
+    # on a float image the same costs tie up to round-off: accepted
+    case_f = Case((left + 0.1, right + 0.1, 3), {"block_size": 1, "cost": "sad"}, "period 2, float")
+    assert compare(got, expected, case_f) is None
+    # a d > x is never accepted, a float dtype neither
+    bad = expected.copy()
+    bad[0, 1] = 3
+    mismatch = compare(bad, expected, case_f)
+    assert mismatch is not None and "outside the image" in mismatch.message
+    assert "integer" in compare(expected.astype(float), expected, case).message
+
+
+def test_disparity_comparator_full_ties_need_the_smallest_d():
+    from cvkit.grading import Case
+
+    flat = np.full((3, 6), 0.3)
+    case = Case((flat, flat, 4), {"block_size": 3, "cost": "zncc"}, "flat")
+    expected = np.zeros((3, 6), dtype=np.int64)
+    got = expected.copy()
+    got[1, 5] = 4
+    mismatch = DisparityMaps()(got, expected, case)
+    assert mismatch is not None and "smallest d" in mismatch.message
+
+
+# --------------------------------------------------------------------------------------------
+# the guard on Chapter 2 checks (as registered)
+# --------------------------------------------------------------------------------------------
+def test_calling_the_reference_is_forbidden_and_named():
+    def block_matching(left, right, max_disparity, block_size=7, cost="sad"):
+        return cvkit.stereo.block_matching(left, right, max_disparity, block_size, cost)
+
+    report = evaluate("stereo.block_matching", block_matching, hidden=True, seed=SEEDS[0])
+    assert report.score == 0.0
+    assert "'stereo.block_matching'" in report.cases[0].message
+
+
+def test_opencv_is_forbidden_in_demosaicking():
+    cv2 = pytest.importorskip("cv2")
+    codes = {p: getattr(cv2, f"COLOR_Bayer{n}2RGB") for p, n in cvkit.formation.OPENCV_BAYER_NAMES.items()}
+
+    def demosaic_bilinear(raw, pattern="RGGB"):
+        scaled = np.round(np.asarray(raw, dtype=np.float64) * 256).astype(np.uint16)  # OpenCV: 8/16-bit only
+        return cv2.cvtColor(scaled, codes[pattern]).astype(np.float64) / 256
+
+    report = evaluate("formation.demosaic_bilinear", demosaic_bilinear)
+    assert report.score == 0.0
+    assert "cv2" in report.cases[0].message
+
+
+def test_modifying_the_input_fails():
+    def quantize_in_place(frames):
+        frames = np.asarray(frames)
+        result = alt.snr_db(frames)
+        frames[0] = frames[0]  # harmless
+        if frames.dtype.kind == "f":
+            frames[0, 0, 0] += 1
+        return result
+
+    report = evaluate("formation.snr_db", quantize_in_place)
+    assert report.score < 1.0
+    assert any("modified its input" in c.message for c in report.cases)
+
+
+def test_integer_disparities_are_required():
+    def block_matching(left, right, max_disparity, block_size=7, cost="sad"):
+        return alt.block_matching(left, right, max_disparity, block_size, cost).astype(np.float64)
+
+    report = evaluate("stereo.block_matching", block_matching)
+    assert report.score == 0.0
+    assert "integer" in report.cases[0].message
