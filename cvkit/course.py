@@ -162,6 +162,7 @@ class ExerciseScore:
     max_score: float
     mistakes: list = field(default_factory=list)
     problems: list = field(default_factory=list)
+    flags: list = field(default_factory=list)
 
 
 @dataclass
@@ -345,33 +346,109 @@ class Course:
         return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
     def record(self, executed: "ExecutedSubmission") -> JobResult:
-        """The single writer: nbgrader's own autograde, without execution, on the executed
-        notebooks; the trusted checks decide every grade here and only this process writes
-        the gradebook. Falls back to the raw submission if execution failed, so a grade is
-        never lost."""
-        student, assignment = executed.student, executed.assignment
-        staging = self.root / ".cvkit" / "staging"
-        folder = staging / student / assignment
-        shutil.rmtree(folder, ignore_errors=True)
-        folder.mkdir(parents=True)
-        files = executed.notebooks if executed.ok else {}
-        for name, data in self._submission_files(student, assignment).items():
-            target = folder / name
-            target.parent.mkdir(parents=True, exist_ok=True)
-            target.write_bytes(files[name].encode() if name in files else data)
-        done = self.nbgrader(
-            "autograde", assignment, "--student", student, "--force",
-            f"--CourseDirectory.submitted_directory={staging}",
-            "--Execute.enabled=False", "--ClearOutput.enabled=False",
-        )
-        shutil.rmtree(folder, ignore_errors=True)
-        log = (executed.log[-2000:] + "\n" + done.stdout + done.stderr)[-4000:]
-        if done.returncode == 0:
+        """Record one executed submission (see :meth:`record_many`)."""
+        return self.record_many([executed])[0]
+
+    def repaired(self, student: str, assignment: str, name: str, notebook: dict) -> dict:
+        """The release notebook with the student's answers put back in: for a submission whose
+        graded cells were deleted, duplicated or retyped so badly that nbgrader refuses it.
+        Answer cells are matched by grade id (their source kept, their type restored); cells
+        the student added come along after the answer cell they followed."""
+        release = json.loads((self.root / "release" / assignment / name).read_text())
+        answers: dict[str, str] = {}
+        added_after: dict[str, list] = {}
+        known = {_cell_source(c).strip() for c in release["cells"]}
+        last = None
+        for cell in notebook.get("cells", []):
+            meta = cell.get("metadata", {}).get("nbgrader", {})
+            if meta.get("solution") and meta.get("grade_id") and meta["grade_id"] not in answers:
+                answers[meta["grade_id"]] = _cell_source(cell)
+                last = meta["grade_id"]
+            elif not meta and cell.get("cell_type") == "code" and _cell_source(cell).strip() not in known:
+                added_after.setdefault(last, []).append(_cell_source(cell))
+        def added(anchor):
+            return [{"cell_type": "code", "source": source, "metadata": {}, "outputs": [], "execution_count": None}
+                    for source in added_after.get(anchor, [])]
+
+        cells = []
+        for cell in release["cells"]:
+            meta = cell.get("metadata", {}).get("nbgrader", {})
+            if meta.get("solution") and meta.get("grade_id") in answers:
+                cell = dict(cell, source=answers[meta["grade_id"]])
+            cells.append(cell)
+            if meta.get("grade_id") == "setup":
+                cells += added(None)
+            elif meta.get("solution"):
+                cells += added(meta.get("grade_id"))
+        return dict(release, cells=cells)
+
+    def record_many(self, batch: list, repair: bool = False) -> list[JobResult]:
+        """The single writer: nbgrader's own autograde, without execution, on executed
+        notebooks (one nbgrader run per assignment for the whole batch). The trusted checks
+        decide every grade here, and only this process writes the gradebook. A submission
+        whose execution failed is graded from its raw files, so a grade is never lost."""
+        results = []
+        for assignment in sorted({e.assignment for e in batch}):
+            group = [e for e in batch if e.assignment == assignment]
+            staging = self.root / ".cvkit" / "staging"
+            shutil.rmtree(staging, ignore_errors=True)
+            for executed in group:
+                folder = staging / executed.student / assignment
+                folder.mkdir(parents=True)
+                files = executed.notebooks if executed.ok and not repair else {}
+                for name, data in self._submission_files(executed.student, assignment).items():
+                    target = folder / name
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    if repair and name.endswith(".ipynb"):
+                        data = json.dumps(self.repaired(executed.student, assignment, name, json.loads(data))).encode()
+                    target.write_bytes(files[name].encode() if name in files else data)
+            students = [] if len(group) > 1 else ["--student", group[0].student]
+            done = self.nbgrader(
+                "autograde", assignment, *students, "--force",
+                f"--CourseDirectory.submitted_directory={staging}",
+                "--Execute.enabled=False", "--ClearOutput.enabled=False",
+            )
+            shutil.rmtree(staging, ignore_errors=True)
+            if done.returncode != 0 and len(group) > 1:  # isolate the submission that fails
+                results += [r for e in group for r in self.record_many([e], repair=repair)]
+                continue
+            if done.returncode != 0 and not repair:
+                # nbgrader refuses the notebook (graded cells deleted, duplicated, retyped):
+                # grade the student's answers in a repaired copy of the release instead
+                results += self.record_many(group, repair=True)
+                continue
             journal = self._journal()
-            journal[f"{student}/{assignment}"] = self._submission_hash(student, assignment)
+            for executed in group:
+                log = (executed.log[-1500:] + "\n" + done.stdout + done.stderr)[-4000:]
+                if done.returncode == 0:
+                    journal[f"{executed.student}/{assignment}"] = self._submission_hash(executed.student, assignment)
+                if repair and done.returncode == 0:
+                    log += "\ngraded from a repaired copy: the submission's graded cells had been tampered with"
+                    self._add_flag(executed.student, assignment,
+                                   "(notebook): graded cells were deleted, duplicated or retyped; graded from a repaired copy")
+                results.append(JobResult(executed.student, assignment, done.returncode, 1, log, executed=executed.ok))
             self._journal_path().parent.mkdir(parents=True, exist_ok=True)
             self._journal_path().write_text(json.dumps(journal, indent=1))
-        return JobResult(student, assignment, done.returncode, 1, log, executed=executed.ok)
+        return results
+
+    def _add_flag(self, student: str, assignment: str, flag: str) -> None:
+        """Append a flag to the metadata of a student's autograded notebooks."""
+        for path in (self.root / "autograded" / student / assignment).glob("*.ipynb"):
+            nb = json.loads(path.read_text())
+            meta = nb.setdefault("metadata", {}).setdefault("cvkit", {})
+            meta.setdefault("flags", []).append(flag)
+            path.write_text(json.dumps(nb, indent=1))
+
+    def template(self, assignment: str) -> bytes:
+        """The template gradebook of an assignment, cached by its source notebooks."""
+        digest = hashlib.sha256()
+        for path in sorted((self.source_dir / assignment).rglob("*.ipynb")):
+            digest.update(path.read_bytes())
+        cache = self.root / ".cvkit" / "templates" / f"{assignment}-{digest.hexdigest()[:16]}.db"
+        if not cache.exists():
+            cache.parent.mkdir(parents=True, exist_ok=True)
+            cache.write_bytes(template_gradebook(self.project, assignment))
+        return cache.read_bytes()
 
     def grade(
         self,
@@ -391,21 +468,35 @@ class Course:
         """
         jobs = self.submissions(assignments)
         todo = [(s, a) for s, a in jobs if regrade or not self.is_graded(s, a)]
-        templates = {a: template_gradebook(self.project, a) for a in sorted({a for _, a in todo})}
+        templates = {a: self.template(a) for a in sorted({a for _, a in todo})}
         payloads = [(str(self.project), s, a, self._submission_files(s, a), templates[a]) for s, a in todo]
         results: list[JobResult] = []
+        bar = _progress(None, "autograde", progress, total=len(payloads))
+
+        def drain(done_futures) -> None:
+            # record everything that has finished so far in one writer pass
+            batch = [f.result() for f in done_futures]
+            results.extend(self.record_many(batch))
+            if bar is not None:
+                bar.update(len(batch))
+
         if scheduler and payloads:
-            from dask.distributed import Client, as_completed
+            from dask.distributed import Client, wait
 
             with Client(scheduler) as client:
-                futures = [client.submit(execute_submission, *payload, pure=False) for payload in payloads]
-                for future in _progress(as_completed(futures), "autograde", progress, total=len(futures)):
-                    results.append(self.record(future.result()))
+                pending = {client.submit(execute_submission, *payload, pure=False) for payload in payloads}
+                while pending:
+                    finished = wait(pending, return_when="FIRST_COMPLETED").done
+                    pending -= finished
+                    drain(finished)
         elif payloads:
             with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-                futures = [pool.submit(execute_submission, *payload) for payload in payloads]
-                for future in _progress(concurrent.futures.as_completed(futures), "autograde", progress, total=len(futures)):
-                    results.append(self.record(future.result()))
+                pending = {pool.submit(execute_submission, *payload) for payload in payloads}
+                while pending:
+                    finished, pending = concurrent.futures.wait(pending, return_when=concurrent.futures.FIRST_COMPLETED)
+                    drain(finished)
+        if bar is not None:
+            bar.close()
         missing = self.audit(jobs)
         for student, assignment in missing:  # never lose a grade: one more, plain attempt
             results = [r for r in results if (r.student, r.assignment) != (student, assignment)]
@@ -435,10 +526,22 @@ class Course:
         return missing
 
     def export(self) -> Path:
-        """All grades as CSV (``exports/grades.csv``)."""
+        """All grades as CSV: nbgrader's ``exports/grades.csv`` (one row per submission) and
+        cvkit's ``exports/exercises.csv`` (one row per exercise, with the mistakes the checks
+        recognised, the problems, and the tampering flags for the instructor)."""
+        import csv
+
         target = self.root / "exports" / "grades.csv"
         target.parent.mkdir(exist_ok=True)
         self.nbgrader("export", f"--to={target}")
+        with (self.root / "exports" / "exercises.csv").open("w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(["assignment", "student", "exercise", "score", "max_score", "mistakes", "problems", "flags"])
+            for assignment in sorted({a for _, a in self.submissions()}):
+                for student, exercises in self.scores(assignment).items():
+                    for e in exercises:
+                        writer.writerow([assignment, student, e.name, f"{e.score:g}", f"{e.max_score:g}",
+                                         "; ".join(e.mistakes), "; ".join(e.problems), "; ".join(e.flags)])
         return target
 
     # ------------------------------------------------------------------ results
@@ -454,6 +557,7 @@ class Course:
                 except MissingEntry:
                     continue
                 found = _reported_mistakes(self.root / "autograded" / student / assignment)
+                flags = _flags(self.root / "autograded" / student / assignment)
                 exercises: dict[str, ExerciseScore] = {}
                 for nb in submission.notebooks:
                     for grade in sorted(nb.grades, key=lambda g: g.cell_id if hasattr(g, "cell_id") else g.name):
@@ -466,6 +570,13 @@ class Course:
                             text = item.split(":", 1)[1]
                             if text not in bucket:
                                 bucket.append(text)
+                for flag in flags:
+                    where, _, what = flag.partition(": ")
+                    name = re.sub(r"_(answer|visible|hidden|test)$", "", where)
+                    target = exercises.get(name)
+                    if target is None:
+                        target = exercises.setdefault("(notebook)", ExerciseScore("(notebook)", 0.0, 0.0))
+                    target.flags.append(what if target.name == name else flag)
                 order = self._grade_order(assignment)
                 table[student] = sorted(
                     exercises.values(), key=lambda e: order.get(e.name, len(order))
@@ -485,6 +596,17 @@ class Course:
 
 def _student_order(student: str) -> tuple:
     return (SAMPLE_STUDENTS.index(student), student) if student in SAMPLE_STUDENTS else (len(SAMPLE_STUDENTS), student)
+
+
+def _flags(folder: Path) -> list[str]:
+    """Tampering flags the trusted grader left in the autograded notebooks' metadata."""
+    flags = []
+    for path in sorted(folder.glob("*.ipynb")):
+        meta = json.loads(path.read_text()).get("metadata", {}).get("cvkit", {})
+        flags += [str(f) for f in meta.get("flags", [])]
+        if meta.get("worker_problem"):
+            flags.append(f"(notebook): {meta['worker_problem']}")
+    return flags
 
 
 def _reported_mistakes(folder: Path) -> dict[str, list[str]]:
@@ -550,6 +672,7 @@ def typical_mistakes(folder: Path) -> dict[str, str]:
 
 
 def _progress(iterable, desc: str, enabled: bool, total: int | None = None):
+    """A tqdm progress bar over ``iterable`` (or a manual bar when ``iterable`` is None)."""
     if not enabled:
         return iterable
     try:
@@ -602,6 +725,10 @@ def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str]
     if notes:
         lines.append("\nWhat the checks found:")
         lines += notes
+    flagged = [f"  {s} · {e.name}: {flag}" for s in students for e in scores[s] for flag in e.flags]
+    if flagged:
+        lines.append("\nFlags for the instructor (code that tries to get around the grader):")
+        lines += flagged
     return "\n".join(lines)
 
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import registry
-from .checks import FORBIDDEN_LIBRARIES
+from .checks import FORBIDDEN_LIBRARIES, call_target
 from .engine import _arg_names, evaluate, hidden_seed
 from .report import Report
 from .sandbox import run_calls
@@ -203,9 +203,14 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
         if meta.get("grade") and not meta.get("solution"):
             calls += check_calls(_source(cell), meta.get("grade_id", ""))
     result = NotebookGrade()
-    for cell in cells_of(notebook):
+    original = set()
+    if source_notebook is not None:
+        original = {_source(c).strip() for c in cells_of(source_notebook)}
+    for cell in cells_of(notebook):  # the student's code only: answers and cells they added
         meta = _meta(cell)
-        if (cell["cell_type"] if isinstance(cell, dict) else cell.cell_type) == "code" and not (meta.get("grade") and not meta.get("solution")):
+        if (cell["cell_type"] if isinstance(cell, dict) else cell.cell_type) != "code":
+            continue
+        if meta.get("solution") or (not meta and source_notebook is not None and _source(cell).strip() not in original):
             result.flags += scan(_source(cell), meta.get("grade_id") or "added cell")
     if not calls:
         return result
@@ -230,6 +235,7 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
                     "time_limit": spec.time_limit, "allowed": list(spec.allowed), "arg_names": names,
                     "forbidden_libraries": list(spec.forbidden_libraries) if attempt == 0 else [],
                     "forbidden_functions": list(spec.forbidden) if attempt == 0 else [],
+                    "call": call_target(spec.call),
                 })
         for algorithm_id in spec.allowed:
             allowed[algorithm_id] = _reference_target(algorithm_id)
