@@ -1,5 +1,5 @@
 # Shortcuts; each target calls the stdlib-only scripts, which create and reuse .venv.
-.PHONY: demo test lab bench clean
+.PHONY: demo test lab bench bench-grading clean
 demo:
 	python3 scripts/demo
 test:
@@ -7,6 +7,8 @@ test:
 lab:
 	python3 scripts/lab
 bench:
-	python3 scripts/_venv.py && .venv/bin/python benchmarks/bench_ch03.py
+	python3 scripts/_venv.py && for b in benchmarks/bench_ch*.py; do .venv/bin/python $$b --quick || exit 1; done
+bench-grading:
+	python3 scripts/_venv.py && .venv/bin/python benchmarks/bench_grading.py
 clean:
 	rm -rf .venv cvkit-demo autograders/release autograders/submitted autograders/autograded autograders/feedback autograders/*.db
