@@ -1,0 +1,251 @@
+"""The Chapter 6 checks are worth their points: the reference and correct alternatives pass,
+every mistake of every bank fails (public and hidden cases) and is named, mistakes that hide on
+natural inputs are still caught, and the comparators say clearly how outputs differ.
+
+Mistake functions are built on the reference implementations; to grade a mistake *as a
+candidate* the tests allow every reference building block (the guard is tested separately).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+import cvkit.detection
+from cvkit import registry
+from cvkit.detection.checks import HoughVotes, RTableClose, ShapeModelClose, VotesAndBest, moved_votes
+from cvkit.grading import evaluate
+
+try:
+    from . import alternatives_ch06 as alt
+except ImportError:  # tests/ is not a package: pytest puts it on sys.path
+    import alternatives_ch06 as alt
+
+SEEDS = (101, 202, 303)
+CH06 = [
+    "detection.match_template", "detection.best_match", "detection.shape_model", "detection.shape_match",
+    "detection.hough_lines", "detection.hough_peaks", "detection.ght_build", "detection.ght_detect",
+]
+EVERY_ID = tuple(a.id for a in registry.algorithms())
+
+
+def _check(algorithm_id):
+    return registry.get(algorithm_id).check
+
+
+def _reference(algorithm_id):
+    return registry.get(algorithm_id).reference
+
+
+MISTAKES = [(aid, m.name) for aid in CH06 for m in _check(aid).mistakes]
+
+
+def _grade_everywhere(algorithm_id, candidate, check=None):
+    reports = [evaluate(algorithm_id, candidate, check=check)]
+    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
+    return reports
+
+
+def test_every_detection_algorithm_has_a_check():
+    assert sorted(a.id for a in registry.algorithms() if a.module == "detection") == sorted(CH06)
+
+
+@pytest.mark.parametrize("algorithm_id", CH06)
+def test_check_is_complete(algorithm_id):
+    spec = _check(algorithm_id)
+    public = spec.public_cases()
+    assert 1 <= len(public) <= 6
+    assert len(spec.mistakes) >= 4
+    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
+    for m in spec.mistakes:
+        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
+    for seed in SEEDS:
+        hidden = spec.hidden_cases(np.random.default_rng(seed))
+        assert 8 <= len(hidden) <= 14
+        assert all(case.label for case in public + hidden)
+
+
+@pytest.mark.parametrize("algorithm_id", CH06)
+def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
+    spec = _check(algorithm_id)
+    first = spec.hidden_cases(np.random.default_rng(7))
+    again = spec.hidden_cases(np.random.default_rng(7))
+    other = spec.hidden_cases(np.random.default_rng(8))
+    assert [c.describe() for c in first] == [c.describe() for c in again]
+    for a, b in zip(first, again):
+        for x, y in zip(a.args, b.args):
+            if isinstance(x, np.ndarray):
+                assert np.array_equal(x, y)
+    differs = [c.describe() for c in first] != [c.describe() for c in other] or any(
+        isinstance(x, np.ndarray) and (x.shape != y.shape or not np.array_equal(x, y))
+        for a, b in zip(first, other) for x, y in zip(a.args, b.args)
+    )
+    assert differs
+
+
+def _option(case, name, index, default):
+    return case.kwargs.get(name, case.args[index] if len(case.args) > index else default)
+
+
+def test_hidden_cases_use_every_option_value():
+    for seed in SEEDS:
+        rng = np.random.default_rng(seed)
+        tm = _check("detection.match_template").hidden_cases(rng)
+        assert {_option(c, "measure", 2, "zncc") for c in tm} == {"ssd", "sad", "ncc", "zncc"}
+        bm = _check("detection.best_match").hidden_cases(rng)
+        assert {c.args[1] for c in bm} == {"ssd", "sad", "ncc", "zncc"}
+        sm = _check("detection.shape_match").hidden_cases(rng)
+        assert {_option(c, "polarity", 2, "none") for c in sm} == {"none", "global", "local"}
+        gd = _check("detection.ght_detect").hidden_cases(rng)
+        assert any(len(_option(c, "angles", 3, (0.0,))) > 1 for c in gd)
+        assert any(len(_option(c, "scales", 2, (1.0,))) > 1 for c in gd)
+
+
+def test_separating_inputs_are_in_the_hidden_cases():
+    """The awkward inputs the mistakes need: flat and all-zero windows (NCC/ZNCC), ties
+    (best_match), magnitudes equal to the threshold (shape_model), exact halves at θ = 0 (Hough
+    rounding), votes equal to the threshold (peaks), reference points on half pixels (GHT)."""
+    for seed in SEEDS:
+        rng = np.random.default_rng(seed)
+        labels = " | ".join(c.label for c in _check("detection.match_template").hidden_cases(rng))
+        assert "constant windows" in labels and "all-zero" in labels
+        bm = _check("detection.best_match").hidden_cases(rng)
+        assert any("tied" in c.label for c in bm)
+        sm = _check("detection.shape_model").hidden_cases(rng)
+        assert any(np.any(np.hypot(*cvkit.edges.sobel(c.args[0])) == c.args[1]) for c in sm)
+        hl = _check("detection.hough_lines").hidden_cases(rng)
+        assert any("exact halves" in c.label for c in hl)
+        hp = _check("detection.hough_peaks").hidden_cases(rng)
+        assert any("threshold" in c.kwargs and np.any(np.asarray(c.args[0]) == c.kwargs["threshold"]) for c in hp)
+        gd = _check("detection.ght_detect").hidden_cases(rng)
+        assert any("half pixels" in c.label for c in gd)
+
+
+@pytest.mark.parametrize("algorithm_id", CH06)
+def test_reference_passes(algorithm_id):
+    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id)):
+        assert report.passed, report.text()
+        assert report.mistake is None
+
+
+@pytest.mark.parametrize("algorithm_id", CH06)
+def test_stub_scores_zero(algorithm_id):
+    def stub(*args, **kwargs):
+        raise NotImplementedError
+
+    for report in _grade_everywhere(algorithm_id, stub):
+        assert report.score == 0.0
+        assert "not implemented" in report.cases[0].message
+
+
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+def test_mistake_fails_and_is_named(algorithm_id, name):
+    spec = _check(algorithm_id)
+    mistake = spec.mistake(name)
+    allowing = dataclasses.replace(spec, allowed=EVERY_ID)
+    public = evaluate(algorithm_id, mistake.function, check=allowing)
+    assert not public.passed, f"the public cases do not catch {name!r}"
+    assert public.mistake == name, f"public: named {public.mistake!r} instead of {name!r}"
+    for seed in SEEDS:
+        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
+        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
+        assert report.mistake == name, (
+            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
+            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
+        )
+        assert report.hint == mistake.hint
+
+
+@pytest.mark.parametrize(("algorithm_id", "function"), list(alt.ALTERNATIVES.items()),
+                         ids=[f"{a}:{f.__name__}" for a, f in alt.ALTERNATIVES.items()])
+def test_correct_alternative_passes(algorithm_id, function):
+    for report in _grade_everywhere(algorithm_id, function):
+        assert report.passed, report.text()
+
+
+def test_every_algorithm_has_an_alternative():
+    assert set(alt.ALTERNATIVES) == set(CH06)
+
+
+def test_a_mistake_hidden_by_natural_images_is_still_caught():
+    """ZNCC with the image's mean instead of each window's finds the same best match on a
+    natural image, yet fails the check (the scores differ)."""
+    from cvkit import data
+
+    img = data.camera()[100:180, 150:250]
+    tpl = img[30:45, 40:60]
+    wrong = _check("detection.match_template").mistake("image mean subtracted instead of each window's mean").function
+    assert cvkit.detection.best_match(wrong(img, tpl), "zncc") == cvkit.detection.best_match(
+        cvkit.detection.match_template(img, tpl), "zncc")
+    allowing = dataclasses.replace(_check("detection.match_template"), allowed=EVERY_ID)
+    for seed in SEEDS:
+        assert not evaluate("detection.match_template", wrong, hidden=True, seed=seed, check=allowing).passed
+
+
+def test_ght_detect_may_call_canny_but_not_the_reference():
+    def cheat(image, rtable, scales=(1.0,), angles=(0.0,), edge_params=None):
+        return cvkit.detection.ght_detect(image, rtable, scales, angles, edge_params)
+
+    assert evaluate("detection.ght_detect", cheat).score == 0.0
+    assert evaluate("detection.ght_detect", alt.ght_detect).passed       # calls edges.canny
+
+
+# --------------------------------------------------------------------------------------------
+# comparators
+# --------------------------------------------------------------------------------------------
+def test_shape_model_comparator():
+    expected = {"points": np.array([[1.0, 0.0], [0.0, 1.0]]), "directions": np.array([[1.0, 0.0], [0.0, 1.0]]),
+                "shape": (2, 3)}
+    compare = ShapeModelClose()
+    shuffled = {"points": expected["points"][::-1], "directions": expected["directions"][::-1], "shape": [2, 3]}
+    assert compare(shuffled, expected) is None
+    assert "lacks" in compare({"points": expected["points"]}, expected).message
+    assert "shape" in compare({**expected, "shape": (3, 2)}, expected).message
+    swapped = {**expected, "points": expected["points"][:, ::-1] + [[0, 1], [0, 0]]}
+    assert "control points differ" in compare(swapped, expected).message
+    assert "Directions differ" in compare({**expected, "directions": 2 * expected["directions"]}, expected).message
+    assert "None" in compare(None, expected).message
+
+
+def test_rtable_comparator():
+    expected = {"bins": 2, "reference": (1.0, 2.0), "table": [np.array([[0.0, 1.0], [1.0, 0.0]]), np.zeros((0, 2))]}
+    compare = RTableClose()
+    got = {"bins": 2, "reference": (1.0, 2.0), "table": [np.array([[1.0, 0.0], [0.0, 1.0]]), []]}
+    assert compare(got, expected) is None
+    assert "(y, x)" in compare({**got, "reference": (2.0, 1.0)}, expected).message
+    bad = {**got, "table": [np.array([[0.0, -1.0], [1.0, 0.0]]), np.zeros((0, 2))]}
+    assert "bin 0" in compare(bad, expected).message
+    assert "list of 2" in compare({**got, "table": got["table"][:1]}, expected).message
+
+
+def test_moved_votes_and_hough_comparator():
+    a = np.array([[1, 0], [2, 3], [0, 1]])
+    b = np.array([[0, 0], [3, 3], [0, 1]])
+    assert moved_votes(a, b, axis=0) == 1.0
+    assert math.isinf(moved_votes(a, b[:, ::-1] * 2, axis=0))
+    thetas, rhos = np.array([0.0, 0.5]), np.array([-1.0, 0.0, 1.0])
+    compare = HoughVotes()
+    assert compare((a, thetas, rhos), (a, thetas, rhos)) is None
+    assert compare((b, thetas, rhos), (a, thetas, rhos)) is None          # one vote moved: tolerated
+    far = np.array([[0, 0], [0, 3], [3, 1]])
+    assert "differ" in compare((far, thetas, rhos), (a, thetas, rhos)).message
+    assert "integer" in compare((a.astype(float), thetas, rhos), (a, thetas, rhos)).message
+    assert "degrees" in compare((a, np.degrees(thetas) + 1, rhos), (a, thetas, rhos)).message
+    assert "samples" in compare((a, thetas, rhos[1:]), (a, thetas, rhos)).message
+
+
+def test_votes_and_best_comparator():
+    acc = np.zeros((1, 2, 4, 5))
+    acc[0, 1, 2, 3] = 5.0
+    acc[0, 0, 1, 1] = 2.0
+    expected = (acc, (3, 2, 1.0, 0.5))
+    compare = VotesAndBest()
+    assert compare((acc.copy(), (3, 2, 1.0, 0.5)), expected) is None
+    assert "(y, x)" in compare((acc.copy(), (2, 3, 1.0, 0.5)), expected).message
+    other = acc.copy()
+    other[0, 1, 2, 3] = 0.0
+    other[0, 1, 0, 0] = 5.0
+    assert "differ" in compare((other, (0, 0, 1.0, 0.5)), expected).message
+    assert "shape" in compare((acc[0], (3, 2, 1.0, 0.5)), expected).message
