@@ -15,7 +15,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .. import registry
-from .checks import Check, Mistake
+from .checks import Check, Mistake, bind_call
 from .guard import Outcome, run_guarded
 from .report import MIME_TYPE, CaseResult, Report
 
@@ -48,15 +48,15 @@ def _arg_names(function: Callable, check: Check) -> tuple:
         return ()
 
 
-def _reference_output(function: Callable, case) -> Any:
+def _reference_output(function: Callable, case, call: Callable | None = None) -> Any:
     with registry.use("reference"):
-        return function(*copy.deepcopy(case.args), **copy.deepcopy(case.kwargs))
+        return bind_call(call, function)(*copy.deepcopy(case.args), **copy.deepcopy(case.kwargs))
 
 
-def _mistake_output(mistake: Mistake, case) -> tuple[bool, Any]:
+def _mistake_output(mistake: Mistake, case, call: Callable | None = None) -> tuple[bool, Any]:
     try:
         with registry.use("reference"), np.errstate(all="ignore"):
-            return True, mistake.function(*copy.deepcopy(case.args), **copy.deepcopy(case.kwargs))
+            return True, bind_call(call, mistake.function)(*copy.deepcopy(case.args), **copy.deepcopy(case.kwargs))
     except Exception:
         return False, None
 
@@ -113,9 +113,11 @@ def evaluate(
     names = _arg_names(record.reference, spec)
     mistake_votes: dict[str, int] = {}
     if runner is None:
+        graded = bind_call(spec.call, candidate)
+
         def runner(index, case, attempt):
             return run_guarded(
-                candidate, case.args, case.kwargs,
+                graded, case.args, case.kwargs,
                 arg_names=names,
                 time_limit=spec.time_limit,
                 forbidden_libraries=spec.forbidden_libraries if attempt == 0 else (),
@@ -129,7 +131,7 @@ def evaluate(
         if outcome is None:  # e.g. the isolated worker died before this case
             outcome = Outcome(error="no result: the grading worker stopped before this case (exit, crash or memory)")
         # computed only after the candidate ran: it cannot be read from the grader's frames
-        expected = _reference_output(record.reference, case)
+        expected = _reference_output(record.reference, case, spec.call)
         result = CaseResult(
             index=index,
             label=case.label or f"case {index + 1}",
@@ -176,7 +178,7 @@ def evaluate(
                 result.worst = mismatch.worst
         if not result.passed and result.got is not None:
             for mistake in spec.mistakes:
-                produced, wrong = _mistake_output(mistake, case)
+                produced, wrong = _mistake_output(mistake, case, spec.call)
                 if not produced:
                     continue
                 with np.errstate(all="ignore"):
@@ -195,6 +197,16 @@ def evaluate(
 
 
 def _identical(a, b) -> bool:
+    """Exactly the same result (for the seeded re-run): arrays, numbers, strings, and tuples,
+    lists and dicts of them, compared element by element."""
+    if isinstance(a, (tuple, list)) or isinstance(b, (tuple, list)):
+        return (type(a) is type(b) and len(a) == len(b)
+                and all(_identical(x, y) for x, y in zip(a, b)))
+    if isinstance(a, dict) or isinstance(b, dict):
+        return isinstance(a, dict) and isinstance(b, dict) and a.keys() == b.keys() \
+            and all(_identical(a[k], b[k]) for k in a)
+    if isinstance(a, str) or isinstance(b, str) or a is None or b is None:
+        return a == b
     try:
         return bool(np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True))
     except Exception:
