@@ -8,13 +8,13 @@
   credit for nbgrader).
 - :mod:`.guard`: copies of the inputs, time limit, captured output, forbidden calls.
 """
-from .checks import FORBIDDEN_LIBRARIES, Case, Check, Mistake
+from .checks import FORBIDDEN_LIBRARIES, Case, Check, Mistake, instance_call
 from .compare import Close, Comparator, Mismatch, Statistics, close
 from .engine import check, evaluate, hidden_seed
 from .report import MIME_TYPE, CaseResult, Report
 
 __all__ = [
-    "Case", "Check", "Mistake", "FORBIDDEN_LIBRARIES",
+    "Case", "Check", "Mistake", "FORBIDDEN_LIBRARIES", "instance_call",
     "Comparator", "Close", "Statistics", "Mismatch", "close",
     "check", "evaluate", "hidden_seed",
     "Report", "CaseResult", "MIME_TYPE",
