@@ -1,0 +1,65 @@
+"""Argument checks and small helpers shared by the learning algorithms of Chapters 9–10."""
+from __future__ import annotations
+
+import numpy as np
+
+_CHUNK_ELEMENTS = 1 << 22  # elements of a (rows, others, D) difference block: 32 MB of float64
+
+
+def as_labels(y, name: str, n: int | None = None, classes: int | None = None) -> np.ndarray:
+    """Integer class labels ``0..classes−1`` as an int64 vector of length ``n``."""
+    if isinstance(y, (str, bytes)) or y is None:
+        raise TypeError(f"{name} must be an integer array of class labels, got {type(y).__name__}")
+    arr = np.asarray(y)
+    if arr.dtype == bool or arr.dtype.kind not in "iu":
+        raise TypeError(f"{name} must be an integer array of class labels 0..C-1, got dtype {arr.dtype}")
+    if arr.ndim != 1:
+        raise ValueError(f"{name} must be a 1-D array of labels, got shape {arr.shape}")
+    if n is not None and arr.shape[0] != n:
+        raise ValueError(f"{name} must have one label per row ({n}), got {arr.shape[0]}")
+    if arr.size and arr.min() < 0:
+        raise ValueError(f"{name} must contain labels >= 0, got {int(arr.min())}")
+    if classes is not None and arr.size and arr.max() >= classes:
+        raise ValueError(f"{name} must contain labels < {classes} (the number of classes), got {int(arr.max())}")
+    return arr.astype(np.int64)
+
+
+def exact_squared_distances(points: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """``d[i, j] = Σ (points[i] − others[j])²`` from the differences themselves (no expansion
+    ‖a‖² − 2a·b + ‖b‖², whose round-off could split exact ties), in blocks of rows."""
+    m, d = points.shape
+    out = np.empty((m, others.shape[0]))
+    rows = max(1, _CHUNK_ELEMENTS // max(1, others.shape[0] * d))
+    for start in range(0, m, rows):
+        diff = points[start:start + rows, None, :] - others[None, :, :]
+        np.einsum("mnd,mnd->mn", diff, diff, out=out[start:start + rows])
+    return out
+
+
+def exact_l1_distances(points: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """``d[i, j] = Σ |points[i] − others[j]|``, in blocks of rows."""
+    m, d = points.shape
+    out = np.empty((m, others.shape[0]))
+    rows = max(1, _CHUNK_ELEMENTS // max(1, others.shape[0] * d))
+    for start in range(0, m, rows):
+        diff = points[start:start + rows, None, :] - others[None, :, :]
+        np.abs(diff, out=diff)
+        diff.sum(axis=2, out=out[start:start + rows])
+    return out
+
+
+def expanded_squared_distances(points: np.ndarray, others: np.ndarray,
+                               points_sq: np.ndarray | None = None,
+                               others_sq: np.ndarray | None = None) -> np.ndarray:
+    """``‖a‖² − 2a·b + ‖b‖²`` through one matrix product (fast; rounding error about
+    ``1e-16·(‖a‖² + ‖b‖²)``), clipped at 0."""
+    if points_sq is None:
+        points_sq = np.einsum("ij,ij->i", points, points)
+    if others_sq is None:
+        others_sq = np.einsum("ij,ij->i", others, others)
+    out = points @ others.T
+    out *= -2.0
+    out += points_sq[:, None]
+    out += others_sq[None, :]
+    np.maximum(out, 0.0, out=out)
+    return out
