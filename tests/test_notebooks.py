@@ -53,7 +53,7 @@ def test_exercise_structure(path):
         if not meta.get("grade"):
             continue
         source = _src(cell)
-        calls = re.findall(r'check\(\s*"([a-z_]+\.[a-z_0-9]+)",\s*(\w+)(.*?)\)', source)
+        calls = re.findall(r'check\(\s*"([a-z_]+\.[A-Za-z_0-9]+)",\s*(\w+)(.*?)\)', source)
         assert calls, f"test cell {meta['grade_id']} calls no check()"
         for algorithm_id, function, rest in calls:
             hidden = "hidden=True" in rest
@@ -63,7 +63,8 @@ def test_exercise_structure(path):
                 points = float(re.search(r"points=([0-9.]+)", rest).group(1))
                 assert points == float(meta["points"]), f"{meta['grade_id']}: points= differs from the cell's points"
             # the function is defined in an autograded answer cell before the test
-            answers = [c for c in cells[:i] if _nbg(c).get("solution") and f"def {function}(" in _src(c)]
+            answers = [c for c in cells[:i] if _nbg(c).get("solution")
+                       and (f"def {function}(" in _src(c) or f"class {function}" in _src(c))]
             assert answers, f"{function} is not defined in an answer cell before {meta['grade_id']}"
     for algorithm_id, kinds in checked.items():
         assert kinds == {"visible", "hidden"}, f"{algorithm_id} needs a visible and a hidden test"

@@ -1,0 +1,453 @@
+"""Scale space and blobs (§5.8–5.9): the scale-normalised LoG blob detector, SIFT's Gaussian and
+difference-of-Gaussians pyramids, the extrema of the DoG over their 26 neighbours, and the
+refinement and rejection tests applied to each extremum.
+
+Pyramid levels are blurred incrementally with the registry's Gaussian; extrema are found with
+whole-array comparisons (a separable 3×3 maximum and minimum per level, then the 26
+neighbours of the few surviving candidates).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._validation import as_float_array
+from ..registry import algorithm, implementation
+from ._common import check_int, check_real, gray
+
+__all__ = [
+    "double_size", "gaussian_pyramid", "dog_pyramid", "log_blobs", "dog_extrema", "refine_extremum",
+    "is_edge_like", "NEIGHBOURS_26",
+]
+
+#: the 26 offsets (ds, dr, dc) of a sample's neighbours in (scale, row, col)
+NEIGHBOURS_26 = tuple((ds, dr, dc) for ds in (-1, 0, 1) for dr in (-1, 0, 1) for dc in (-1, 0, 1)
+                      if (ds, dr, dc) != (0, 0, 0))
+
+
+def double_size(image: np.ndarray) -> np.ndarray:
+    """Double both sides: ``U[2i, 2j] = I[i, j]``, bilinear in between, replicate border."""
+    img = np.asarray(image, dtype=np.float64)
+    h, w = img.shape
+    down = np.concatenate([img[1:], img[-1:]], axis=0)          # I[i + 1, j], replicated
+    right = np.concatenate([img[:, 1:], img[:, -1:]], axis=1)   # I[i, j + 1]
+    diagonal = np.concatenate([down[:, 1:], down[:, -1:]], axis=1)
+    out = np.empty((2 * h, 2 * w))
+    out[0::2, 0::2] = img
+    out[1::2, 0::2] = 0.5 * (img + down)
+    out[0::2, 1::2] = 0.5 * (img + right)
+    out[1::2, 1::2] = 0.25 * (img + down + right + diagonal)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# §5.8–5.9 pyramids
+# --------------------------------------------------------------------------------------------
+@algorithm("features.gaussian_pyramid", section="5.8", check="cvkit.features.checks:gaussian_pyramid")
+def gaussian_pyramid(image, sigma0=1.6, scales=3, octaves=4, upsample=True, assumed_blur=0.5):
+    """SIFT's scale space: octaves of progressively blurred images, halved from one to the next.
+
+    Parameters
+    ----------
+    image : (H, W) array_like
+        Grayscale image, any real dtype, finite values.
+    sigma0 : float
+        Blur of level 0 of every octave, in that octave's pixels (1.6 in SIFT).
+    scales : int
+        s ≥ 1, the number of scales per octave at which extrema are sought (3 in SIFT); every
+        octave has s + 3 levels, so that its s + 2 DoG levels have s interior ones.
+    octaves : int
+        Number of octaves, ≥ 1.
+    upsample : bool
+        Double the image first (Lowe: it quadruples the number of stable keypoints).
+    assumed_blur : float
+        Blur the input is assumed to have already (0.5: a camera's anti-aliasing), ≥ 0.
+
+    Returns
+    -------
+    list of ``octaves`` float64 ndarrays of shape (s + 3, H_o, W_o)
+
+    Notes
+    -----
+    §5.8–5.9. Upsampling puts ``U[2i, 2j] = I[i, j]`` and interpolates bilinearly in between,
+    replicating the last row and column; shape (2H, 2W). Level 0 is the (upsampled) image
+    blurred by ``sqrt(σ0² − b²)`` with ``b = 2·assumed_blur`` when upsampling (the doubled image
+    has twice the blur in its pixels) else ``assumed_blur``, so that its total blur is σ0.
+    Level i has total blur ``σ_i = σ0·2^(i/s)``, reached *incrementally*: level i is level
+    i − 1 blurred by ``sqrt(σ_i² − σ_{i−1}²)`` (Gaussians compose by adding variances), each
+    with ``implementation("filters.gaussian")`` (reflect101 border). Octave o + 1 starts from
+    level s of octave o (total blur 2σ0) taken ``[::2, ::2]``, whose blur in the new pixels is
+    σ0 again; its further levels use the same increments. A point (x_o, y_o) of octave o lies
+    at ``x_o·2^o`` (halved when upsampled) in the input. Small images simply give small
+    octaves (down to 1×1).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pyramid = gaussian_pyramid(np.random.default_rng(0).random((32, 40)), octaves=3)
+    >>> [level.shape for level in pyramid]
+    [(6, 64, 80), (6, 32, 40), (6, 16, 20)]
+    """
+    img = gray(image)
+    sigma0 = check_real(sigma0, "sigma0", positive=True)
+    scales = check_int(scales, "scales", minimum=1)
+    octaves = check_int(octaves, "octaves", minimum=1)
+    if not isinstance(upsample, (bool, np.bool_)):
+        raise TypeError(f"upsample must be True or False, got {type(upsample).__name__} {upsample!r}")
+    assumed_blur = check_real(assumed_blur, "assumed_blur", nonnegative=True)
+    b = 2.0 * assumed_blur if upsample else assumed_blur
+    if sigma0 <= b:
+        raise ValueError(
+            f"sigma0 must exceed the blur the {'upsampled ' if upsample else ''}image already has "
+            f"({'2·' if upsample else ''}assumed_blur = {b:g}), got sigma0 = {sigma0:g}"
+        )
+    gaussian = implementation("filters.gaussian")
+    totals = [sigma0 * 2.0 ** (i / scales) for i in range(scales + 3)]
+    increments = [math.sqrt(totals[i] ** 2 - totals[i - 1] ** 2) for i in range(1, scales + 3)]
+    base = double_size(img) if upsample else img
+    base = np.asarray(gaussian(base, math.sqrt(sigma0 * sigma0 - b * b)), dtype=np.float64)
+    pyramid = []
+    for o in range(octaves):
+        if o > 0:
+            base = pyramid[-1][scales][::2, ::2]
+        stack = np.empty((scales + 3,) + base.shape)
+        stack[0] = base
+        for i, step in enumerate(increments, start=1):
+            stack[i] = gaussian(stack[i - 1], step)
+        pyramid.append(stack)
+    return pyramid
+
+
+def _as_stacks(value, name: str) -> list[np.ndarray]:
+    if isinstance(value, np.ndarray) and value.ndim == 3:
+        value = [value]
+    if not isinstance(value, (list, tuple)) or not value:
+        raise TypeError(f"{name} must be a non-empty list of (levels, H, W) arrays, got {type(value).__name__}")
+    stacks = [as_float_array(s, f"{name}[{i}]", ndim=3) for i, s in enumerate(value)]
+    return stacks
+
+
+@algorithm("features.dog_pyramid", section="5.9", check="cvkit.features.checks:dog_pyramid")
+def dog_pyramid(gaussian_pyramid):
+    """Differences of adjacent Gaussian levels, octave by octave.
+
+    Parameters
+    ----------
+    gaussian_pyramid : list of (L, H_o, W_o) arrays
+        As returned by :func:`gaussian_pyramid` (L = s + 3 ≥ 2).
+
+    Returns
+    -------
+    list of float64 ndarrays of shape (L − 1, H_o, W_o)
+        Level i is ``level i+1 − level i`` of the Gaussian octave.
+
+    Notes
+    -----
+    §5.9. ``G(kσ) ∗ I − G(σ) ∗ I ≈ (k − 1)σ²∇²G ∗ I``: each DoG level approximates the
+    scale-normalised LoG (times the constant k − 1), with its sign — bright blobs are minima.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> dog_pyramid([np.arange(12.0).reshape(3, 2, 2)])[0][:, 0, 0]
+    array([4., 4.])
+    """
+    stacks = _as_stacks(gaussian_pyramid, "gaussian_pyramid")
+    for i, stack in enumerate(stacks):
+        if stack.shape[0] < 2:
+            raise ValueError(f"gaussian_pyramid[{i}] needs at least 2 levels, got shape {stack.shape}")
+    return [stack[1:] - stack[:-1] for stack in stacks]
+
+
+# --------------------------------------------------------------------------------------------
+# §5.8 scale-normalised LoG blobs
+# --------------------------------------------------------------------------------------------
+def _strict_extrema(stack: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Masks of the samples strictly above (below) their 3×3×3 neighbours, clipped to the stack."""
+    s, h, w = stack.shape
+    high = np.full((s + 2, h + 2, w + 2), -np.inf)
+    low = np.full((s + 2, h + 2, w + 2), np.inf)
+    high[1:-1, 1:-1, 1:-1] = stack
+    low[1:-1, 1:-1, 1:-1] = stack
+    is_max = np.ones(stack.shape, dtype=bool)
+    is_min = np.ones(stack.shape, dtype=bool)
+    for ds, dr, dc in NEIGHBOURS_26:
+        window = (slice(1 + ds, 1 + ds + s), slice(1 + dr, 1 + dr + h), slice(1 + dc, 1 + dc + w))
+        is_max &= stack > high[window]
+        is_min &= stack < low[window]
+    return is_max, is_min
+
+
+@algorithm("features.log_blobs", section="5.8", check="cvkit.features.checks:log_blobs")
+def log_blobs(image, sigmas, threshold):
+    """Blobs: extrema in space and scale of the scale-normalised Laplacian of Gaussian.
+
+    Parameters
+    ----------
+    image : (H, W) array_like
+        Grayscale image, any real dtype, finite values.
+    sigmas : sequence of float
+        The scales σ > 0 to sample, in the order that defines the scale neighbours (usually
+        increasing).
+    threshold : float
+        A blob needs ``|F| > threshold``, ≥ 0.
+
+    Returns
+    -------
+    (N, 3) float64 ndarray
+        ``(x, y, σ)`` of each blob, σ being the sampled value; ordered by scale index, then
+        row, then column. Shape ``(0, 3)`` when there is none.
+
+    Notes
+    -----
+    §5.8. ``F(x, y, σ) = σ²·∇²(G_σ ∗ I)`` with ``implementation("edges.log")`` (kernel radius
+    ceil(3σ), reflect101 border). The σ² factor (Lindeberg's normalisation) undoes the decay of
+    the derivatives with σ, so a disk of radius ρ answers most strongly at σ ≈ ρ/√2 at every
+    size. A sample is kept when ``|F| > threshold`` and it is strictly greater — or strictly
+    smaller — than all its neighbours in the 3×3×3 block of (scale, row, col) clipped to the
+    stack. Bright blobs on a dark background are minima of F (the LoG is negative inside),
+    dark blobs maxima. ``skimage.feature.blob_log`` finds the same blobs (it negates F, keeps
+    maxima only, and prunes overlapping blobs).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> y, x = np.mgrid[0:41, 0:41]
+    >>> img = np.exp(-((x - 20) ** 2 + (y - 17) ** 2) / (2 * 3.0 ** 2))   # bright blob, σ = 3
+    >>> log_blobs(img, [1.5, 2.1, 3.0, 4.2, 6.0], 0.1)
+    array([[20., 17.,  3.]])
+    """
+    img = gray(image)
+    sigmas = as_float_array(sigmas, "sigmas", ndim=1)
+    if np.any(sigmas <= 0):
+        raise ValueError(f"sigmas must all be > 0, got {sigmas.tolist()}")
+    threshold = check_real(threshold, "threshold", nonnegative=True)
+    log = implementation("edges.log")
+    stack = np.stack([s * s * np.asarray(log(img, float(s)), dtype=np.float64) for s in sigmas])
+    is_max, is_min = _strict_extrema(stack)
+    keep = (is_max | is_min) & (np.abs(stack) > threshold)
+    index, rows, cols = np.nonzero(keep)
+    return np.stack([cols, rows, sigmas[index]], axis=1).astype(np.float64).reshape(-1, 3)
+
+
+# --------------------------------------------------------------------------------------------
+# §5.9 DoG extrema, refinement and edge rejection
+# --------------------------------------------------------------------------------------------
+_BLOCK = 1 << 15  # samples of a block of rows: the comparisons' temporaries stay in cache
+
+
+def _extrema_of_level(d: np.ndarray, s: int, threshold: float) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of the strict 26-neighbour extrema of level ``s`` of the stack ``d``
+    with ``|D| > threshold``, in raster order.
+
+    A cascade: the threshold and the 4 neighbours in the level leave few candidates (whole
+    blocks of rows at a time); the other 22 neighbours are compared on those only.
+    """
+    _, h, w = d.shape
+    level = d[s]
+    rows_per_block = max(1, _BLOCK // max(1, w))
+    found_r, found_c = [], []
+    for r0 in range(1, h - 1, rows_per_block):
+        r1 = min(h - 1, r0 + rows_per_block)
+        centre = level[r0:r1, 1:-1]
+        left, right = level[r0:r1, :-2], level[r0:r1, 2:]
+        up, down = level[r0 - 1:r1 - 1, 1:-1], level[r0 + 1:r1 + 1, 1:-1]
+        strong = np.abs(centre) > threshold
+        high = strong & (centre > left) & (centre > right) & (centre > up) & (centre > down)
+        low = strong & (centre < left) & (centre < right) & (centre < up) & (centre < down)
+        for mask, better in ((high, np.greater), (low, np.less)):
+            rr, cc = np.nonzero(mask)
+            if rr.size == 0:
+                continue
+            rr, cc = rr + r0, cc + 1
+            value = level[rr, cc]
+            keep = np.ones(rr.size, dtype=bool)
+            for ds, dr, dc in NEIGHBOURS_26:
+                if ds == 0 and (dr == 0 or dc == 0):
+                    continue  # the four already compared
+                keep &= better(value, d[s + ds, rr + dr, cc + dc])
+            found_r.append(rr[keep])
+            found_c.append(cc[keep])
+    if not found_r:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    rr, cc = np.concatenate(found_r), np.concatenate(found_c)
+    order = np.lexsort((cc, rr))
+    return rr[order], cc[order]
+
+
+@algorithm("features.dog_extrema", section="5.9", check="cvkit.features.checks:dog_extrema")
+def dog_extrema(dog_pyramid, contrast_threshold=0.03):
+    """Samples of the DoG pyramid that are extrema among their 26 neighbours.
+
+    Parameters
+    ----------
+    dog_pyramid : list of (L, H_o, W_o) arrays
+        As returned by :func:`dog_pyramid`.
+    contrast_threshold : float
+        A candidate needs ``|D| > contrast_threshold``, ≥ 0, in the units of D (raw: *not*
+        divided by the number of scales).
+
+    Returns
+    -------
+    (N, 4) int64 ndarray
+        ``(octave, scale, row, col)`` of every extremum, sorted lexicographically.
+
+    Notes
+    -----
+    §5.9. Every interior sample (1 ≤ scale ≤ L−2, 1 ≤ row ≤ H−2, 1 ≤ col ≤ W−2) is a
+    candidate — no wider margin. It is kept when it is *strictly* greater than all 26
+    neighbours (8 in its own level, 9 in the level above, 9 below) or strictly smaller than
+    all of them. (OpenCV accepts ties, asks maxima to be positive and minima negative, and
+    skips a 5-pixel border.) Vectorised as a cascade, by blocks of rows: the threshold and the
+    four neighbours in the same level leave few candidates, which are then compared with the
+    other 22 neighbours.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> d = np.zeros((3, 5, 5)); d[1, 2, 3] = 0.5; d[1, 1, 1] = -0.2
+    >>> dog_extrema([d], 0.1)
+    array([[0, 1, 1, 1],
+           [0, 1, 2, 3]])
+    """
+    stacks = _as_stacks(dog_pyramid, "dog_pyramid")
+    threshold = check_real(contrast_threshold, "contrast_threshold", nonnegative=True)
+    found = []
+    for octave, d in enumerate(stacks):
+        levels, h, w = d.shape
+        if levels < 3 or h < 3 or w < 3:
+            continue
+        for s in range(1, levels - 1):
+            rr, cc = _extrema_of_level(d, s, threshold)
+            found.append(np.stack([np.full(rr.size, octave), np.full(rr.size, s), rr, cc], axis=1))
+    if not found:
+        return np.zeros((0, 4), dtype=np.int64)
+    rows = np.concatenate(found).astype(np.int64).reshape(-1, 4)
+    order = np.lexsort(rows.T[::-1])
+    return rows[order]
+
+
+def _position(value, name: str, size: int) -> int:
+    index = check_int(value, name)
+    if not 1 <= index <= size - 2:
+        raise ValueError(f"{name} must be an interior index 1..{size - 2} (both neighbours needed), got {index}")
+    return index
+
+
+def derivatives_3d(d: np.ndarray, s: int, r: int, c: int) -> tuple[np.ndarray, np.ndarray]:
+    """Central-difference gradient (..., 3) and Hessian (..., 3, 3) of a stack at (s, r, c), in the
+    order (s, r, c); the indices may be integers or arrays of them."""
+    v = d[s, r, c]
+    g = 0.5 * np.stack([d[s + 1, r, c] - d[s - 1, r, c], d[s, r + 1, c] - d[s, r - 1, c], d[s, r, c + 1] - d[s, r, c - 1]], axis=-1)
+    hss = d[s + 1, r, c] + d[s - 1, r, c] - 2.0 * v
+    hrr = d[s, r + 1, c] + d[s, r - 1, c] - 2.0 * v
+    hcc = d[s, r, c + 1] + d[s, r, c - 1] - 2.0 * v
+    hsr = 0.25 * (d[s + 1, r + 1, c] - d[s + 1, r - 1, c] - d[s - 1, r + 1, c] + d[s - 1, r - 1, c])
+    hsc = 0.25 * (d[s + 1, r, c + 1] - d[s + 1, r, c - 1] - d[s - 1, r, c + 1] + d[s - 1, r, c - 1])
+    hrc = 0.25 * (d[s, r + 1, c + 1] - d[s, r + 1, c - 1] - d[s, r - 1, c + 1] + d[s, r - 1, c - 1])
+    hessian = np.stack([np.stack([hss, hsr, hsc], axis=-1), np.stack([hsr, hrr, hrc], axis=-1),
+                        np.stack([hsc, hrc, hcc], axis=-1)], axis=-2)
+    return g, hessian
+
+
+@algorithm("features.refine_extremum", section="5.9", check="cvkit.features.checks:refine_extremum")
+def refine_extremum(dog_stack, scale, row, col):
+    """Sub-pixel, sub-scale position of an extremum: one Newton step on a 3-D quadratic.
+
+    Parameters
+    ----------
+    dog_stack : (L, H, W) array_like
+        One octave of the DoG pyramid.
+    scale, row, col : int
+        The sample to refine; interior (both neighbours must exist along each axis).
+
+    Returns
+    -------
+    offset : (3,) float64 ndarray
+        ``x̂ = −H⁻¹∇D``, as ``(ds, dr, dc)``.
+    value : float
+        The interpolated value ``D(x̂) = D + ½ ∇Dᵀ x̂``, used for the contrast test.
+
+    Notes
+    -----
+    §5.9 (Brown and Lowe). The Taylor expansion ``D(x) ≈ D + ∇Dᵀx + ½ xᵀHx`` about the sample
+    has its stationary point at ``x̂ = −H⁻¹∇D``. The gradient is by central differences
+    ``(D[+1] − D[−1]) / 2`` and the Hessian by the second differences
+    ``D[+1] + D[−1] − 2D`` and the mixed ``(D[+1,+1] − D[+1,−1] − D[−1,+1] + D[−1,−1]) / 4``,
+    all in the order (scale, row, col). An |offset| > 0.5 along an axis means that the
+    extremum is closer to another sample (SIFT then moves there and repeats).
+
+    Raises
+    ------
+    ValueError
+        At the border of the stack, or when the Hessian is singular.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> s, r, c = np.mgrid[0:3, 0:5, 0:5]
+    >>> d = -((s - 1.2) ** 2 + (r - 2.0) ** 2 + (c - 1.7) ** 2)     # a peak at (1.2, 2.0, 1.7)
+    >>> offset, value = refine_extremum(d, 1, 2, 2)
+    >>> offset.round(12), round(value, 12)
+    (array([ 0.2,  0. , -0.3]), 0.0)
+    """
+    d = as_float_array(dog_stack, "dog_stack", ndim=3)
+    s = _position(scale, "scale", d.shape[0])
+    r = _position(row, "row", d.shape[1])
+    c = _position(col, "col", d.shape[2])
+    g, hessian = derivatives_3d(d, s, r, c)
+    try:
+        offset = -np.linalg.solve(hessian, g)
+    except np.linalg.LinAlgError:
+        raise ValueError(f"the Hessian at (scale, row, col) = ({s}, {r}, {c}) is singular") from None
+    if not np.all(np.isfinite(offset)):
+        raise ValueError(f"the Hessian at (scale, row, col) = ({s}, {r}, {c}) is singular")
+    # the three products summed in a fixed order (the pipeline's batch version does the same)
+    return offset, float(d[s, r, c] + 0.5 * (g[0] * offset[0] + g[1] * offset[1] + g[2] * offset[2]))
+
+
+@algorithm("features.is_edge_like", section="5.9", check="cvkit.features.checks:is_edge_like")
+def is_edge_like(dog_slice, row, col, r=10.0):
+    """Is a DoG extremum on an edge (principal curvatures too unequal)?
+
+    Parameters
+    ----------
+    dog_slice : (H, W) array_like
+        One level of the DoG pyramid.
+    row, col : int
+        The sample, interior (1..H−2, 1..W−2).
+    r : float
+        The largest accepted ratio of the two principal curvatures, > 0 (10 in SIFT).
+
+    Returns
+    -------
+    bool
+        True when ``det ≤ 0`` (curvatures of opposite signs: a saddle) or
+        ``trace² / det ≥ (r + 1)² / r``.
+
+    Notes
+    -----
+    §5.9. The 2×2 Hessian by central differences, ``Dxx = D[r, c+1] + D[r, c−1] − 2D``,
+    ``Dyy`` likewise down the column, ``Dxy = (D[r+1, c+1] − D[r+1, c−1] − D[r−1, c+1] +
+    D[r−1, c−1]) / 4``. With eigenvalues α = r·β, ``trace²/det = (r + 1)²/r`` grows with the
+    ratio r: the test bounds the ratio without computing eigenvalues, as Harris' R does.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> y, x = np.mgrid[0:5, 0:5]
+    >>> bool(is_edge_like(-(x - 2.0) ** 2 - (y - 2.0) ** 2, 2, 2)), bool(is_edge_like(-(x - 2.0) ** 2 + 0.0 * y, 2, 2))
+    (False, True)
+    """
+    d = as_float_array(dog_slice, "dog_slice", ndim=2)
+    i = _position(row, "row", d.shape[0])
+    j = _position(col, "col", d.shape[1])
+    ratio = check_real(r, "r", positive=True)
+    v = d[i, j]
+    dxx = d[i, j + 1] + d[i, j - 1] - 2.0 * v
+    dyy = d[i + 1, j] + d[i - 1, j] - 2.0 * v
+    dxy = 0.25 * (d[i + 1, j + 1] - d[i + 1, j - 1] - d[i - 1, j + 1] + d[i - 1, j - 1])
+    trace = dxx + dyy
+    det = dxx * dyy - dxy * dxy
+    return bool(det <= 0 or trace * trace * ratio >= (ratio + 1.0) ** 2 * det)
