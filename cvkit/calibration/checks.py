@@ -1,0 +1,1440 @@
+"""Checks of Chapter 8's calibration algorithms: cases, comparators and mistake banks.
+
+One module-level :class:`~cvkit.grading.Check` per algorithm, named like the reference function
+(``cvkit.calibration.checks:homography_dlt`` grades ``calibration.homography_dlt``).
+
+- ``public`` cases are few and small but already separate every mistake of the bank (noisy,
+  clustered pixel coordinates in the thousands for the un-normalised DLT; four points for the
+  economy SVD; a skewed camera and three views for the intrinsics; a perturbed homography for
+  the missing re-orthonormalisation; a board of the wrong size for the detector; ...).
+- ``hidden`` cases are drawn from the grading seed: random cameras, poses, point counts and
+  noise levels, integer and list inputs, negative and tiny/huge scales of homogeneous inputs —
+  and for every mistake inputs on which it is wrong. They stay small: at most 5 views of at
+  most 20 points for a calibration, images of about 100×140 pixels for the detector, so that a
+  student's plain version finishes in well under a second per case.
+
+Comparators (subclasses of :class:`cvkit.grading.Comparator`, numpy.testing-style messages):
+
+- :class:`HomographyClose` — a 3×3 H with H[2, 2] = 1 that maps the case's points where the
+  reference does, within a tolerance in pixels (so entries of very different magnitudes are
+  judged by their effect, and an unscaled H is told to divide by H[2, 2]);
+- :class:`CornersClose` — a corner list in the catalog's order (or its 180° rotation) within a
+  mean and a maximal distance, or None where no board is expected;
+- :class:`MinimumClose` — the ``(x, info)`` of an optimiser: the same minimum, a truthful
+  ``info["cost"]``, ``converged`` as expected, and, when the iteration budget is too small
+  for anybody, at least no worse than the start;
+- :class:`CalibrationClose` — the fields of a calibration result (a dict or an object).
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..camera import project_full as _project_full
+from ..camera import rotation_matrix as _rotation_matrix
+from ..camera.checks import FloatClose, Parts
+from ..grading import Case, Check, Comparator, Mismatch, Mistake
+from ._homography import _apply, _dlt_matrix, _null_vector, _scaled, hartley_normalization
+from ._homography import homography_dlt as _homography_dlt
+from ._homography import refine_homography as _refine_homography
+from ._optimize import levenberg_marquardt as _levenberg_marquardt
+from ._pattern import chessboard_points as _chessboard_points
+from ._pattern import find_chessboard_corners as _find_chessboard_corners
+from ._problems import Jacobian, Residuals, least_squares_call
+from ._zhang import _calibrate, _v
+from ._zhang import extrinsics_from_homography as _extrinsics_from_homography
+from ._zhang import intrinsics_from_homographies as _intrinsics_from_homographies
+
+__all__ = [
+    "HomographyClose", "CornersClose", "MinimumClose", "CalibrationClose",
+    "chessboard_points", "find_chessboard_corners", "homography_dlt", "levenberg_marquardt",
+    "refine_homography", "intrinsics_from_homographies", "extrinsics_from_homography",
+    "estimate_radial_distortion", "calibrate",
+]
+
+CAMERA_BLOCKS = ("camera.to_homogeneous", "camera.from_homogeneous", "camera.intrinsic_matrix",
+                 "camera.rotation_matrix", "camera.projection_matrix", "camera.project", "camera.distort",
+                 "camera.undistort_points", "camera.project_full")
+
+
+# --------------------------------------------------------------------------------------------
+# comparators
+# --------------------------------------------------------------------------------------------
+def _as_matrix(got, shape=(3, 3)) -> tuple[np.ndarray | None, str | None]:
+    if got is None:
+        return None, "your output is None: did you forget to `return` the result?"
+    try:
+        with np.errstate(all="ignore"):
+            arr = np.asarray(got, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        return None, f"your output could not be turned into a float array ({exc})"
+    if arr.shape != shape:
+        return None, f"shape mismatch: expected {shape}, got {arr.shape}"
+    return arr, None
+
+
+def _map(H: np.ndarray, points: np.ndarray) -> np.ndarray:
+    with np.errstate(all="ignore"):
+        m = points @ H[:, :2].T + H[:, 2]
+        return m[:, :2] / m[:, 2:]
+
+
+@dataclass
+class HomographyClose(Comparator):
+    """A homography judged by what it does: H[2, 2] as expected (1) and the probe points mapped within
+    ``atol + rtol·max|mapped|`` pixels of where the expected H maps them.
+
+    ``probes(case)`` gives the (N, 2) points to map (default: the case's first argument); with
+    ``corners`` the corners of their bounding box are added.
+    """
+
+    atol: float = 1e-4
+    rtol: float = 1e-8
+    probes: object = None
+    corners: bool = True
+
+    def describe(self) -> str:
+        return f"H[2,2] = 1 and mapped points within {self.atol:g} px + {self.rtol:g}·|value|"
+
+    def _probe_points(self, case) -> np.ndarray:
+        if self.probes is not None:
+            pts = np.asarray(self.probes(case), dtype=np.float64)
+        else:
+            pts = np.asarray(case.args[0], dtype=np.float64)
+        if not self.corners:
+            return pts
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        return np.vstack([pts, [[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]]])
+
+    def __call__(self, got, expected, case=None):
+        H, problem = _as_matrix(got)
+        if problem:
+            return Mismatch(problem)
+        E = np.asarray(expected, dtype=np.float64)
+        if not np.all(np.isfinite(H)):
+            return Mismatch("your H contains NaN or inf")
+        if abs(H[2, 2] - E[2, 2]) > 1e-9 * max(1.0, abs(E[2, 2])):
+            advice = ": scale the homography by dividing it by H[2, 2]" if E[2, 2] == 1.0 else ""
+            return Mismatch(f"H[2, 2] = {H[2, 2]:.6g}, expected {E[2, 2]:.6g}{advice}",
+                            max_abs=abs(H[2, 2] - E[2, 2]), worst=(2, 2))
+        if case is None:
+            points = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+        else:
+            points = self._probe_points(case)
+        mine, theirs = _map(H, points), _map(E, points)
+        scale = float(np.abs(theirs[np.isfinite(theirs)]).max()) if np.isfinite(theirs).any() else 1.0
+        tolerance = self.atol + self.rtol * max(1.0, scale)
+        with np.errstate(invalid="ignore"):
+            distance = np.hypot(*(mine - theirs).T)
+        distance = np.where(np.isfinite(distance), distance, np.inf)
+        worst = int(np.argmax(distance))
+        if distance[worst] <= tolerance:
+            return None
+        bad = int(np.count_nonzero(distance > tolerance))
+        x, y = points[worst]
+        return Mismatch(
+            f"Your H maps points elsewhere: {bad} of {len(points)} test points differ by more than {tolerance:.3g} px\n"
+            f"Max distance {distance[worst]:.6g} px for the point ({x:.6g}, {y:.6g}): yours goes to "
+            f"({mine[worst, 0]:.6g}, {mine[worst, 1]:.6g}), expected ({theirs[worst, 0]:.6g}, {theirs[worst, 1]:.6g})",
+            max_abs=float(distance[worst]), worst=(worst,), mismatched=bad, total=len(points))
+
+
+@dataclass
+class CornersClose(Comparator):
+    """Chessboard corners in the catalog's order (or its 180° rotation, ``expected[::-1]``)
+    within ``mean`` px on average and ``maximum`` px for every corner; None where the
+    reference finds no board."""
+
+    mean: float = 0.2
+    maximum: float = 0.6
+
+    def describe(self) -> str:
+        return f"corners in order within {self.mean:g} px on average and {self.maximum:g} px each"
+
+    def __call__(self, got, expected, case=None):
+        if expected is None:
+            if got is None:
+                return None
+            return Mismatch("expected None: the image has no complete board of this size (return None when the "
+                            "grid you find is not exactly cols × rows corners)")
+        if got is None:
+            return Mismatch(f"you returned None, but the image has a {len(expected)}-corner board of this size")
+        try:
+            pts = np.asarray(got, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            return Mismatch(f"your output could not be turned into a float array ({exc})")
+        exp = np.asarray(expected, dtype=np.float64)
+        if pts.shape != exp.shape:
+            return Mismatch(f"shape mismatch: expected {exp.shape} (cols·rows corners, (x, y) each), got {pts.shape}")
+        if not np.all(np.isfinite(pts)):
+            return Mismatch("your corners contain NaN or inf")
+        best = None
+        for order, name in ((exp, "as expected"), (exp[::-1], "rotated by 180°")):
+            d = np.hypot(*(pts - order).T)
+            if best is None or d.mean() < best[0].mean():
+                best = (d, order, name)
+        d, order, name = best
+        if d.mean() <= self.mean and d.max() <= self.maximum:
+            return None
+        worst = int(np.argmax(d))
+        return Mismatch(
+            f"Corners differ: mean distance {d.mean():.4g} px (at most {self.mean:g}), max {d.max():.4g} px "
+            f"(at most {self.maximum:g}) at corner {worst}: yours ({pts[worst, 0]:.4g}, {pts[worst, 1]:.4g}), "
+            f"expected ({order[worst, 0]:.4g}, {order[worst, 1]:.4g})",
+            max_abs=float(d.max()), worst=(worst,), mismatched=int(np.count_nonzero(d > self.mean)), total=len(d))
+
+
+@dataclass
+class MinimumClose(Comparator):
+    """``(x, info)`` of a least-squares optimiser.
+
+    - ``info`` is a mapping with ``iterations`` (0..max_iter), ``cost`` and ``converged``;
+    - ``converged`` as the reference's, x within ``xtol·max(1, |x_i|)`` and the cost within
+      ``ctol`` (relative) of the reference's. (Only problems with a unique minimum that every
+      correct method reaches well within the budget are used — and ``max_iter = 0``, where
+      everybody must return x0.)
+    """
+
+    xtol: float = 1e-5
+    ctol: float = 1e-7
+
+    def describe(self) -> str:
+        return f"same minimum (x within {self.xtol:g}·max(1,|x|), cost within {self.ctol:g} relative)"
+
+    def __call__(self, got, expected, case=None):
+        if isinstance(got, np.ndarray) or not isinstance(got, (tuple, list)) or len(got) != 2:
+            what = f"a tuple of {len(got)}" if isinstance(got, (tuple, list)) else type(got).__name__
+            return Mismatch(f"expected a tuple (x, info), got {what}")
+        x, info = got
+        x_exp, info_exp = expected
+        try:
+            x = np.asarray(x, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            return Mismatch(f"x could not be turned into a float array ({exc})")
+        x_exp = np.asarray(x_exp, dtype=np.float64)
+        if x.shape != x_exp.shape:
+            return Mismatch(f"x: shape mismatch, expected {x_exp.shape}, got {x.shape}")
+        if not isinstance(info, Mapping):
+            return Mismatch(f"info must be a dict with 'iterations', 'cost' and 'converged', got {type(info).__name__}")
+        missing = [k for k in ("iterations", "cost", "converged") if k not in info]
+        if missing:
+            return Mismatch(f"info lacks the key(s) {', '.join(map(repr, missing))}")
+        if not np.all(np.isfinite(x)):
+            return Mismatch("x contains NaN or inf: the iteration diverged (damp the steps and refuse those that "
+                            "raise the cost)")
+        try:
+            cost = float(info["cost"])
+            iterations = int(info["iterations"])
+        except (TypeError, ValueError):
+            return Mismatch("info['cost'] must be a number and info['iterations'] an integer")
+        converged = info["converged"]
+        if not isinstance(converged, (bool, np.bool_)):
+            return Mismatch(f"info['converged'] must be True or False, got {converged!r}")
+        max_iter = (case.kwargs.get("max_iter", case.args[3] if len(case.args) > 3 else 100)) if case is not None else None
+        if max_iter is not None and not 0 <= iterations <= max_iter:
+            return Mismatch(f"info['iterations'] = {iterations} is not between 0 and max_iter = {max_iter}")
+        if bool(converged) != bool(info_exp["converged"]):
+            if converged:
+                return Mismatch("info['converged'] is True, but no stopping test can be met within max_iter iterations")
+            return Mismatch("info['converged'] is False, but the problem can be solved within max_iter iterations")
+        tolerance = self.xtol * np.maximum(1.0, np.abs(x_exp))
+        error = np.abs(x - x_exp)
+        if np.any(error > tolerance):
+            i = int(np.argmax(error - tolerance))
+            return Mismatch(
+                f"Not the same minimum: x[{i}] = {x[i]:.10g}, expected {x_exp[i]:.10g} "
+                f"(tolerance {tolerance[i]:.3g}); your cost {cost:.8g}, expected {info_exp['cost']:.8g}",
+                max_abs=float(error.max()), worst=(i,), mismatched=int(np.count_nonzero(error > tolerance)),
+                total=x.size)
+        if not abs(cost - info_exp["cost"]) <= self.ctol * abs(info_exp["cost"]) + 1e-12:
+            return Mismatch(f"info['cost'] = {cost:.10g}, expected {info_exp['cost']:.10g}")
+        return None
+
+
+def _field(result, name):
+    if isinstance(result, Mapping):
+        if name not in result:
+            raise KeyError(name)
+        return result[name]
+    if not hasattr(result, name):
+        raise KeyError(name)
+    return getattr(result, name)
+
+
+@dataclass
+class CalibrationClose(Comparator):
+    """A calibration result (dict or object) with ``A``, ``k``, ``rotations``,
+    ``translations`` and ``rms`` close to the reference's (the same minimum of the
+    reprojection error, reached by another implementation of the same steps)."""
+
+    rtol: float = 1e-5
+    rms_rtol: float = 1e-6
+    inner: Comparator = field(default_factory=lambda: FloatClose(rtol=1e-5, atol=1e-6))
+
+    def describe(self) -> str:
+        return f"A, k, rotations, translations within {self.rtol:g} (relative), rms within {self.rms_rtol:g}"
+
+    def __call__(self, got, expected, case=None):
+        if got is None:
+            return Mismatch("your output is None: did you forget to `return` the result?")
+        values = {}
+        for name in ("A", "k", "rotations", "translations", "rms"):
+            try:
+                values[name] = _field(got, name)
+            except KeyError:
+                return Mismatch(f"your result has no {name!r}: return a dict with the keys A, k, rotations, "
+                                "translations and rms")
+        A = np.asarray(values["A"], dtype=np.float64) if values["A"] is not None else None
+        if A is None or A.shape != (3, 3):
+            return Mismatch(f"A: expected a 3×3 matrix, got {None if A is None else A.shape}")
+        scale = float(np.abs(expected["A"]).max())
+        checks = [
+            ("A", A, np.asarray(expected["A"]), FloatClose(rtol=self.rtol, atol=self.rtol * scale)),
+            ("k", np.asarray(values["k"], dtype=np.float64).ravel(), np.asarray(expected["k"]),
+             FloatClose(rtol=self.rtol * 100, atol=1e-4)),
+            ("rotations", np.asarray(values["rotations"], dtype=np.float64), np.asarray(expected["rotations"]),
+             FloatClose(rtol=0.0, atol=self.rtol)),
+            ("translations", np.asarray(values["translations"], dtype=np.float64),
+             np.asarray(expected["translations"]),
+             FloatClose(rtol=self.rtol, atol=self.rtol * float(np.abs(expected["translations"]).max()))),
+        ]
+        for name, mine, theirs, compare in checks:
+            mismatch = compare(mine, theirs, case)
+            if mismatch is not None:
+                mismatch.message = f"{name}: {mismatch.message}"
+                return mismatch
+        try:
+            rms = float(values["rms"])
+        except (TypeError, ValueError):
+            return Mismatch(f"rms must be a number, got {type(values['rms']).__name__}")
+        expected_rms = float(expected["rms"])
+        if not abs(rms - expected_rms) <= self.rms_rtol * expected_rms + 1e-6:
+            return Mismatch(f"rms: yours {rms:.8g} px, expected {expected_rms:.8g} px "
+                            "(√(Σ‖e‖² / number of points) after the refinement)")
+        return None
+
+
+# --------------------------------------------------------------------------------------------
+# case helpers
+# --------------------------------------------------------------------------------------------
+def _u(rng, lo, hi, digits=3):
+    return float(np.round(rng.uniform(lo, hi), digits))
+
+
+def _camera(rng, skew=False, size=(480, 640)):
+    rows, cols = size
+    fu = _u(rng, 0.9, 1.4, 3) * cols
+    fv = fu * _u(rng, 0.93, 1.07, 3)
+    u0 = cols / 2 + _u(rng, -0.06, 0.06) * cols
+    v0 = rows / 2 + _u(rng, -0.06, 0.06) * rows
+    s = _u(rng, 1.0, 4.0, 2) * rng.choice([-1.0, 1.0]) if skew else 0.0
+    return np.array([[fu, s, u0], [0.0, fv, v0], [0.0, 0.0, 1.0]])
+
+
+def _pose(rng, cols, rows, square, depth, tilt=0.6, spin=0.4):
+    """A pose that looks at the centre of a cols × rows board from about ``depth``."""
+    R = _rotation_matrix(rng.uniform(-tilt, tilt), rng.uniform(-tilt, tilt), rng.uniform(-spin, spin))
+    centre = np.array([(cols - 1) * square / 2, (rows - 1) * square / 2, 0.0])
+    target = np.array([rng.uniform(-0.12, 0.12) * depth, rng.uniform(-0.1, 0.1) * depth, depth])
+    return R, target - R @ centre
+
+
+def _views(rng, A, cols, rows, square, n_views, k=(0.0, 0.0), noise=0.0, size=(480, 640)):
+    """Poses and image points of a board whose corners all stay inside the image."""
+    world = _chessboard_points(cols, rows, square)
+    width = max(cols, rows) * square
+    Rs, ts, images = [], [], []
+    while len(Rs) < n_views:
+        depth = A[0, 0] * width / (size[1] * rng.uniform(0.45, 0.75))
+        R, t = _pose(rng, cols, rows, square, depth)
+        m = _project_full(world, A, R, t, k)
+        if np.all(m >= 10) and np.all(m[:, 0] <= size[1] - 10) and np.all(m[:, 1] <= size[0] - 10):
+            Rs.append(R)
+            ts.append(t)
+            images.append(m + rng.normal(0.0, noise, m.shape) if noise else m)
+    return world, Rs, ts, images
+
+
+def _perspective_homography(rng, scale=1.0, offset=(0.0, 0.0)):
+    """A homography with a real perspective part, mapping [0, 200]² to around ``offset``."""
+    a = scale * rng.uniform(1.5, 3.0)
+    angle = rng.uniform(-0.6, 0.6)
+    H = np.array([[a * np.cos(angle), -a * np.sin(angle) + rng.normal(0, 0.2) * scale, offset[0] + rng.uniform(50, 150)],
+                  [a * np.sin(angle) + rng.normal(0, 0.2) * scale, a * np.cos(angle) * rng.uniform(0.8, 1.2),
+                   offset[1] + rng.uniform(50, 150)],
+                  [rng.uniform(-1.5e-3, 1.5e-3), rng.uniform(-1.5e-3, 1.5e-3), 1.0]])
+    return H
+
+
+def _pairs(rng, n, H, noise, spread=200.0):
+    src = rng.uniform(0.0, spread, (n, 2))
+    dst = _map(H, src)
+    return np.round(src, 3), dst + rng.normal(0.0, noise, dst.shape)
+
+
+# --------------------------------------------------------------------------------------------
+# calibration.chessboard_points (§8.3)
+# --------------------------------------------------------------------------------------------
+def _cp_column_major(cols, rows, square_size):
+    P = _chessboard_points(cols, rows, square_size)
+    return P.reshape(rows, cols, 3).transpose(1, 0, 2).reshape(-1, 3)
+
+
+def _cp_xy_swapped(cols, rows, square_size):
+    return _chessboard_points(cols, rows, square_size)[:, [1, 0, 2]]
+
+
+def _cp_unit_squares(cols, rows, square_size):
+    return _chessboard_points(cols, rows, 1.0)
+
+
+def _cp_from_one(cols, rows, square_size):
+    P = _chessboard_points(cols, rows, square_size)
+    P[:, :2] += float(square_size)
+    return P
+
+
+def _cp_2d(cols, rows, square_size):
+    return _chessboard_points(cols, rows, square_size)[:, :2]
+
+
+def _cp_squares(cols, rows, square_size):
+    return _chessboard_points(cols + 1, rows + 1, square_size)
+
+
+def _cp_hidden(rng):
+    def n(lo, hi):
+        return int(rng.integers(lo, hi + 1))
+
+    c = n(4, 9)
+    r = c - n(1, 3)
+    square = n(3, 12)
+    return [
+        Case((c, r, _u(rng, 15, 40, 1)), {}, "cols > rows, square size in mm"),
+        Case((r, c, _u(rng, 0.01, 0.05, 4)), {}, "rows > cols, square size in metres"),
+        Case((square, square, _u(rng, 2, 30, 2)), {}, "square board (cols = rows)"),
+        Case((n(5, 8), n(2, 4), n(10, 40)), {}, "integer square size (result float)"),
+        Case((np.int64(n(3, 6)), np.int64(n(7, 9)), np.float64(_u(rng, 5, 25, 2))), {}, "NumPy integer counts"),
+        Case((n(2, 3), n(6, 9), _u(rng, 20, 30, 1)), {}, "tall board (2 or 3 columns)"),
+        Case((n(15, 22), n(10, 14), _u(rng, 0.5, 2, 3)), {}, "large board"),
+        Case((1, n(3, 6), _u(rng, 10, 20, 1)), {}, "a single column of corners"),
+        Case((n(3, 6), 1, _u(rng, 10, 20, 1)), {}, "a single row of corners"),
+        Case((n(4, 7), n(2, 3), 1.0), {}, "unit squares"),
+    ]
+
+
+chessboard_points = Check(
+    public=[
+        Case((4, 3, 25.0), {}, "4 × 3 inner corners, 25 mm squares"),
+        Case((3, 5, 0.5), {}, "3 × 5 inner corners (taller than wide), 0.5 units"),
+    ],
+    hidden=_cp_hidden,
+    compare=FloatClose(rtol=1e-12, atol=1e-12),
+    mistakes=[
+        Mistake("column by column (x varies slowest)", _cp_column_major,
+                "Point r·cols + c is (c·s, r·s, 0): go row by row, x (c) varying fastest, like "
+                "np.mgrid[0:cols, 0:rows].T.reshape(-1, 2)"),
+        Mistake("x and y swapped", _cp_xy_swapped,
+                "x goes along a row of the board (the cols corners), y along a column: (c·s, r·s, 0)"),
+        Mistake("square size ignored (unit squares)", _cp_unit_squares,
+                "Multiply the grid indices by square_size: the world unit is the unit of the squares"),
+        Mistake("grid starts one square from the origin", _cp_from_one,
+                "The origin is the first inner corner itself: indices start at 0, (0, 0, 0) is a point"),
+        Mistake("2-D points (z column missing)", _cp_2d,
+                "Return 3-D world points (N, 3) with z = 0: the board is the plane z_W = 0"),
+        Mistake("squares counted instead of inner corners", _cp_squares,
+                "cols × rows count the inner corners (where four squares meet), not the squares"),
+    ],
+)
+
+
+# --------------------------------------------------------------------------------------------
+# calibration.find_chessboard_corners (§8.3)
+# --------------------------------------------------------------------------------------------
+def _board_image(rng, cols, rows, size=(100, 136), tilt=0.5, spin=0.3, flip=False, noise=0.008, color=False,
+                 dtype="float", k=None, square_fill=(0.6, 0.8)):
+    from ..data import random_board_poses, render_chessboard
+
+    H, W = size
+    f = _u(rng, 0.9, 1.2) * W
+    A = np.array([[f, 0.0, W / 2 + _u(rng, -3, 3)], [0.0, f * _u(rng, 0.97, 1.03), H / 2 + _u(rng, -3, 3)],
+                  [0.0, 0.0, 1.0]])
+    k = (_u(rng, -0.25, 0.05), _u(rng, 0.0, 0.05)) if k is None else k
+    R, t = random_board_poses(1, A, size, cols, rows, 10.0, k, rng=rng, tilt=tilt, spin=spin, fill=square_fill,
+                              border=4.0, flip=flip)
+    image = render_chessboard(A, R[0], t[0], cols, rows, 10.0, size, k, noise=noise, rng=rng, color=color)
+    if dtype == "uint8":
+        image = np.round(image * 255).astype(np.uint8)
+    elif dtype == "scaled":
+        image = image * 1000.0 - 200.0
+    return image
+
+
+def _fc_swapped_xy(image, cols, rows):
+    corners = _find_chessboard_corners(image, cols, rows)
+    return None if corners is None else corners[:, ::-1].copy()
+
+
+def _fc_integer(image, cols, rows):
+    corners = _find_chessboard_corners(image, cols, rows)
+    return None if corners is None else np.round(corners)
+
+
+def _fc_column_major(image, cols, rows):
+    corners = _find_chessboard_corners(image, cols, rows)
+    if corners is None:
+        return None
+    return corners.reshape(rows, cols, 2).transpose(1, 0, 2).reshape(-1, 2)
+
+
+def _fc_left_handed(image, cols, rows):
+    corners = _find_chessboard_corners(image, cols, rows)
+    if corners is None:
+        return None
+    return corners.reshape(rows, cols, 2)[::-1].reshape(-1, 2)
+
+
+def _fc_bigger_board(image, cols, rows):
+    corners = _find_chessboard_corners(image, cols, rows)
+    if corners is not None:
+        return corners
+    for c, r in ((cols + 1, rows), (cols, rows + 1), (cols + 1, rows + 1), (cols + 2, rows), (cols, rows + 2)):
+        bigger = _find_chessboard_corners(image, c, r)
+        if bigger is not None:
+            return bigger.reshape(r, c, 2)[:rows, :cols].reshape(-1, 2)
+    return None
+
+
+def _fc_public():
+    rng = np.random.default_rng(80301)
+    return [
+        Case((_board_image(rng, 5, 4, spin=0.4), 5, 4), {}, "grey 100×136, 5 × 4 board, tilted"),
+        Case((_board_image(rng, 4, 3, size=(96, 128), spin=0.3, flip=True, color=True, dtype="uint8"), 4, 3), {},
+             "RGB uint8, 4 × 3 board upside down"),
+        Case((_board_image(rng, 5, 3, size=(90, 120)), 4, 3), {}, "a 5 × 3 board, asked for 4 × 3: None"),
+    ]
+
+
+def _fc_hidden(rng):
+    partial = _board_image(rng, 5, 4)
+    partial = partial[:, : partial.shape[1] // 2].copy()
+    return [
+        Case((_board_image(rng, 5, 4, spin=0.5), 5, 4), {}, "grey 5 × 4 board"),
+        Case((_board_image(rng, 6, 4, size=(110, 150), tilt=0.6), 6, 4), {}, "6 × 4 board, strong tilt"),
+        Case((_board_image(rng, 4, 3, flip=True), 4, 3), {}, "4 × 3 board upside down"),
+        Case((_board_image(rng, 5, 4, color=True), 5, 4), {}, "RGB float image"),
+        Case((_board_image(rng, 4, 3, dtype="uint8", spin=0.6), 4, 3), {}, "uint8 image, rotated board"),
+        Case((_board_image(rng, 4, 4, spin=0.3), 4, 4), {}, "square 4 × 4 board"),
+        Case((_board_image(rng, 3, 5, size=(120, 110)), 3, 5), {}, "3 × 5 board in a tall image"),
+        Case((_board_image(rng, 5, 4, dtype="scaled", noise=0.015), 5, 4), {}, "values in [-200, 800], more noise"),
+        Case((_board_image(rng, 5, 4, k=(-0.3, 0.05)), 5, 4), {}, "strong barrel distortion"),
+        Case((_board_image(rng, 5, 4), 4, 4), {}, "a 5 × 4 board, asked for 4 × 4: None"),
+        Case((_board_image(rng, 4, 3), 4, 4), {}, "a 4 × 3 board, asked for 4 × 4: None"),
+        Case((partial, 5, 4), {}, "half of the board cut off: None"),
+        Case((np.full((60, 80), 0.5) + rng.normal(0, 0.01, (60, 80)), 4, 3), {}, "no board at all: None"),
+    ]
+
+
+find_chessboard_corners = Check(
+    public=_fc_public,
+    hidden=_fc_hidden,
+    compare=CornersClose(mean=0.2, maximum=0.6),
+    mistakes=[
+        Mistake("(row, col) returned instead of (x, y)", _fc_swapped_xy,
+                "Points are (x, y) = (col, row): np.nonzero gives (rows, cols), swap them before returning"),
+        Mistake("no sub-pixel refinement (integer pixels)", _fc_integer,
+                "Refine each corner below the pixel: e.g. Newton steps to the saddle point of the smoothed image, "
+                "q ← q − H⁻¹∇I with derivatives interpolated at q"),
+        Mistake("column by column (x and y of the board swapped)", _fc_column_major,
+                "Corner r·cols + c: go along the side with `cols` corners first (x), then down the `rows` side"),
+        Mistake("left-handed order (mirror image of the board)", _fc_left_handed,
+                "The board's x and y axes must turn like the image's (x right, y down): choose the origin and the "
+                "directions so that cross(x direction, y direction) > 0"),
+        Mistake("a larger board accepted (grid size not checked)", _fc_bigger_board,
+                "Return None unless the grid you grow is exactly cols × rows corners: a board with more corners is "
+                "another board"),
+    ],
+    allowed=("filters.gaussian", "filters.correlate", "filters.convolve"),
+    time_limit=30.0,
+)
+
+
+# --------------------------------------------------------------------------------------------
+# calibration.homography_dlt (§8.3.2)
+# --------------------------------------------------------------------------------------------
+def _dlt_parts(src, dst):
+    s = np.asarray(src, dtype=np.float64)
+    d = np.asarray(dst, dtype=np.float64)
+    return s, d, hartley_normalization(s), hartley_normalization(d)
+
+
+def _hd_not_normalized(src, dst, normalize=True):
+    return _homography_dlt(src, dst, normalize=False)
+
+
+def _hd_always_normalized(src, dst, normalize=True):
+    return _homography_dlt(src, dst, normalize=True)
+
+
+def _hd_inverted(src, dst, normalize=True):
+    return _homography_dlt(dst, src, normalize=normalize)
+
+
+def _hd_not_denormalized(src, dst, normalize=True):
+    s, d, Ts, Td = _dlt_parts(src, dst)
+    if not normalize:
+        return _homography_dlt(src, dst, normalize=False)
+    h = _null_vector(_dlt_matrix(_apply(Ts, s), _apply(Td, d)))[1]
+    return _scaled(h.reshape(3, 3))
+
+
+def _hd_denormalized_backwards(src, dst, normalize=True):
+    s, d, Ts, Td = _dlt_parts(src, dst)
+    if not normalize:
+        return _homography_dlt(src, dst, normalize=False)
+    h = _null_vector(_dlt_matrix(_apply(Ts, s), _apply(Td, d)))[1]
+    return _scaled(Td @ h.reshape(3, 3) @ np.linalg.inv(Ts))
+
+
+def _hd_one_normalization(src, dst, normalize=True):
+    s, d, Ts, _ = _dlt_parts(src, dst)
+    if not normalize:
+        return _homography_dlt(src, dst, normalize=False)
+    h = _null_vector(_dlt_matrix(_apply(Ts, s), _apply(Ts, d)))[1]
+    return _scaled(np.linalg.inv(Ts) @ h.reshape(3, 3) @ Ts)
+
+
+def _hd_svd_variant(src, dst, normalize, pick):
+    s, d, Ts, Td = _dlt_parts(src, dst)
+    if normalize:
+        L = _dlt_matrix(_apply(Ts, s), _apply(Td, d))
+    else:
+        L = _dlt_matrix(s, d)
+    _, _, Vt = np.linalg.svd(L, full_matrices=pick == "vt_column")
+    h = {"first": Vt[0], "vt_column": Vt[:, -1], "economy": Vt[-1]}[pick]
+    H = h.reshape(3, 3)
+    if normalize:
+        H = np.linalg.inv(Td) @ H @ Ts
+    return _scaled(H)
+
+
+def _hd_largest(src, dst, normalize=True):
+    return _hd_svd_variant(src, dst, normalize, "first")
+
+
+def _hd_vt_column(src, dst, normalize=True):
+    return _hd_svd_variant(src, dst, normalize, "vt_column")
+
+
+def _hd_economy(src, dst, normalize=True):
+    return _hd_svd_variant(src, dst, normalize, "economy")
+
+
+def _hd_unit_norm(src, dst, normalize=True):
+    H = _homography_dlt(src, dst, normalize=normalize)
+    return H / np.linalg.norm(H)
+
+
+def _hd_public():
+    rng = np.random.default_rng(80302)
+    square = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 80.0], [0.0, 80.0]])
+    quad = np.array([[210.0, 140.0], [520.0, 180.0], [490.0, 420.0], [180.0, 390.0]])
+    H_far = _perspective_homography(rng, scale=1.0, offset=(4000.0, 3000.0))
+    src_far, dst_far = _pairs(rng, 8, H_far, noise=2.0, spread=60.0)
+    H_mid = _perspective_homography(rng)
+    src_mid, dst_mid = _pairs(rng, 7, H_mid, noise=3.0)
+    return [
+        Case((square, quad), {}, "4 exact pairs (a rectangle to a quadrilateral)"),
+        Case((src_far, dst_far), {}, "8 noisy pairs, pixels clustered around (4000, 3000)"),
+        Case((src_mid, dst_mid), {"normalize": False}, "7 noisy pairs, normalize=False"),
+    ]
+
+
+def _hd_hidden(rng):
+    def far_case(n, noise, label, **kwargs):
+        H = _perspective_homography(rng, scale=_u(rng, 0.5, 2.0), offset=(_u(rng, 2000, 9000), _u(rng, 2000, 9000)))
+        src, dst = _pairs(rng, n, H, noise=noise, spread=_u(rng, 40, 80))
+        return Case((src, dst), kwargs, label)
+
+    H1 = _perspective_homography(rng)
+    src4, dst4 = _pairs(rng, 4, H1, 0.0)
+    H2 = _perspective_homography(rng)
+    src_n, dst_n = _pairs(rng, int(rng.integers(10, 16)), H2, 0.0)
+    H3 = _perspective_homography(rng)
+    src_i, dst_i = _pairs(rng, 9, H3, 0.0)
+    H4 = _perspective_homography(rng)
+    src_u, dst_u = _pairs(rng, int(rng.integers(6, 10)), H4, _u(rng, 2.0, 4.0))
+    H5 = _perspective_homography(rng)
+    src_l, dst_l = _pairs(rng, 5, H5, 0.5)
+    H6 = _perspective_homography(rng, scale=0.01)
+    src_s, dst_s = _pairs(rng, 6, H6, 0.0, spread=1.0)
+    return [
+        Case((src4, dst4), {}, "4 exact pairs"),
+        Case((src4 + _u(rng, -50, 50), dst4), {"normalize": False}, "4 exact pairs, normalize=False"),
+        Case((src_n, dst_n), {}, "10-15 exact pairs"),
+        far_case(int(rng.integers(6, 10)), _u(rng, 1.5, 3.0), "noisy pairs, pixels clustered in the thousands"),
+        far_case(int(rng.integers(10, 20)), _u(rng, 1.0, 2.0), "more noisy clustered pairs, normalize=True",
+                 normalize=True),
+        far_case(int(rng.integers(5, 8)), _u(rng, 2.0, 4.0), "few noisy clustered pairs"),
+        Case((src_u, dst_u), {"normalize": False}, "noisy pairs, normalize=False"),
+        Case((np.round(src_i).astype(np.int64), np.round(dst_i).astype(np.int64)), {}, "integer coordinates"),
+        Case((src_l.tolist(), dst_l.tolist()), {}, "lists of 5 noisy pairs"),
+        Case((src_s, dst_s * 100.0), {}, "pattern coordinates below 1 (metres)"),
+        Case((-src_n, dst_n), {}, "negative pattern coordinates"),
+    ]
+
+
+homography_dlt = Check(
+    public=_hd_public,
+    hidden=_hd_hidden,
+    compare=HomographyClose(atol=1e-4, rtol=1e-8),
+    mistakes=[
+        Mistake("no Hartley normalisation", _hd_not_normalized,
+                "With normalize=True translate each point set to its centroid and scale it to mean distance √2 "
+                "(T, T′), solve the DLT there and return T′⁻¹·H̃·T: raw pixels in the thousands make L "
+                "ill-conditioned"),
+        Mistake("normalize=False ignored (always normalised)", _hd_always_normalized,
+                "With normalize=False solve the DLT on the raw coordinates"),
+        Mistake("H inverted (maps dst to src)", _hd_inverted,
+                "Build the equations of m̃ × H w̃ = 0 with w = src and m = dst: H maps src to dst"),
+        Mistake("normalisation not undone (H̃ returned)", _hd_not_denormalized,
+                "The SVD gives the homography between the *normalised* sets: return T′⁻¹·H̃·T"),
+        Mistake("normalisation undone the wrong way (T′·H̃·T⁻¹)", _hd_denormalized_backwards,
+                "dst_n = T′·dst and src_n = T·src, so H = T′⁻¹·H̃·T"),
+        Mistake("one normalisation used for both point sets", _hd_one_normalization,
+                "Normalise src and dst separately (each with its own centroid and scale)"),
+        Mistake("largest singular vector (Vt[0]) taken", _hd_largest,
+                "The solution is the right singular vector of the *smallest* singular value: the last row Vt[-1]"),
+        Mistake("column of Vᵀ taken (Vt[:, -1])", _hd_vt_column,
+                "np.linalg.svd returns Vᵀ: its rows are the singular vectors, so take the row Vt[-1], not a column"),
+        Mistake("economy SVD with 4 points (null vector missing)", _hd_economy,
+                "With 4 points L is 8×9: np.linalg.svd(L, full_matrices=False) returns only 8 rows of Vᵀ; use the "
+                "full SVD (or pad L with a row of zeros) and take the 9th"),
+        Mistake("not scaled to H[2, 2] = 1", _hd_unit_norm,
+                "The SVD gives ‖h‖ = 1; divide H by H[2, 2] before returning it"),
+    ],
+)
+
+
+# --------------------------------------------------------------------------------------------
+# calibration.levenberg_marquardt (§8.3.4)
+# --------------------------------------------------------------------------------------------
+def _lm_core(residuals, x0, jacobian=None, max_iter=100, tol=1e-10, damping=True, accept_uphill=False,
+             inverted=False, sign=1.0, jacobian_once=False, full_cost=False):
+    """The reference algorithm with switches that turn it into the bank's mistakes."""
+    from ._optimize import _forward_jacobian, _residual_vector
+
+    x = np.asarray(x0, dtype=np.float64).ravel().copy()
+    r = _residual_vector(residuals, x, "x0")
+
+    def jac(point, res):
+        return _forward_jacobian(residuals, point, res) if jacobian is None else np.asarray(jacobian(point.copy()), float)
+
+    cost = 0.5 * float(r @ r)
+    J = jac(x, r)
+    g, JTJ = J.T @ r, J.T @ J
+    mu = 1e-3 if damping else 0.0
+    iterations = 0
+    converged = bool(np.max(np.abs(g)) <= tol)
+    with np.errstate(all="ignore"):
+        while not converged and iterations < max_iter and mu <= 1e16:
+            iterations += 1
+            diagonal = np.diag(JTJ).copy()
+            top = float(diagonal.max()) if np.isfinite(diagonal).all() else np.inf
+            diagonal = np.maximum(diagonal, 1e-12 * top if top > 0 else 1.0)
+            try:
+                step = sign * np.linalg.solve(JTJ + mu * np.diag(diagonal), -g)
+            except np.linalg.LinAlgError:
+                if not damping:
+                    break
+                mu *= 10.0
+                continue
+            if not np.all(np.isfinite(step)):
+                break
+            tiny = np.linalg.norm(step) <= tol * (np.linalg.norm(x) + tol)
+            trial = x + step
+            r_trial = _residual_vector(residuals, trial, "x")
+            cost_trial = 0.5 * float(r_trial @ r_trial)
+            better = np.isfinite(cost_trial) and cost_trial < cost
+            if better or accept_uphill or not damping:
+                decrease = (cost - cost_trial) / cost if cost > 0 else 0.0
+                x, r, cost = trial, r_trial, cost_trial
+                if damping:
+                    mu = mu * 10.0 if (inverted or not better) else max(mu / 10.0, 1e-15)
+                if not np.isfinite(cost):
+                    break
+                if (better and decrease < tol) or tiny:
+                    converged = True
+                    break
+                if not jacobian_once:
+                    J = jac(x, r)
+                    JTJ = J.T @ J
+                g = J.T @ r
+                if np.max(np.abs(g)) <= tol:
+                    converged = True
+            else:
+                mu = mu / 10.0 if inverted else mu * 10.0
+                if tiny:
+                    converged = True
+    if full_cost:
+        cost = 2.0 * cost
+    return x, {"iterations": iterations, "cost": float(cost), "converged": bool(converged)}
+
+
+def _lm_gauss_newton(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
+    return _lm_core(residuals, x0, jacobian, max_iter, tol, damping=False)
+
+
+def _lm_uphill(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
+    return _lm_core(residuals, x0, jacobian, max_iter, tol, accept_uphill=True)
+
+
+def _lm_inverted(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
+    return _lm_core(residuals, x0, jacobian, max_iter, tol, inverted=True)
+
+
+def _lm_wrong_sign(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
+    return _lm_core(residuals, x0, jacobian, max_iter, tol, sign=-1.0)
+
+
+def _lm_jacobian_once(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
+    return _lm_core(residuals, x0, jacobian, max_iter, tol, jacobian_once=True)
+
+
+def _lm_full_cost(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
+    return _lm_core(residuals, x0, jacobian, max_iter, tol, full_cost=True)
+
+
+def _circle_problem(rng, n=None, noise=None):
+    n = int(rng.integers(8, 14)) if n is None else n
+    centre = rng.uniform(-5, 5, 2)
+    radius = _u(rng, 2, 6)
+    angle = rng.uniform(0, 2 * np.pi) + np.linspace(0, rng.uniform(3.5, 5.5), n)   # most of the circle
+    noise = _u(rng, 0.05, 0.2) if noise is None else noise
+    points = centre + radius * np.column_stack([np.cos(angle), np.sin(angle)]) + rng.normal(0, noise, (n, 2))
+    start = np.concatenate([centre + rng.uniform(-0.3, 0.3, 2) * radius, [radius * _u(rng, 0.7, 1.3)]])
+    return Residuals("circle", points=np.round(points, 4)), Jacobian("circle", points=np.round(points, 4)), np.round(start, 3)
+
+
+def _exponential_problem(rng, far=False):
+    t = np.linspace(0, 2, int(rng.integers(10, 16)))
+    a, b, c = _u(rng, 1.5, 3.0), -_u(rng, 0.8, 2.0), _u(rng, 0.2, 1.0)
+    y = a * np.exp(b * t) + c + rng.normal(0, 0.02, t.size)
+    start = np.array([a, b, c]) * (np.array([2.5, 3.0, -1.0]) if far else 1 + rng.normal(0, 0.2, 3))
+    return Residuals("exponential", t=t, y=np.round(y, 5)), Jacobian("exponential", t=t, y=np.round(y, 5)), np.round(start, 3)
+
+
+def _arctan_problem(rng, n=3, distance=(2.0, 4.0)):
+    c = np.round(rng.uniform(-2, 2, n), 3)
+    start = c + rng.choice([-1.0, 1.0], n) * rng.uniform(*distance, n)
+    return Residuals("arctan", c=c), Jacobian("arctan", c=c), np.round(start, 3)
+
+
+def _projective_problem(rng):
+    H = _perspective_homography(rng)
+    H = H / H[2, 2]
+    src = rng.uniform(0, 1, (int(rng.integers(6, 10)), 2))
+    dst = _map(H, src * 200.0) + rng.normal(0, 1.0, (len(src), 2))
+    Hn = H @ np.diag([200.0, 200.0, 1.0])                         # pattern coordinates in [0, 1]
+    start = (Hn / Hn[2, 2]).ravel()[:8] * (1 + rng.normal(0, 0.02, 8))
+    return (Residuals("projective", src=src, dst=dst), Jacobian("projective", src=src, dst=dst), start)
+
+
+def _lm_public():
+    rng = np.random.default_rng(80304)
+    r_a, j_a, x_a = _arctan_problem(rng, 1, distance=(2.5, 3.0))
+    r_c, j_c, x_c = _circle_problem(rng, 10, 0.15)
+    r_e, j_e, x_e = _exponential_problem(rng, far=True)
+    return [
+        Case((Residuals("rosenbrock", a=10.0), np.array([-1.2, 1.0])), {}, "Rosenbrock from (−1.2, 1), no Jacobian"),
+        Case((r_a, x_a), {"jacobian": j_a}, "arctan(x − c) from 2.5-3 away (Gauss–Newton diverges)"),
+        Case((r_c, x_c), {}, "circle through 10 noisy points (residuals remain)"),
+        Case((r_e, x_e), {"jacobian": j_e}, "exponential fit from far away"),
+    ]
+
+
+def _lm_hidden(rng):
+    r_c1, j_c1, x_c1 = _circle_problem(rng)
+    r_c2, _, x_c2 = _circle_problem(rng)
+    r_a, j_a, x_a = _arctan_problem(rng, 1, distance=(2.0, 4.0))
+    r_a2, _, x_a2 = _arctan_problem(rng, 1, distance=(1.6, 2.5))
+    r_e, j_e, x_e = _exponential_problem(rng)
+    r_f, j_f, x_f = _exponential_problem(rng, far=True)
+    r_p, j_p, x_p = _projective_problem(rng)
+    M = np.round(rng.normal(0, 1, (int(rng.integers(6, 10)), 3)), 3)
+    b = np.round(rng.normal(0, 1, len(M)), 3)
+    exact_x = np.round(rng.normal(0, 1, 3), 3)
+    start = np.round(rng.uniform(-2.0, 0.0, 2), 2)
+    a = _u(rng, 5, 20, 1)
+    return [
+        Case((Residuals("rosenbrock", a=10.0), start), {"max_iter": 1000}, "Rosenbrock, random start, no Jacobian"),
+        Case((Residuals("rosenbrock", a=a), start), {"jacobian": Jacobian("rosenbrock", a=a), "max_iter": 1000},
+             "Rosenbrock with another a, with the Jacobian"),
+        Case((Residuals("linear", M=M, b=b), np.zeros(3)), {}, "linear least squares (one step)"),
+        Case((Residuals("linear", M=M, b=M @ exact_x), exact_x), {}, "starts at the exact solution (cost 0)"),
+        Case((r_c1, x_c1), {"jacobian": j_c1}, "circle fit with the Jacobian"),
+        Case((r_c2, [int(v) for v in np.round(x_c2)]), {}, "circle fit, x0 a list of integers"),
+        Case((r_a, x_a), {"jacobian": j_a}, "arctan, 2-4 away (Gauss–Newton diverges)"),
+        Case((r_a2, x_a2), {}, "arctan, 1.6-2.5 away, no Jacobian"),
+        Case((r_e, x_e), {"jacobian": j_e}, "exponential fit"),
+        Case((r_f, x_f), {"jacobian": j_f}, "exponential fit, far start"),
+        Case((r_f, x_f), {"jacobian": j_f, "max_iter": 0}, "max_iter = 0: x0 returned, not converged"),
+        Case((r_p, x_p), {"jacobian": j_p}, "homography fit (8 parameters) to noisy points"),
+        Case((r_c1, x_c1), {"tol": 1e-13}, "circle fit, tol = 1e-13"),
+    ]
+
+
+levenberg_marquardt = Check(
+    public=_lm_public,
+    hidden=_lm_hidden,
+    compare=MinimumClose(xtol=1e-5, ctol=1e-7),
+    call=least_squares_call,
+    mistakes=[
+        Mistake("Gauss–Newton steps (no damping, every step taken)", _lm_gauss_newton,
+                "Solve (JᵀJ + μ·diag(JᵀJ))δ = −Jᵀr and keep a step only if it lowers the cost; adapt μ"),
+        Mistake("steps that raise the cost are accepted", _lm_uphill,
+                "Compute the cost at x + δ first: if it is not lower, refuse the step (keep x) and multiply μ by 10"),
+        Mistake("damping changed the wrong way", _lm_inverted,
+                "After a successful step divide μ by 10 (trust the linear model more); after a failed one multiply "
+                "it by 10"),
+        Mistake("step taken against the gradient's descent (x − δ)", _lm_wrong_sign,
+                "The step solves (JᵀJ + μD)δ = −Jᵀr and the new point is x + δ"),
+        Mistake("Jacobian computed only once, at x0", _lm_jacobian_once,
+                "Recompute J (and JᵀJ, Jᵀr) after every accepted step: the linearisation changes with x"),
+        Mistake("cost reported as ‖r‖² (no ½)", _lm_full_cost, "info['cost'] is ½‖r(x)‖², half the sum of squares"),
+    ],
+)
+
+
+# --------------------------------------------------------------------------------------------
+# calibration.refine_homography (§8.3.4)
+# --------------------------------------------------------------------------------------------
+def _rh_unrefined(H, src, dst):
+    H = np.asarray(H, dtype=np.float64)
+    return H / H[2, 2]
+
+
+def _rh_no_division(H, src, dst):
+    s = np.asarray(src, dtype=np.float64)
+    d = np.asarray(dst, dtype=np.float64)
+    H0 = np.asarray(H, dtype=np.float64)
+    H0 = H0 / H0[2, 2]
+
+    def residuals(h):
+        Hm = np.append(h, 1.0).reshape(3, 3)
+        return (s @ Hm[:2, :2].T + Hm[:2, 2] - d).ravel()
+
+    h, _ = _levenberg_marquardt(residuals, H0.ravel()[:8])
+    return np.append(h, 1.0).reshape(3, 3)
+
+
+def _rh_source_side(H, src, dst):
+    s = np.asarray(src, dtype=np.float64)
+    d = np.asarray(dst, dtype=np.float64)
+    H0 = np.asarray(H, dtype=np.float64)
+    H0 = H0 / H0[2, 2]
+
+    def residuals(h):
+        Hm = np.append(h, 1.0).reshape(3, 3)
+        return (_map(np.linalg.inv(Hm), d) - s).ravel()
+
+    h, _ = _levenberg_marquardt(residuals, H0.ravel()[:8])
+    return np.append(h, 1.0).reshape(3, 3)
+
+
+def _rh_unit_norm(H, src, dst):
+    refined = _refine_homography(H, src, dst)
+    return refined / np.linalg.norm(refined)
+
+
+def _rh_case(rng, n, noise, label, scale=1.0, start="dlt", offset=(0.0, 0.0), integer=False):
+    H = _perspective_homography(rng, offset=offset)
+    src, dst = _pairs(rng, n, H, noise)
+    if integer:
+        dst = np.round(dst).astype(np.int64)
+    if start == "dlt":
+        H0 = _homography_dlt(src, dst)
+    else:
+        H0 = (H / H[2, 2]) @ np.array([[1 + rng.normal(0, 0.01), rng.normal(0, 0.01), rng.normal(0, 2)],
+                                       [rng.normal(0, 0.01), 1 + rng.normal(0, 0.01), rng.normal(0, 2)],
+                                       [0.0, 0.0, 1.0]])
+    return Case((H0 * scale, src, dst), {}, label)
+
+
+def _rh_public():
+    rng = np.random.default_rng(80305)
+    return [
+        _rh_case(rng, 10, 1.5, "10 noisy pairs, H from the DLT"),
+        _rh_case(rng, 8, 2.0, "8 noisy pairs, H given with scale −3", scale=-3.0),
+    ]
+
+
+def _rh_hidden(rng):
+    return [
+        _rh_case(rng, int(rng.integers(8, 14)), _u(rng, 1.0, 2.5), "noisy pairs, DLT start"),
+        _rh_case(rng, int(rng.integers(6, 9)), _u(rng, 1.5, 3.0), "few noisy pairs"),
+        _rh_case(rng, int(rng.integers(10, 16)), _u(rng, 0.5, 1.5), "perturbed start (not the DLT)", start="perturbed"),
+        _rh_case(rng, 9, _u(rng, 1.0, 2.0), "H with scale 1e-3", scale=1e-3),
+        _rh_case(rng, 9, _u(rng, 1.0, 2.0), "H with a negative scale", scale=-_u(rng, 0.5, 5.0)),
+        _rh_case(rng, int(rng.integers(6, 12)), _u(rng, 1.0, 2.0), "pixels around 1000",
+                 offset=(_u(rng, 600, 1200), _u(rng, 600, 1200))),
+        _rh_case(rng, 12, 0.0, "integer (rounded) pixels", integer=True),
+        _rh_case(rng, 4, 0.0, "4 exact pairs (already optimal)"),
+        _rh_case(rng, int(rng.integers(15, 20)), _u(rng, 2.0, 4.0), "many very noisy pairs"),
+        _rh_case(rng, 7, _u(rng, 1.0, 2.0), "perturbed start, few pairs", start="perturbed"),
+    ]
+
+
+def _refine_probes(case):
+    return np.asarray(case.args[1], dtype=np.float64)
+
+
+refine_homography = Check(
+    public=_rh_public,
+    hidden=_rh_hidden,
+    # 2e-3 px: far below what the mistakes change (≥ 1e-2 px on noisy cases) and above what a
+    # forward-difference Jacobian with a crude step moves the minimum
+    # (at the data points only: with few pairs the minimum is flat in directions that move
+    # points far outside them)
+    compare=HomographyClose(atol=2e-3, rtol=1e-8, probes=_refine_probes, corners=False),
+    mistakes=[
+        Mistake("initial H returned (not refined)", _rh_unrefined,
+                "Minimise Σ‖dst − π(H·src)‖² over the 8 free entries of H with your levenberg_marquardt"),
+        Mistake("no division by the third coordinate", _rh_no_division,
+                "The predicted pixel is π(H·(x, y, 1)) = (u/w, v/w): divide by w in the residuals"),
+        Mistake("error measured in the pattern plane (H⁻¹·dst)", _rh_source_side,
+                "Only the image points are measured (noisy): compare dst with H·src in the image, not src with H⁻¹·dst"),
+        Mistake("not scaled to H[2, 2] = 1", _rh_unit_norm, "Return H divided by H[2, 2]"),
+    ],
+    allowed=("calibration.levenberg_marquardt", "calibration.homography_dlt"),
+)
+
+
+# --------------------------------------------------------------------------------------------
+# calibration.intrinsics_from_homographies (§8.3.5)
+# --------------------------------------------------------------------------------------------
+def _homographies(rng, A, n, scales=True):
+    Hs = []
+    for _ in range(n):
+        R, t = _pose(rng, 8, 6, 25.0, A[0, 0] * 200 / 500.0, tilt=0.7, spin=0.5)
+        H = A @ np.column_stack([R[:, 0], R[:, 1], t])
+        if scales:
+            H = H * rng.choice([-1.0, 1.0]) * np.exp(rng.uniform(-3, 3))
+        Hs.append(H)
+    return Hs
+
+
+def _zhang_b(Hs, rows_of=None, orthogonality_only=False, plus=False):
+    rows = []
+    for H in Hs:
+        H = np.asarray(H, dtype=np.float64)
+        H = H / np.linalg.norm(H)
+        if rows_of is not None:
+            H = H.T
+        rows.append(_v(H, 0, 1))
+        if not orthogonality_only:
+            rows.append(_v(H, 0, 0) + _v(H, 1, 1) if plus else _v(H, 0, 0) - _v(H, 1, 1))
+    V = np.array(rows)
+    if V.shape[0] < 6:
+        V = np.vstack([V, np.zeros((6 - V.shape[0], 6))])
+    b = np.linalg.svd(V)[2][-1]
+    return b if b[0] > 0 else -b
+
+
+def _closed_form(b, order=(0, 1, 2, 3, 4, 5), skew=True):
+    B11, B12, B22, B13, B23, B33 = (b[i] for i in order)
+    den = B11 * B22 - B12 * B12
+    v0 = (B12 * B13 - B11 * B23) / den
+    lam = B33 - (B13 * B13 + v0 * (B12 * B13 - B11 * B23)) / B11
+    with np.errstate(invalid="ignore"):
+        alpha = np.sqrt(lam / B11)
+        beta = np.sqrt(lam * B11 / den)
+    gamma = -B12 * alpha * alpha * beta / lam if skew else 0.0
+    u0 = gamma * v0 / beta - B13 * alpha * alpha / lam
+    return np.array([[alpha, gamma, u0], [0.0, beta, v0], [0.0, 0.0, 1.0]])
+
+
+def _ih_wrong_order(homographies):
+    return _closed_form(_zhang_b(homographies), order=(0, 1, 3, 2, 4, 5))
+
+
+def _ih_rows(homographies):
+    return _closed_form(_zhang_b(homographies, rows_of=True))
+
+
+def _ih_no_skew(homographies):
+    A = _intrinsics_from_homographies(homographies)
+    A[0, 1] = 0.0
+    return A
+
+
+def _ih_orthogonality(homographies):
+    return _closed_form(_zhang_b(homographies, orthogonality_only=True))
+
+
+def _ih_plus(homographies):
+    return _closed_form(_zhang_b(homographies, plus=True))
+
+
+def _ih_cholesky_not_inverted(homographies):
+    b = _zhang_b(homographies)
+    B = np.array([[b[0], b[1], b[3]], [b[1], b[2], b[4]], [b[3], b[4], b[5]]])
+    L = np.linalg.cholesky(B)
+    K = L.T
+    return K / K[2, 2]
+
+
+def _ih_public():
+    rng = np.random.default_rng(80306)
+    A1 = np.array([[820.0, 3.5, 330.0], [0.0, 790.0, 250.0], [0.0, 0.0, 1.0]])
+    A2 = np.array([[1100.0, 0.0, 610.0], [0.0, 1150.0, 350.0], [0.0, 0.0, 1.0]])
+    return [
+        Case((_homographies(rng, A1, 3),), {}, "3 exact homographies (any scale), skewed camera"),
+        Case((np.array(_homographies(rng, A2, 4)),), {}, "4 homographies as a (4, 3, 3) array, no skew"),
+    ]
+
+
+def _ih_hidden(rng):
+    cases = []
+    for n, skew, label in ((3, True, "3 views, skewed camera"), (4, True, "4 views, skewed camera"),
+                           (3, False, "3 views, no skew"), (int(rng.integers(5, 9)), True, "5-8 views, skew"),
+                           (int(rng.integers(5, 9)), False, "5-8 views, no skew")):
+        cases.append(Case((_homographies(rng, _camera(rng, skew=skew), n),), {}, label))
+    A = _camera(rng, skew=True, size=(720, 1280))
+    cases.append(Case((np.array(_homographies(rng, A, 4)),), {}, "(4, 3, 3) array, 1280×720 camera"))
+    A = _camera(rng, skew=False)
+    cases.append(Case(([H.tolist() for H in _homographies(rng, A, 3)],), {}, "nested lists"))
+    A = _camera(rng, skew=True)
+    cases.append(Case((_homographies(rng, A, 3, scales=False),), {}, "homographies with their natural scale"))
+    A = _camera(rng, skew=True)
+    cases.append(Case(([H * 1e-9 for H in _homographies(rng, A, 4, scales=False)],), {}, "tiny scales (1e-9)"))
+    A = _camera(rng, skew=False, size=(240, 320))
+    cases.append(Case((_homographies(rng, A, 3),), {}, "small 320×240 camera"))
+    return cases
+
+
+intrinsics_from_homographies = Check(
+    public=_ih_public,
+    hidden=_ih_hidden,
+    compare=FloatClose(rtol=1e-6, atol=1e-6),
+    mistakes=[
+        Mistake("b unpacked in the wrong order (B13 and B22 swapped)", _ih_wrong_order,
+                "v_ij follows b = (B11, B12, B22, B13, B23, B33): read B back in that same order"),
+        Mistake("rows of H used instead of columns", _ih_rows,
+                "h1, h2 are the COLUMNS of H = λA[r1 r2 t]: use H[:, 0] and H[:, 1]"),
+        Mistake("skew forced to zero", _ih_no_skew,
+                "Estimate the skew too: A[0, 1] = γ = −B12·α²·β/λ"),
+        Mistake("only the orthogonality constraint (one row per view)", _ih_orthogonality,
+                "Each view gives two rows: v12ᵀ (r1 ⊥ r2) and (v11 − v22)ᵀ (‖r1‖ = ‖r2‖)"),
+        Mistake("second row v11 + v22 instead of v11 − v22", _ih_plus,
+                "‖r1‖ = ‖r2‖ means h1ᵀBh1 − h2ᵀBh2 = 0: the row is (v11 − v22)ᵀ"),
+        Mistake("Cholesky factor used as A (not inverted)", _ih_cholesky_not_inverted,
+                "B = LLᵀ with L = A⁻ᵀ (up to scale): A is the inverse of Lᵀ, normalised so that A[2, 2] = 1"),
+    ],
+)
+
+
+# --------------------------------------------------------------------------------------------
+# calibration.extrinsics_from_homography (§8.3.6)
+# --------------------------------------------------------------------------------------------
+def _eh_parts(A, H, mean_norm=False):
+    A = np.asarray(A, dtype=np.float64)
+    M = np.linalg.solve(A, np.asarray(H, dtype=np.float64))
+    lam = 2.0 / (np.linalg.norm(M[:, 0]) + np.linalg.norm(M[:, 1])) if mean_norm else 1.0 / np.linalg.norm(M[:, 0])
+    if M[2, 2] * lam < 0:
+        lam = -lam
+    return lam * M[:, 0], lam * M[:, 1], lam * M[:, 2]
+
+
+def _eh_no_svd(A, H):
+    r1, r2, t = _eh_parts(A, H)
+    return np.column_stack([r1, r2, np.cross(r1, r2)]), t
+
+
+def _eh_sign(A, H):
+    A = np.asarray(A, dtype=np.float64)
+    M = np.linalg.solve(A, np.asarray(H, dtype=np.float64))
+    lam = 1.0 / np.linalg.norm(M[:, 0])
+    r1, r2, t = lam * M[:, 0], lam * M[:, 1], lam * M[:, 2]
+    U, _, Vt = np.linalg.svd(np.column_stack([r1, r2, np.cross(r1, r2)]))
+    return U @ Vt, t
+
+
+def _eh_no_inverse(A, H):
+    return _extrinsics_from_homography(np.eye(3), H)
+
+
+def _eh_left_handed(A, H):
+    r1, r2, t = _eh_parts(A, H)
+    U, _, Vt = np.linalg.svd(np.column_stack([r1, r2, np.cross(r2, r1)]))
+    return U @ Vt, t
+
+
+def _eh_gram_schmidt(A, H):
+    r1, r2, t = _eh_parts(A, H)
+    e1 = r1 / np.linalg.norm(r1)
+    e2 = r2 - (e1 @ r2) * e1
+    e2 /= np.linalg.norm(e2)
+    return np.column_stack([e1, e2, np.cross(e1, e2)]), t
+
+
+def _eh_mean_norm(A, H):
+    r1, r2, t = _eh_parts(A, H, mean_norm=True)
+    U, _, Vt = np.linalg.svd(np.column_stack([r1, r2, np.cross(r1, r2)]))
+    return U @ Vt, t
+
+
+def _eh_case(rng, label, skew=False, noise=0.0, scale=None, as_list=False):
+    A = _camera(rng, skew=skew)
+    R, t = _pose(rng, 8, 6, 25.0, _u(rng, 400, 900), tilt=0.8, spin=np.pi)
+    H = A @ np.column_stack([R[:, 0], R[:, 1], t])
+    if noise:
+        H = H * (1.0 + rng.normal(0, noise, (3, 3)))
+    s = (rng.choice([-1.0, 1.0]) * np.exp(rng.uniform(-2, 2))) if scale is None else scale
+    H = H * s
+    return Case((A.tolist() if as_list else A, H.tolist() if as_list else H), {}, label)
+
+
+def _eh_public():
+    rng = np.random.default_rng(80307)
+    return [
+        _eh_case(rng, "exact homography with a negative scale", scale=-2.5),
+        _eh_case(rng, "perturbed homography (0.5 % noise), skewed camera", skew=True, noise=0.005, scale=1.7),
+    ]
+
+
+def _eh_hidden(rng):
+    return [
+        _eh_case(rng, "exact, positive scale", scale=_u(rng, 0.5, 3.0)),
+        _eh_case(rng, "exact, negative scale", scale=-_u(rng, 0.5, 3.0)),
+        _eh_case(rng, "perturbed (1 % noise)", noise=0.01),
+        _eh_case(rng, "perturbed (0.3 % noise), negative scale", noise=0.003, scale=-_u(rng, 1, 5)),
+        _eh_case(rng, "perturbed, skewed camera", skew=True, noise=0.005),
+        _eh_case(rng, "exact, skewed camera", skew=True),
+        _eh_case(rng, "tiny scale (1e-7)", scale=1e-7 * rng.choice([-1.0, 1.0]), noise=0.002),
+        _eh_case(rng, "huge scale (1e7)", scale=1e7 * rng.choice([-1.0, 1.0]), noise=0.002),
+        _eh_case(rng, "nested lists", as_list=True, noise=0.004),
+        _eh_case(rng, "strongly perturbed (3 % noise)", noise=0.03, scale=-1.0),
+    ]
+
+
+extrinsics_from_homography = Check(
+    public=_eh_public,
+    hidden=_eh_hidden,
+    compare=Parts(names=("R", "t"), inner=FloatClose(rtol=1e-8, atol=1e-9)),
+    mistakes=[
+        Mistake("R not re-orthonormalised", _eh_no_svd,
+                "With noise [r1 r2 r1×r2] is not a rotation: take its SVD UDVᵀ and return R = UVᵀ"),
+        Mistake("sign of λ not fixed (t_z may be negative)", _eh_sign,
+                "H is known up to sign: choose the sign of λ that puts the pattern in front (t_z > 0)"),
+        Mistake("A⁻¹ not applied to the columns of H", _eh_no_inverse,
+                "r1 = λA⁻¹h1, r2 = λA⁻¹h2, t = λA⁻¹h3: solve with A first (np.linalg.solve(A, H))"),
+        Mistake("r3 = r2 × r1 (left-handed, det R = −1)", _eh_left_handed,
+                "r3 = r1 × r2, in this order, for a right-handed frame (det R = +1)"),
+        Mistake("Gram–Schmidt instead of the SVD", _eh_gram_schmidt,
+                "Gram–Schmidt keeps r1 and bends r2; the closest rotation (§8.3.6) is UVᵀ from the SVD of "
+                "[r1 r2 r3]"),
+        Mistake("λ from the mean of ‖A⁻¹h1‖ and ‖A⁻¹h2‖", _eh_mean_norm,
+                "As in §8.3.6, λ = 1/‖A⁻¹h1‖ (the SVD then takes care of the small difference in norms)"),
+    ],
+)
+
+
+# --------------------------------------------------------------------------------------------
+# calibration.estimate_radial_distortion (§8.3.7)
+# --------------------------------------------------------------------------------------------
+def _rd_system(A, world, images, Rs, ts, pixels_r=False, swapped=False, no_centre=False, distorted_r=False):
+    A = np.asarray(A, dtype=np.float64)
+    A = A / A[2, 2]
+    world = np.asarray(world, dtype=np.float64)
+    D, d = [], []
+    for m, R, t in zip(images, Rs, ts):
+        m = np.asarray(m, dtype=np.float64)
+        cam = world @ np.asarray(R, dtype=np.float64).T + np.asarray(t, dtype=np.float64).reshape(3)
+        x, y = cam[:, 0] / cam[:, 2], cam[:, 1] / cam[:, 2]
+        u = A[0, 0] * x + A[0, 1] * y + A[0, 2]
+        v = A[1, 1] * y + A[1, 2]
+        if pixels_r:
+            r2 = u * u + v * v
+        elif distorted_r:
+            yd = (m[:, 1] - A[1, 2]) / A[1, 1]
+            xd = (m[:, 0] - A[0, 2] - A[0, 1] * yd) / A[0, 0]
+            r2 = xd * xd + yd * yd
+        else:
+            r2 = x * x + y * y
+        du = u if no_centre else u - A[0, 2]
+        dv = v if no_centre else v - A[1, 2]
+        D += [np.column_stack([du * r2, du * r2 * r2]), np.column_stack([dv * r2, dv * r2 * r2])]
+        if swapped:
+            d += [u - m[:, 0], v - m[:, 1]]
+        else:
+            d += [m[:, 0] - u, m[:, 1] - v]
+    return np.concatenate(D), np.concatenate(d)
+
+
+def _rd_solve(*args, **kwargs):
+    D, d = _rd_system(*args, **kwargs)
+    return np.linalg.lstsq(D, d, rcond=None)[0]
+
+
+def _rd_pixels(A, world_points, image_points_list, rotations, translations):
+    return _rd_solve(A, world_points, image_points_list, rotations, translations, pixels_r=True)
+
+
+def _rd_swapped(A, world_points, image_points_list, rotations, translations):
+    return _rd_solve(A, world_points, image_points_list, rotations, translations, swapped=True)
+
+
+def _rd_no_centre(A, world_points, image_points_list, rotations, translations):
+    return _rd_solve(A, world_points, image_points_list, rotations, translations, no_centre=True)
+
+
+def _rd_k1_only(A, world_points, image_points_list, rotations, translations):
+    D, d = _rd_system(A, world_points, image_points_list, rotations, translations)
+    k1 = float(np.linalg.lstsq(D[:, :1], d, rcond=None)[0][0])
+    return np.array([k1, 0.0])
+
+
+def _rd_distorted_r(A, world_points, image_points_list, rotations, translations):
+    return _rd_solve(A, world_points, image_points_list, rotations, translations, distorted_r=True)
+
+
+def _rd_case(rng, label, n_views, k, noise=0.0, skew=False, form="list", board=(6, 4)):
+    A = _camera(rng, skew=skew)
+    world, Rs, ts, images = _views(rng, A, board[0], board[1], 25.0, n_views, k=k, noise=noise)
+    if form == "array":
+        return Case((A, world, np.array(images), np.array(Rs), np.array(ts)), {}, label)
+    if form == "columns":
+        return Case((A, world, images, Rs, [t.reshape(3, 1) for t in ts]), {}, label)
+    return Case((A, world, images, Rs, ts), {}, label)
+
+
+def _k(rng):
+    return (-_u(rng, 0.15, 0.35, 4), _u(rng, 0.03, 0.12, 4))
+
+
+def _rd_public():
+    rng = np.random.default_rng(80308)
+    return [
+        _rd_case(rng, "2 views, exact points, k = (−0.3, 0.08)", 2, (-0.3, 0.08)),
+        _rd_case(rng, "3 views, 0.3 px noise, skewed camera", 3, (-0.2, 0.05), noise=0.3, skew=True),
+    ]
+
+
+def _rd_hidden(rng):
+    return [
+        _rd_case(rng, "1 view, exact points", 1, _k(rng)),
+        _rd_case(rng, "3 views, exact points", 3, _k(rng)),
+        _rd_case(rng, "2 views, 0.2 px noise", 2, _k(rng), noise=0.2),
+        _rd_case(rng, "pincushion (k1 > 0)", 2, (_u(rng, 0.1, 0.3, 4), -_u(rng, 0.01, 0.05, 4))),
+        _rd_case(rng, "skewed camera", 2, _k(rng), skew=True),
+        _rd_case(rng, "stacked arrays (views, N, 2)", 3, _k(rng), form="array"),
+        _rd_case(rng, "translations as (3, 1) columns", 2, _k(rng), form="columns"),
+        _rd_case(rng, "strong noise (1 px)", 4, _k(rng), noise=1.0),
+        _rd_case(rng, "only k1 in the lens", 2, (-_u(rng, 0.1, 0.3, 4), 0.0)),
+        _rd_case(rng, "9 × 6 board, 2 views", 2, _k(rng), board=(9, 6)),
+    ]
+
+
+estimate_radial_distortion = Check(
+    public=_rd_public,
+    hidden=_rd_hidden,
+    compare=FloatClose(rtol=1e-6, atol=1e-9),
+    mistakes=[
+        Mistake("r² in pixels (not normalised coordinates)", _rd_pixels,
+                "r² = x² + y² with the NORMALISED coordinates x = x_C/z_C, y = y_C/z_C, before A"),
+        Mistake("ideal and measured swapped (d = u − ŭ)", _rd_swapped,
+                "The right-hand side is measured − ideal: ŭ − u and v̆ − v"),
+        Mistake("principal point not subtracted (u instead of u − u0)", _rd_no_centre,
+                "Distortion is about the principal point: the columns of D are (u − u0)·r², (u − u0)·r⁴ "
+                "and (v − v0)·r², (v − v0)·r⁴"),
+        Mistake("only k1 estimated (k2 = 0)", _rd_k1_only,
+                "Two unknowns: each row of D has a r² and a r⁴ column, solve for (k1, k2) together"),
+        Mistake("r from the measured (distorted) points", _rd_distorted_r,
+                "r belongs to the IDEAL point (projected without distortion), not to the measured one"),
+    ],
+    allowed=CAMERA_BLOCKS,
+)
+
+
+# --------------------------------------------------------------------------------------------
+# calibration.calibrate (§8.2–8.3.8)
+# --------------------------------------------------------------------------------------------
+def _cal_no_refinement(world_points, image_points_list):
+    return _calibrate(world_points, image_points_list, refine=False)
+
+
+def _cal_mean_error(world_points, image_points_list):
+    result = _calibrate(world_points, image_points_list)
+    result["rms"] = float(np.mean(np.sqrt(np.sum(result["residuals"] ** 2, axis=-1))))
+    return result
+
+
+def _cal_per_coordinate(world_points, image_points_list):
+    result = _calibrate(world_points, image_points_list)
+    result["rms"] = float(np.sqrt(np.mean(result["residuals"] ** 2)))
+    return result
+
+
+def _cal_k_fixed(world_points, image_points_list):
+    return _calibrate(world_points, image_points_list, refine_distortion=False)
+
+
+def _cal_free_skew(world_points, image_points_list):
+    return _calibrate(world_points, image_points_list, free_skew=True)
+
+
+def _cal_case(rng, label, n_views, board, noise, k=None, form="list", skew=False, square=25.0):
+    A = _camera(rng)
+    k = _k(rng) if k is None else k
+    world, _, _, images = _views(rng, A, board[0], board[1], square, n_views, k=k, noise=noise)
+    if form == "array":
+        images = np.array(images)
+    return Case((world, images), {}, label)
+
+
+def _cal_public():
+    rng = np.random.default_rng(80309)
+    return [
+        _cal_case(rng, "4 views of a 5 × 4 board, 0.3 px noise", 4, (5, 4), 0.3, k=(-0.25, 0.06)),
+    ]
+
+
+def _cal_hidden(rng):
+    return [
+        _cal_case(rng, "3 views, 5 × 4 board, 0.2 px noise", 3, (5, 4), 0.2),
+        _cal_case(rng, "4 views, 4 × 3 board, 0.5 px noise", 4, (4, 3), 0.5),
+        _cal_case(rng, "5 views, 5 × 4 board, 0.1 px noise", 5, (5, 4), 0.1),
+        _cal_case(rng, "3 views, exact points", 3, (5, 4), 0.0),
+        _cal_case(rng, "(views, N, 2) array", 4, (4, 4), 0.3, form="array"),
+        _cal_case(rng, "no distortion in the lens", 4, (5, 3), 0.3, k=(0.0, 0.0)),
+        _cal_case(rng, "pincushion lens", 4, (5, 4), 0.2, k=(_u(rng, 0.1, 0.25), -_u(rng, 0.0, 0.03))),
+        _cal_case(rng, "squares of 0.03 m", 4, (5, 4), 0.3, square=0.03),
+        _cal_case(rng, "4 views, 1 px noise", 4, (6, 4), 1.0),
+    ]
+
+
+calibrate = Check(
+    public=_cal_public,
+    hidden=_cal_hidden,
+    compare=CalibrationClose(rtol=1e-5, rms_rtol=1e-6),
+    mistakes=[
+        Mistake("no global refinement (closed-form estimates)", _cal_no_refinement,
+                "Finish with levenberg_marquardt over (fu, fv, u0, v0, k1, k2) and every pose, minimising the "
+                "total reprojection error"),
+        Mistake("rms = mean error (not the root of the mean square)", _cal_mean_error,
+                "rms = √(Σ‖e‖² / number of points): square the error lengths, average, then take the root"),
+        Mistake("rms over coordinates (divided by 2 per point)", _cal_per_coordinate,
+                "Divide Σ‖e‖² by the number of POINTS (each has two coordinates), as OpenCV does"),
+        Mistake("distortion not refined (linear k kept)", _cal_k_fixed,
+                "k1, k2 belong to the parameters of the final refinement too"),
+        Mistake("skew left free in the refinement", _cal_free_skew,
+                "Fix the skew at 0 in the final refinement (it is estimated only in the closed-form start)"),
+    ],
+    allowed=("calibration.homography_dlt", "calibration.refine_homography", "calibration.levenberg_marquardt",
+             "calibration.intrinsics_from_homographies", "calibration.extrinsics_from_homography",
+             "calibration.estimate_radial_distortion") + CAMERA_BLOCKS,
+    time_limit=60.0,
+)

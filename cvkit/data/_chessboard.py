@@ -1,0 +1,429 @@
+"""Synthetic chessboard views for camera calibration (Chapter 8), with their ground truth.
+
+A planar chessboard printed on a sheet of paper is "photographed" by a known camera — intrinsic
+matrix A, lens distortion (k, p) and a pose (R, t) per view — and rendered the way a sensor
+records it: every pixel gets the *area average* of the scene over its square (anti-aliasing
+by supersampling the pixels that straddle an edge, 8×8 samples by default), then Gaussian
+sensor noise is added. Because the scene is known exactly, so are the image positions of the
+inner corners: they are returned with the images and are what corner detectors and
+calibration routines are measured against.
+
+Conventions (those of :mod:`cvkit.camera` and of the catalog):
+
+- the board's world frame has its origin at the first inner corner, x along the rows of the
+  board (``cols`` inner corners), y along its columns (``rows`` inner corners) and z = 0 on
+  the board, pointing away from the camera for every generated pose; the inner corners are
+  ``(c·s, r·s, 0)`` in the order ``r·cols + c`` (OpenCV's, and
+  :func:`cvkit.calibration.chessboard_points`'s);
+- the board has ``(cols + 1) × (rows + 1)`` squares; the square whose corner is the origin
+  and lies at x, y < 0 is dark; around the squares the paper leaves a light margin of
+  ``margin`` squares, beyond it the background is uniform;
+- pixel ``[row, col]`` is the unit square centred on ``(x, y) = (col, row)``.
+
+>>> views = chessboard_views(n_views=2, render=False)
+>>> views.image_points.shape, views.world_points.shape
+((2, 54, 2), (54, 3))
+"""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from .._validation import as_rng, check_int, check_real
+
+__all__ = ["ChessboardViews", "render_chessboard", "random_board_poses", "chessboard_views"]
+
+#: default camera of the chapter: fu = 800, fv = 820, principal point (320, 240), 640×480
+DEFAULT_A = ((800.0, 0.0, 320.0), (0.0, 820.0, 240.0), (0.0, 0.0, 1.0))
+
+
+class ChessboardViews(dict):
+    """The rendered views and their ground truth: a dict whose keys are also attributes.
+
+    Keys: ``images`` (list of images, or None when not rendered), ``world_points``
+    ``(cols·rows, 3)``, ``image_points`` ``(n_views, cols·rows, 2)`` (exact distorted
+    projections of the inner corners, before noise), ``A``, ``k`` (k1, k2, k3), ``p``
+    (p1, p2), ``rotations`` ``(n_views, 3, 3)``, ``translations`` ``(n_views, 3)``, ``cols``,
+    ``rows``, ``square_size``, ``image_size`` (rows, cols) and ``noise``.
+    """
+
+    def __getattr__(self, name):
+        try:
+            return self[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def __dir__(self):
+        return list(super().__dir__()) + list(self.keys())
+
+
+# --------------------------------------------------------------------------------------------
+# argument checks
+# --------------------------------------------------------------------------------------------
+def _camera(A) -> np.ndarray:
+    from ..camera._common import as_intrinsics
+
+    A = as_intrinsics(A, "A")
+    return A / A[2, 2]
+
+
+def _pose(R, t) -> tuple[np.ndarray, np.ndarray]:
+    from ..camera._common import as_rotation, as_translation
+
+    return as_rotation(R, "R"), as_translation(t, "t")
+
+
+def _image_size(image_size) -> tuple[int, int]:
+    if not isinstance(image_size, (tuple, list)) or len(image_size) != 2:
+        raise ValueError(f"image_size must be a pair (rows, cols), got {image_size!r}")
+    return (check_int(image_size[0], "image_size[0] (rows)", minimum=2),
+            check_int(image_size[1], "image_size[1] (cols)", minimum=2))
+
+
+def _board(cols, rows, square_size, margin) -> tuple[int, int, float, float]:
+    cols = check_int(cols, "cols", minimum=2)
+    rows = check_int(rows, "rows", minimum=2)
+    square_size = check_real(square_size, "square_size", positive=True)
+    margin = check_real(margin, "margin", nonnegative=True)
+    return cols, rows, square_size, margin
+
+
+def _distortion(k, p) -> tuple[tuple, tuple]:
+    from ..camera._common import distortion_coefficients
+
+    kk, pp = distortion_coefficients(k, p)
+    return tuple(float(v) for v in kk), tuple(float(v) for v in pp)
+
+
+# --------------------------------------------------------------------------------------------
+# rendering
+# --------------------------------------------------------------------------------------------
+@functools.lru_cache(maxsize=8)
+def _rays(A_key: tuple, k: tuple, p: tuple, rows: int, cols: int) -> np.ndarray:
+    """Ideal normalised coordinates (x, y) of the pixel *corners*: shape (rows + 1, cols + 1, 2).
+
+    The distortion is inverted by Newton's method on the 2×2 system (converges in a few
+    steps wherever the distortion is invertible); the result is cached per camera.
+    """
+    A = np.array(A_key).reshape(3, 3)
+    u = np.arange(cols + 1) - 0.5
+    v = np.arange(rows + 1) - 0.5
+    uu, vv = np.meshgrid(u, v)
+    yd = (vv - A[1, 2]) / A[1, 1]
+    xd = (uu - A[0, 2] - A[0, 1] * yd) / A[0, 0]
+    x, y = xd.copy(), yd.copy()
+    k1, k2, k3 = k
+    p1, p2 = p
+    for _ in range(12):
+        r2 = x * x + y * y
+        radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        dradial = k1 + r2 * (2 * k2 + 3 * k3 * r2)          # d radial / d r²
+        fx = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) - xd
+        fy = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y - yd
+        jxx = radial + 2 * x * x * dradial + 2 * p1 * y + 6 * p2 * x
+        jxy = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
+        jyx = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
+        jyy = radial + 2 * y * y * dradial + 6 * p1 * y + 2 * p2 * x
+        det = jxx * jyy - jxy * jyx
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = x - (jyy * fx - jxy * fy) / det
+            y = y - (jxx * fy - jyx * fx) / det
+    out = np.stack([x, y], axis=-1)
+    out.setflags(write=False)
+    return out
+
+
+def _levels(color: bool, dark, light, background):
+    if color:
+        return (np.array([0.10, 0.10, 0.13]) if dark is None else np.broadcast_to(np.asarray(dark, float), (3,)),
+                np.array([0.93, 0.91, 0.86]) if light is None else np.broadcast_to(np.asarray(light, float), (3,)),
+                np.array([0.30, 0.42, 0.55]) if background is None else np.broadcast_to(np.asarray(background, float), (3,)))
+    return (np.array([0.1 if dark is None else float(dark)]), np.array([0.9 if light is None else float(light)]),
+            np.array([0.45 if background is None else float(background)]))
+
+
+def _plane_homography(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """G = [r1 r2 t]⁻¹: maps a ray (x, y, 1) of the camera to homogeneous board coordinates
+    (x_W, y_W, 1)·w, with w = 1/z_C (> 0 for points of the plane in front of the camera)."""
+    M = np.column_stack([R[:, 0], R[:, 1], t])
+    return np.linalg.inv(M)
+
+
+def _board_xy(X, Y, Wh) -> tuple[np.ndarray, np.ndarray]:
+    """Euclidean board coordinates from homogeneous ones; +inf where the plane is behind."""
+    hit = Wh > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xw = np.where(hit, X / Wh, np.inf)
+        yw = np.where(hit, Y / Wh, np.inf)
+    return xw, yw
+
+
+def _labels(xw, yw, cols, rows, s, margin) -> np.ndarray:
+    """0 dark square, 1 light square or paper margin, 2 background (int8)."""
+    with np.errstate(invalid="ignore"):
+        u = xw / s
+        v = yw / s
+        on_paper = (u >= -1 - margin) & (u <= cols + margin) & (v >= -1 - margin) & (v <= rows + margin)
+        on_squares = (u >= -1) & (u < cols) & (v >= -1) & (v < rows)
+        parity = (np.floor(np.where(on_squares, u, 0.0)) + np.floor(np.where(on_squares, v, 0.0))) % 2
+    dark = on_squares & (parity == 0)   # square (-1, -1), at the origin, is dark
+    return np.where(dark, 0, np.where(on_paper, 1, 2)).astype(np.int8)
+
+
+def render_chessboard(A, R, t, cols=9, rows=6, square_size=25.0, image_size=(480, 640), k=(0.0, 0.0, 0.0),
+                      p=(0.0, 0.0), noise=0.0, rng=None, margin=0.6, supersample=8, color=False,
+                      dark=None, light=None, background=None):
+    """Render one view of a chessboard through a camera with lens distortion.
+
+    Parameters
+    ----------
+    A : (3, 3) array_like
+        Intrinsic matrix (upper triangular).
+    R, t : (3, 3) and (3,) array_like
+        Pose of the board: world (board) → camera, ``M_C = R·M_W + t``.
+    cols, rows : int
+        Inner corners per row and per column of the board (≥ 2): ``cols + 1`` by ``rows + 1``
+        squares.
+    square_size : float
+        Side of a square in world units (> 0).
+    image_size : (rows, cols)
+        Size of the image in pixels.
+    k, p : sequences
+        Radial ``(k1[, k2[, k3]])`` and tangential ``(p1, p2)`` distortion (OpenCV's model,
+        :func:`cvkit.camera.distort`).
+    noise : float
+        Standard deviation of the additive Gaussian sensor noise (image in [0, 1]); the result
+        is clipped to [0, 1].
+    rng : numpy.random.Generator, int or None
+        Source of the noise.
+    margin : float
+        Width of the light paper border around the squares, in squares.
+    supersample : int
+        Samples per side of a pixel that straddles an edge (the area average is taken over
+        ``supersample²`` points); pixels entirely inside one region are not sampled.
+    color : bool
+        Return an RGB image ``(H, W, 3)`` (a bluish background, slightly warm paper).
+    dark, light, background : float or RGB triple, optional
+        Intensities of the dark squares, of the light squares and paper, and of the background
+        (defaults 0.1, 0.9, 0.45 in grey).
+
+    Returns
+    -------
+    (H, W) or (H, W, 3) float64 ndarray in [0, 1]
+
+    Notes
+    -----
+    Every pixel corner is traced back through the camera: pixel → A⁻¹ → undistorted by
+    Newton's method (cached per camera) → ray → intersection with the board plane z_W = 0. A
+    pixel whose four corners (or whose neighbours' corners) do not all see the same region
+    straddles an edge and is supersampled (its sample rays interpolated between its corners,
+    then intersected with the plane exactly). The ideal image is then the exact area average
+    up to ``1/supersample²`` quantisation: the inner corners of the rendering sit where
+    ``camera.project_full`` puts them, to about 1e-3 px.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> A = np.array([[200.0, 0, 60], [0, 200, 45], [0, 0, 1]])
+    >>> img = render_chessboard(A, np.eye(3), [-25.0, -15.0, 250.0], cols=4, rows=3, square_size=10.0,
+    ...                         image_size=(90, 120))
+    >>> img.shape, float(img.min()) >= 0.1 - 1e-12, float(img.max()) <= 0.9 + 1e-12
+    ((90, 120), True, True)
+    """
+    A = _camera(A)
+    R, t = _pose(R, t)
+    cols, rows, s, margin = _board(cols, rows, square_size, margin)
+    H, W = _image_size(image_size)
+    kk, pp = _distortion(k, p)
+    noise = check_real(noise, "noise", nonnegative=True)
+    ss = check_int(supersample, "supersample", minimum=1)
+    levels = _levels(bool(color), dark, light, background)
+    values = np.stack(levels)                              # (3 labels, channels)
+
+    rays = _rays(tuple(A.ravel().tolist()), kk, pp, H, W)  # (H+1, W+1, 2)
+    G = _plane_homography(R, t)
+    homog = rays @ G[:, :2].T + G[:, 2]                    # (H+1, W+1, 3) linear in the ray
+    xw, yw = _board_xy(homog[..., 0], homog[..., 1], homog[..., 2])
+    corner_labels = _labels(xw, yw, cols, rows, s, margin)  # (H+1, W+1)
+    c00, c01 = corner_labels[:-1, :-1], corner_labels[:-1, 1:]
+    c10, c11 = corner_labels[1:, :-1], corner_labels[1:, 1:]
+    mixed = (c00 != c01) | (c00 != c10) | (c00 != c11)
+    grown = mixed.copy()                                   # a junction can hide inside a pixel
+    grown[1:, :] |= mixed[:-1, :]
+    grown[:-1, :] |= mixed[1:, :]
+    grown[:, 1:] |= mixed[:, :-1]
+    grown[:, :-1] |= mixed[:, 1:]
+    image = values[c00]                                    # (H, W, channels)
+    r_idx, c_idx = np.nonzero(grown)
+    if r_idx.size:
+        offsets = (np.arange(ss) + 0.5) / ss                # fractions inside the pixel
+        fy, fx = np.meshgrid(offsets, offsets, indexing="ij")
+        fx, fy = fx.ravel(), fy.ravel()                      # (ss²,)
+        fxy = fx * fy
+        chunk = max(1, 250_000 // (ss * ss))
+        for start in range(0, r_idx.size, chunk):
+            r = r_idx[start:start + chunk]
+            c = c_idx[start:start + chunk]
+            h00, h01, h10, h11 = homog[r, c], homog[r, c + 1], homog[r + 1, c], homog[r + 1, c + 1]
+            # bilinear interpolation of the (homogeneous) board coordinates inside the pixel:
+            # exact for the rays up to the curvature of the lens over one pixel
+            a0, ax, ay, axy = h00, h01 - h00, h10 - h00, h11 - h01 - h10 + h00
+            X = a0[:, 0:1] + ax[:, 0:1] * fx + ay[:, 0:1] * fy + axy[:, 0:1] * fxy
+            Y = a0[:, 1:2] + ax[:, 1:2] * fx + ay[:, 1:2] * fy + axy[:, 1:2] * fxy
+            Wh = a0[:, 2:3] + ax[:, 2:3] * fx + ay[:, 2:3] * fy + axy[:, 2:3] * fxy
+            sx, sy = _board_xy(X, Y, Wh)
+            labels = _labels(sx, sy, cols, rows, s, margin)                     # (n, ss²)
+            counts = np.stack([(labels == i).mean(axis=1) for i in range(3)], axis=1)  # (n, 3)
+            image[r, c] = counts @ values
+    if noise > 0:
+        image = image + as_rng(rng).normal(0.0, noise, image.shape)
+    image = np.clip(image, 0.0, 1.0)
+    return image if color else image[..., 0]
+
+
+# --------------------------------------------------------------------------------------------
+# poses and views
+# --------------------------------------------------------------------------------------------
+def _rotation(roll, pitch, yaw) -> np.ndarray:
+    from ..camera import rotation_matrix
+
+    return rotation_matrix(roll, pitch, yaw)
+
+
+def _project(points, A, R, t, k, p) -> np.ndarray:
+    from ..camera import project_full
+
+    return project_full(points, A, R, t, k, p)
+
+
+def random_board_poses(n, A, image_size=(480, 640), cols=9, rows=6, square_size=25.0, k=(0.0, 0.0, 0.0),
+                       p=(0.0, 0.0), rng=None, tilt=0.7, spin=0.35, fill=(0.55, 0.95), margin=0.6,
+                       border=8.0, flip=False, max_tries=2000):
+    """Random poses of a chessboard that keep the whole sheet of paper inside the image.
+
+    Parameters
+    ----------
+    n : int
+        Number of poses.
+    A, image_size, cols, rows, square_size, k, p, margin :
+        Camera and board, as for :func:`render_chessboard`.
+    rng : numpy.random.Generator, int or None
+    tilt : float
+        Largest tilt of the board about its x and y axes (radians, uniform in ±tilt).
+    spin : float
+        Largest rotation about the board's normal (radians, uniform in ±spin).
+    fill : (float, float)
+        Range of the apparent diagonal of the paper as a fraction of the image diagonal (before
+        perspective); sets the distance. Reduced gradually when poses keep failing.
+    border : float
+        Minimal distance in pixels between the projected paper corners and the image border.
+    flip : bool
+        Also turn half of the boards by π about their normal (upside down).
+    max_tries : int
+        Rejection-sampling attempts before giving up (ValueError).
+
+    Returns
+    -------
+    rotations : (n, 3, 3) float64 ndarray
+    translations : (n, 3) float64 ndarray
+        World (board) → camera poses with the board in front of the camera (t_z > 0) and its z
+        axis pointing away from the camera.
+    """
+    A = _camera(A)
+    H, W = _image_size(image_size)
+    cols, rows, s, margin = _board(cols, rows, square_size, margin)
+    n = check_int(n, "n", minimum=0)
+    tilt = check_real(tilt, "tilt", nonnegative=True)
+    spin = check_real(spin, "spin", nonnegative=True)
+    border = check_real(border, "border", nonnegative=True)
+    rng = as_rng(rng)
+    kk, pp = _distortion(k, p)
+    paper = np.array([[-s * (1 + margin), -s * (1 + margin), 0.0], [s * (cols + margin), -s * (1 + margin), 0.0],
+                      [s * (cols + margin), s * (rows + margin), 0.0], [-s * (1 + margin), s * (rows + margin), 0.0]])
+    edge = np.linspace(0, 1, 9)[:, None]
+    outline = np.concatenate([paper[i] + edge * (paper[(i + 1) % 4] - paper[i]) for i in range(4)])
+    centre = np.array([(cols - 1) * s / 2, (rows - 1) * s / 2, 0.0])
+    board_width = float(np.hypot((cols + 1 + 2 * margin) * s, (rows + 1 + 2 * margin) * s))  # the paper
+    diagonal = float(np.hypot(H, W))
+    rotations, translations = [], []
+    tries = 0
+    while len(rotations) < n:
+        tries += 1
+        if tries > max_tries:
+            raise ValueError(
+                f"could not place the board inside the image in {max_tries} tries: make the board smaller "
+                "(fill), the tilt smaller or the image larger")
+        yaw = rng.uniform(-spin, spin) + (np.pi if flip and rng.random() < 0.5 else 0.0)
+        R = _rotation(rng.uniform(-tilt, tilt), rng.uniform(-tilt, tilt), yaw)
+        shrink = 0.97 ** (tries // 50)            # when the board keeps sticking out, try smaller
+        depth = A[0, 0] * board_width / (diagonal * rng.uniform(*fill) * shrink)
+        target = np.array([rng.uniform(-0.25, 0.25) * W / A[0, 0], rng.uniform(-0.25, 0.25) * H / A[1, 1], 1.0]) * depth
+        t = target - R @ centre
+        if R[2, 2] <= 0.2:  # seen too edge-on (or from behind)
+            continue
+        corners = _project(outline, A, R, t, kk, pp)
+        z = (outline @ R.T + t)[:, 2]
+        if np.all(z > 0) and np.all(corners[:, 0] >= border - 0.5) and np.all(corners[:, 0] <= W - 0.5 - border) \
+                and np.all(corners[:, 1] >= border - 0.5) and np.all(corners[:, 1] <= H - 0.5 - border):
+            rotations.append(R)
+            translations.append(t)
+    return np.array(rotations).reshape(n, 3, 3), np.array(translations).reshape(n, 3)
+
+
+def chessboard_views(n_views=15, cols=9, rows=6, square_size=25.0, image_size=(480, 640), A=None,
+                     k=(-0.2, 0.05), p=(0.0, 0.0), noise=0.01, rng=0, render=True, **pose_options):
+    """Views of a chessboard through a known camera: images and their ground truth.
+
+    Parameters
+    ----------
+    n_views : int
+        Number of views (random poses, :func:`random_board_poses`).
+    cols, rows, square_size :
+        The board: 9 × 6 inner corners of 25 mm by default.
+    image_size : (rows, cols)
+        Image size, 480 × 640 by default.
+    A : (3, 3) array_like, optional
+        Intrinsic matrix; default fu = 800, fv = 820, u0 = 320, v0 = 240.
+    k, p : sequences
+        Lens distortion; default k1 = −0.2, k2 = 0.05 (barrel), no tangential terms.
+    noise : float
+        Standard deviation of the sensor noise of the rendered images (intensities in [0, 1]).
+    rng : numpy.random.Generator, int or None
+        Seed of the poses and the noise (0 by default: the same views every time).
+    render : bool
+        Render the images (False: only the geometry, much faster).
+    **pose_options
+        Passed on to :func:`random_board_poses` (``tilt``, ``spin``, ``fill``, ``flip``, ...).
+
+    Returns
+    -------
+    ChessboardViews
+        A dict with attribute access: ``images``, ``world_points``, ``image_points`` (exact
+        corner positions, distorted, in the order of the world points), ``A``, ``k`` (3
+        values), ``p``, ``rotations``, ``translations``, ``cols``, ``rows``, ``square_size``,
+        ``image_size``, ``noise``.
+
+    Examples
+    --------
+    >>> views = chessboard_views(n_views=1, image_size=(240, 320), A=[[400, 0, 160], [0, 410, 120], [0, 0, 1]])
+    >>> views.images[0].shape, views.image_points.shape
+    ((240, 320), (1, 54, 2))
+    """
+    rng = as_rng(rng)
+    n_views = check_int(n_views, "n_views", minimum=1)
+    A = _camera(np.array(DEFAULT_A) if A is None else A)
+    H, W = _image_size(image_size)
+    cols, rows, s, margin = _board(cols, rows, square_size, pose_options.get("margin", 0.6))
+    kk, pp = _distortion(k, p)
+    rotations, translations = random_board_poses(n_views, A, (H, W), cols, rows, s, kk, pp, rng=rng, **pose_options)
+    jj, ii = np.mgrid[0:rows, 0:cols]
+    world = np.column_stack([ii.ravel() * s, jj.ravel() * s, np.zeros(cols * rows)])
+    points = np.stack([_project(world, A, R, t, kk, pp) for R, t in zip(rotations, translations)])
+    images = None
+    if render:
+        images = [render_chessboard(A, R, t, cols, rows, s, (H, W), kk, pp, noise=noise, rng=rng, margin=margin)
+                  for R, t in zip(rotations, translations)]
+    return ChessboardViews(images=images, world_points=world, image_points=points, A=A, k=np.array(kk),
+                           p=np.array(pp), rotations=rotations, translations=translations, cols=cols, rows=rows,
+                           square_size=s, image_size=(H, W), noise=float(noise))

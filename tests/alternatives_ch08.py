@@ -1,0 +1,510 @@
+"""Correct implementations of Chapter 8's calibration and warping, written differently from
+cvkit's reference.
+
+They play the part of good students: a check must accept every one of them. They loop where a
+first version would (building the DLT rows point by point, sampling pixel by pixel), and use
+other formulations: cross-product rows and an eigen-decomposition for the DLT, Nielsen's damping
+and Levenberg's μ·I with central differences for the optimiser, the Cholesky factor of B for the
+intrinsics, Gram–Schmidt-free orthonormalisation by polar decomposition, normal equations for
+the distortion, a ring-crossing corner detector with a gradient-orthogonality (cornerSubPix)
+refinement. None calls cvkit or a library the guard forbids.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+# --------------------------------------------------------------------------------------------
+# the pattern
+# --------------------------------------------------------------------------------------------
+def chessboard_points(cols, rows, square_size):
+    """Two nested loops."""
+    points = []
+    for r in range(int(rows)):
+        for c in range(int(cols)):
+            points.append([c * float(square_size), r * float(square_size), 0.0])
+    return np.array(points, dtype=np.float64).reshape(-1, 3)
+
+
+# --------------------------------------------------------------------------------------------
+# the corner detector
+# --------------------------------------------------------------------------------------------
+def _smooth(image, sigma):
+    """Separable Gaussian smoothing with edge replication (a loop over kernel taps)."""
+    radius = int(np.ceil(3 * sigma))
+    taps = np.exp(-np.arange(-radius, radius + 1) ** 2 / (2 * sigma ** 2))
+    taps /= taps.sum()
+    out = image
+    for axis in (0, 1):
+        padded = np.pad(out, [(radius, radius) if a == axis else (0, 0) for a in (0, 1)], mode="edge")
+        n = out.shape[axis]
+        acc = np.zeros_like(out)
+        for i, w in enumerate(taps):
+            acc += w * (padded[i:i + n] if axis == 0 else padded[:, i:i + n])
+        out = acc
+    return out
+
+
+def _interp(img, x, y):
+    H, W = img.shape
+    x0 = np.clip(np.floor(x).astype(int), 0, W - 2)
+    y0 = np.clip(np.floor(y).astype(int), 0, H - 2)
+    a, b = x - x0, y - y0
+    return (img[y0, x0] * (1 - a) * (1 - b) + img[y0, x0 + 1] * a * (1 - b)
+            + img[y0 + 1, x0] * (1 - a) * b + img[y0 + 1, x0 + 1] * a * b)
+
+
+def find_chessboard_corners(image, cols, rows):
+    """Saddle points of the smoothed image, kept if a ring around them alternates four times,
+    ordered by walking the grid from a seed; cornerSubPix-style refinement."""
+    img = np.asarray(image, dtype=np.float64)
+    if img.ndim == 3:
+        img = img @ np.array([0.299, 0.587, 0.114])
+    if img.max() - img.min() < 1e-12:
+        return None
+    img = (img - img.min()) / (img.max() - img.min())
+    n = cols * rows
+    S = _smooth(img, 1.2)
+    Iy, Ix = np.gradient(S)
+    Ixy, Ixx = np.gradient(Ix)
+    Iyy, _ = np.gradient(Iy)
+    R = Ixy ** 2 - Ixx * Iyy
+    R[:4], R[-4:], R[:, :4], R[:, -4:] = 0, 0, 0, 0
+    H, W = R.shape
+    padded = np.pad(R, 2, constant_values=-np.inf)
+    is_max = np.ones_like(R, dtype=bool)
+    for dy in range(5):
+        for dx in range(5):
+            if (dy, dx) != (2, 2):
+                is_max &= R >= padded[dy:dy + H, dx:dx + W]
+    ys, xs = np.nonzero(is_max & (R > 0))
+    if len(xs) < n:
+        return None
+    strength = R[ys, xs]
+    top = np.sort(strength)[::-1][:n]
+    keep = strength > 0.1 * np.median(top)
+    xs, ys = xs[keep], ys[keep]
+    # ring test: 4 alternations of the smoothed intensity around an X-junction
+    angles = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    rx = np.clip(xs[:, None] + 3 * np.cos(angles), 0, W - 1)
+    ry = np.clip(ys[:, None] + 3 * np.sin(angles), 0, H - 1)
+    ring = _interp(S, rx, ry)
+    centred = ring - (ring.max(axis=1, keepdims=True) + ring.min(axis=1, keepdims=True)) / 2   # the edge level
+    good, edge_angles = [], []
+    for i in range(len(xs)):
+        strong = np.abs(centred[i]) > 0.25 * np.abs(centred[i]).max()
+        values, where = centred[i][strong], angles[strong]
+        signs = np.sign(values)
+        flips = np.nonzero(signs != np.roll(signs, 1))[0]
+        good.append(len(flips) == 4 and ring[i].max() - ring[i].min() > 0.15)
+        # the edges cross the ring between the two samples of a sign change
+        crossing = [np.angle(np.exp(1j * where[k]) + np.exp(1j * where[k - 1])) for k in flips]
+        edge_angles.append(crossing[:2] if len(crossing) >= 2 else [0.0, np.pi / 2])
+    good = np.array(good)
+    edge_angles = np.array(edge_angles)[good]
+    pts = np.column_stack([xs[good], ys[good]]).astype(float)
+    if len(pts) < n:
+        return None
+    # grid walk from the candidate nearest the centroid
+    centre = np.median(pts, axis=0)
+    seed = int(np.argmin(np.sum((pts - centre) ** 2, axis=1)))
+    d = np.sqrt(np.sum((pts - pts[seed]) ** 2, axis=1))
+    d[seed] = np.inf
+    basis = []
+    for angle in edge_angles[seed]:              # nearest neighbour along each edge of the seed
+        u = np.array([np.cos(angle), np.sin(angle)])
+        v = pts - pts[seed]
+        cos = np.abs(v @ u) / np.where(np.isinf(d), 1.0, d)
+        candidates = np.where(cos > np.cos(np.deg2rad(25)), d, np.inf)
+        if not np.isfinite(candidates.min()):
+            return None
+        basis.append(v[int(np.argmin(candidates))])
+    e1, e2 = basis
+    grid = {(0, 0): seed}
+    taken = {seed}
+    frontier = [(0, 0)]
+    while frontier:
+        i, j = frontier.pop(0)
+        p = pts[grid[(i, j)]]
+        for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            key = (i + di, j + dj)
+            if key in grid:
+                continue
+            # local lattice vectors from the neighbours already known
+            a1 = pts[grid[(i + 1, j)]] - p if (i + 1, j) in grid else (p - pts[grid[(i - 1, j)]] if (i - 1, j) in grid else e1)
+            a2 = pts[grid[(i, j + 1)]] - p if (i, j + 1) in grid else (p - pts[grid[(i, j - 1)]] if (i, j - 1) in grid else e2)
+            guess = p + di * a1 + dj * a2
+            dist = np.sqrt(np.sum((pts - guess) ** 2, axis=1))
+            best = int(np.argmin(dist))
+            step = np.linalg.norm(a1 if di else a2)
+            if dist[best] < 0.3 * step and best not in taken:
+                grid[key] = best
+                taken.add(best)
+                frontier.append(key)
+    # drop stray points with a single neighbour
+    changed = True
+    while changed:
+        changed = False
+        for key in list(grid):
+            nb = sum((key[0] + a, key[1] + b) in grid for a, b in ((1, 0), (-1, 0), (0, 1), (0, -1)))
+            if nb <= 1 and len(grid) > 1:
+                del grid[key]
+                changed = True
+    ii = np.array([k[0] for k in grid])
+    jj = np.array([k[1] for k in grid])
+    ni, nj = ii.max() - ii.min() + 1, jj.max() - jj.min() + 1
+    if len(grid) != n or ni * nj != n or sorted([ni, nj]) != sorted([cols, rows]):
+        return None
+    G = np.zeros((ni, nj, 2))
+    for (i, j), index in grid.items():
+        G[i - ii.min(), j - jj.min()] = pts[index]
+    if ni == cols and nj == rows:
+        boards = [G.transpose(1, 0, 2)]
+    else:
+        boards = []
+    if nj == cols and ni == rows:
+        boards.append(G)
+    best, best_distance = None, np.inf
+    for B in boards:
+        for P in (B, B[::-1], B[:, ::-1], B[::-1, ::-1]):
+            dx, dy = P[0, -1] - P[0, 0], P[-1, 0] - P[0, 0]
+            if dx[0] * dy[1] - dx[1] * dy[0] <= 0:
+                continue
+            distance = np.hypot(*P[0, 0])
+            if distance < best_distance:
+                best, best_distance = P, distance
+    corners = best.reshape(-1, 2).copy()
+    # sub-pixel: gradient orthogonality (Förstner / cornerSubPix) on a lightly smoothed image
+    spacing = np.median(np.hypot(*np.diff(best, axis=1).reshape(-1, 2).T))
+    r = int(np.clip(round(spacing * 0.3), 2, 6))
+    S2 = _smooth(img, 1.0)
+    gy, gx = np.gradient(S2)
+    oy, ox = np.mgrid[-r:r + 1, -r:r + 1]
+    ox, oy = ox.ravel().astype(float), oy.ravel().astype(float)
+    weight = np.exp(-(ox ** 2 + oy ** 2) / (2 * (r / 2) ** 2))
+    for _ in range(15):
+        px = np.clip(corners[:, :1] + ox, 0, W - 1)
+        py = np.clip(corners[:, 1:] + oy, 0, H - 1)
+        a = _interp(gx, px, py)
+        b = _interp(gy, px, py)
+        M11, M12, M22 = (weight * a * a).sum(1), (weight * a * b).sum(1), (weight * b * b).sum(1)
+        v1 = (weight * (a * a * px + a * b * py)).sum(1)
+        v2 = (weight * (a * b * px + b * b * py)).sum(1)
+        det = M11 * M22 - M12 ** 2
+        corners = np.column_stack([(M22 * v1 - M12 * v2) / det, (M11 * v2 - M12 * v1) / det])
+    return corners
+
+
+# --------------------------------------------------------------------------------------------
+# homographies
+# --------------------------------------------------------------------------------------------
+def _hartley(points):
+    centroid = points.mean(axis=0)
+    mean_distance = np.mean(np.sqrt(((points - centroid) ** 2).sum(axis=1)))
+    s = math.sqrt(2) / mean_distance
+    return np.array([[s, 0, -s * centroid[0]], [0, s, -s * centroid[1]], [0, 0, 1.0]])
+
+
+def homography_dlt(src, dst, normalize=True):
+    """Rows from the cross product m̃ × (H w̃) (components 2 and 1, negated), eigenvector of
+    LᵀL for the normalised system, SVD for the raw one."""
+    src = np.asarray(src, dtype=np.float64)
+    dst = np.asarray(dst, dtype=np.float64)
+    if normalize:
+        T, Tp = _hartley(src), _hartley(dst)
+    else:
+        T = Tp = np.eye(3)
+    rows = []
+    for (x, y), (u, v) in zip(src, dst):
+        w = T @ [x, y, 1.0]
+        m = Tp @ [u, v, 1.0]
+        rows.append(np.concatenate([np.zeros(3), -m[2] * w, m[1] * w]))
+        rows.append(np.concatenate([m[2] * w, np.zeros(3), -m[0] * w]))
+    L = np.array(rows)
+    if normalize:
+        values, vectors = np.linalg.eigh(L.T @ L)
+        h = vectors[:, 0]
+    else:
+        h = np.linalg.svd(np.vstack([L, np.zeros((max(0, 9 - len(L)), 9))]))[2][-1]
+    H = np.linalg.inv(Tp) @ h.reshape(3, 3) @ T
+    return H / H[2, 2]
+
+
+def levenberg_marquardt(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
+    """Marquardt's scaled damping with Nielsen's update of μ (gain ratio), central differences."""
+    x = np.array(x0, dtype=np.float64).ravel()
+
+    def r_of(p):
+        return np.asarray(residuals(p.copy()), dtype=np.float64).ravel()
+
+    def j_of(p):
+        if jacobian is not None:
+            return np.asarray(jacobian(p.copy()), dtype=np.float64)
+        J = []
+        for i in range(p.size):
+            h = 1e-6 * max(1.0, abs(p[i]))
+            e = np.zeros(p.size)
+            e[i] = h
+            J.append((r_of(p + e) - r_of(p - e)) / (2 * h))
+        return np.array(J).T
+
+    r = r_of(x)
+    cost = 0.5 * r @ r
+    J = j_of(x)
+    g = J.T @ r
+    A = J.T @ J
+    mu = 1e-3
+    nu = 2.0
+    k = 0
+    done = np.abs(g).max() <= tol
+    while not done and k < max_iter:
+        k += 1
+        D = np.diag(np.maximum(np.diag(A), 1e-12 * max(np.diag(A).max(), 1e-300)))
+        try:
+            step = np.linalg.solve(A + mu * D, -g)
+        except np.linalg.LinAlgError:
+            mu, nu = mu * nu, 2 * nu
+            continue
+        small = np.linalg.norm(step) <= tol * (np.linalg.norm(x) + tol)
+        r_new = r_of(x + step)
+        cost_new = 0.5 * r_new @ r_new
+        predicted = 0.5 * step @ (mu * D @ step - g)
+        rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
+        if np.isfinite(cost_new) and cost_new < cost:
+            relative = (cost - cost_new) / cost
+            x, r, cost = x + step, r_new, cost_new
+            mu *= max(1 / 3, 1 - (2 * rho - 1) ** 3)
+            nu = 2.0
+            if relative < tol or small:
+                done = True
+                break
+            J = j_of(x)
+            g, A = J.T @ r, J.T @ J
+            done = np.abs(g).max() <= tol
+        else:
+            mu *= nu
+            nu *= 2
+            done = small
+    return x, {"iterations": k, "cost": float(cost), "converged": bool(done)}
+
+
+def _project_h(H, pts):
+    m = np.column_stack([pts, np.ones(len(pts))]) @ H.T
+    return m[:, :2] / m[:, 2:]
+
+
+def refine_homography(H, src, dst):
+    """Residuals in raw pixels, numerical Jacobian of the optimiser above."""
+    src = np.asarray(src, dtype=np.float64)
+    dst = np.asarray(dst, dtype=np.float64)
+    H = np.asarray(H, dtype=np.float64)
+    H = H / H[2, 2]
+
+    def residuals(h):
+        return (_project_h(np.append(h, 1).reshape(3, 3), src) - dst).ravel()
+
+    h, _ = levenberg_marquardt(residuals, H.ravel()[:8])
+    return np.append(h, 1.0).reshape(3, 3)
+
+
+# --------------------------------------------------------------------------------------------
+# Zhang
+# --------------------------------------------------------------------------------------------
+def intrinsics_from_homographies(homographies):
+    """B from the constraints written as quadratic forms, A from the Cholesky factor of B."""
+    rows = []
+    for H in homographies:
+        H = np.asarray(H, dtype=np.float64)
+        H = H / np.sqrt((H ** 2).sum())
+        h1, h2 = H[:, 0], H[:, 1]
+
+        def v(a, b):  # coefficients of aᵀBb in (B11, B12, B22, B13, B23, B33)
+            return [a[0] * b[0], a[0] * b[1] + a[1] * b[0], a[1] * b[1],
+                    a[0] * b[2] + a[2] * b[0], a[1] * b[2] + a[2] * b[1], a[2] * b[2]]
+
+        rows.append(v(h1, h2))
+        rows.append(np.subtract(v(h1, h1), v(h2, h2)))
+    b = np.linalg.svd(np.array(rows))[2][-1]
+    B = np.array([[b[0], b[1], b[3]], [b[1], b[2], b[4]], [b[3], b[4], b[5]]])
+    if B[0, 0] < 0:
+        B = -B
+    L = np.linalg.cholesky(B)            # B = L Lᵀ, L ∝ A⁻ᵀ
+    A = np.linalg.inv(L.T)
+    return A / A[2, 2]
+
+
+def extrinsics_from_homography(A, H):
+    """Explicit inverse; orthonormalisation by the polar decomposition (Q (QᵀQ)^(-1/2))."""
+    Ainv = np.linalg.inv(np.asarray(A, dtype=np.float64))
+    H = np.asarray(H, dtype=np.float64)
+    c1, c2, c3 = Ainv @ H[:, 0], Ainv @ H[:, 1], Ainv @ H[:, 2]
+    lam = 1 / np.linalg.norm(c1)
+    if lam * c3[2] < 0:
+        lam = -lam
+    r1, r2, t = lam * c1, lam * c2, lam * c3
+    Q = np.column_stack([r1, r2, np.cross(r1, r2)])
+    w, V = np.linalg.eigh(Q.T @ Q)
+    R = Q @ V @ np.diag(1 / np.sqrt(w)) @ V.T
+    return R, t
+
+
+def estimate_radial_distortion(A, world_points, image_points_list, rotations, translations):
+    """Normal equations (DᵀD)⁻¹Dᵀd accumulated view by view."""
+    A = np.asarray(A, dtype=np.float64)
+    A = A / A[2, 2]
+    X = np.asarray(world_points, dtype=np.float64)
+    DtD = np.zeros((2, 2))
+    Dtd = np.zeros(2)
+    for m, R, t in zip(image_points_list, rotations, translations):
+        m = np.asarray(m, dtype=np.float64)
+        C = X @ np.asarray(R, dtype=np.float64).T + np.asarray(t, dtype=np.float64).ravel()
+        for i in range(len(X)):
+            x, y = C[i, 0] / C[i, 2], C[i, 1] / C[i, 2]
+            r2 = x * x + y * y
+            u = A[0, 0] * x + A[0, 1] * y + A[0, 2]
+            v = A[1, 1] * y + A[1, 2]
+            for row, rhs in (([(u - A[0, 2]) * r2, (u - A[0, 2]) * r2 ** 2], m[i, 0] - u),
+                             ([(v - A[1, 2]) * r2, (v - A[1, 2]) * r2 ** 2], m[i, 1] - v)):
+                row = np.array(row)
+                DtD += np.outer(row, row)
+                Dtd += row * rhs
+    return np.linalg.solve(DtD, Dtd)
+
+
+def _rodrigues(w):
+    theta = np.linalg.norm(w)
+    if theta < 1e-15:
+        return np.eye(3)
+    k = w / theta
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(theta) * K + (1 - math.cos(theta)) * K @ K
+
+
+def _log_rotation(R):
+    theta = math.acos(max(-1.0, min(1.0, (np.trace(R) - 1) / 2)))
+    if theta < 1e-12:
+        return np.zeros(3)
+    return theta / (2 * math.sin(theta)) * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+
+
+def calibrate(world_points, image_points_list):
+    """The alternatives above chained; the refinement with the full numerical Jacobian."""
+    X = np.asarray(world_points, dtype=np.float64)
+    views = [np.asarray(m, dtype=np.float64) for m in image_points_list]
+    Hs = [refine_homography(homography_dlt(X[:, :2], m), X[:, :2], m) for m in views]
+    A0 = intrinsics_from_homographies(Hs)
+    poses = [extrinsics_from_homography(A0, H) for H in Hs]
+    A0[0, 1] = 0.0
+    k0 = estimate_radial_distortion(A0, X, views, [p[0] for p in poses], [p[1] for p in poses])
+    x0 = [A0[0, 0], A0[1, 1], A0[0, 2], A0[1, 2], k0[0], k0[1]]
+    for R, t in poses:
+        x0 += list(_log_rotation(R)) + list(t)
+
+    def project(p, R, t):
+        C = X @ R.T + t
+        x, y = C[:, 0] / C[:, 2], C[:, 1] / C[:, 2]
+        r2 = x * x + y * y
+        L = 1 + p[4] * r2 + p[5] * r2 * r2
+        return np.column_stack([p[0] * x * L + p[2], p[1] * y * L + p[3]])
+
+    def residuals(p):
+        out = []
+        for i, m in enumerate(views):
+            q = p[6 + 6 * i: 12 + 6 * i]
+            out.append(project(p, _rodrigues(q[:3]), q[3:]) - m)
+        return np.concatenate(out).ravel()
+
+    p, _ = levenberg_marquardt(residuals, np.array(x0))
+    e = residuals(p).reshape(-1, 2)
+    return {
+        "A": np.array([[p[0], 0.0, p[2]], [0.0, p[1], p[3]], [0.0, 0.0, 1.0]]),
+        "k": np.array(p[4:6]),
+        "rotations": np.array([_rodrigues(p[6 + 6 * i: 9 + 6 * i]) for i in range(len(views))]),
+        "translations": np.array([p[9 + 6 * i: 12 + 6 * i] for i in range(len(views))]),
+        "rms": float(np.sqrt(np.mean(np.sum(e ** 2, axis=1)))),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# warping
+# --------------------------------------------------------------------------------------------
+def bilinear_sample(image, x, y, fill=0.0):
+    """Point by point."""
+    img = np.asarray(image, dtype=np.float64)
+    xs, ys = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+    H, W = img.shape[:2]
+    out = np.full(xs.shape + img.shape[2:], float(fill))
+    for index in np.ndindex(xs.shape):
+        px, py = xs[index], ys[index]
+        if not (0 <= px <= W - 1 and 0 <= py <= H - 1):
+            continue
+        c0, r0 = min(int(px), max(W - 2, 0)), min(int(py), max(H - 2, 0))
+        c1, r1 = min(c0 + 1, W - 1), min(r0 + 1, H - 1)
+        a, b = px - c0, py - r0
+        out[index] = ((1 - b) * ((1 - a) * img[r0, c0] + a * img[r0, c1])
+                      + b * ((1 - a) * img[r1, c0] + a * img[r1, c1]))
+    return out
+
+
+def warp_homography(image, H, output_shape, fill=0.0):
+    """Inverse by the adjugate; homogeneous coordinates of all pixels as one matrix."""
+    H = np.asarray(H, dtype=np.float64)
+    adj = np.array([np.cross(H[1], H[2]), np.cross(H[2], H[0]), np.cross(H[0], H[1])]).T  # ∝ H⁻¹
+    rows, cols = int(output_shape[0]), int(output_shape[1])
+    grid = np.stack(np.meshgrid(np.arange(cols), np.arange(rows)), axis=-1).reshape(-1, 2)
+    src = np.column_stack([grid, np.ones(len(grid))]) @ adj.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x, y = src[:, 0] / src[:, 2], src[:, 1] / src[:, 2]
+    return bilinear_sample(image, x.reshape(rows, cols), y.reshape(rows, cols), fill)
+
+
+def undistort_image(image, A, k, p=(0.0, 0.0)):
+    A = np.asarray(A, dtype=np.float64)
+    A = A / A[2, 2]
+    k = list(np.atleast_1d(k)) + [0.0, 0.0]
+    rows, cols = np.asarray(image).shape[:2]
+    v, u = np.mgrid[0:rows, 0:cols].astype(float)
+    ideal = np.linalg.solve(A, np.stack([u.ravel(), v.ravel(), np.ones(u.size)]))
+    x, y = ideal[0], ideal[1]
+    r2 = x ** 2 + y ** 2
+    L = 1 + k[0] * r2 + k[1] * r2 ** 2 + k[2] * r2 ** 3
+    xd = x * L + 2 * p[0] * x * y + p[1] * (r2 + 2 * x ** 2)
+    yd = y * L + p[0] * (r2 + 2 * y ** 2) + 2 * p[1] * x * y
+    pix = A @ np.stack([xd, yd, np.ones_like(xd)])
+    return bilinear_sample(image, pix[0].reshape(rows, cols), pix[1].reshape(rows, cols), 0.0)
+
+
+def rotation_homography(A, R):
+    A = np.asarray(A, dtype=np.float64)
+    H = np.linalg.solve(A.T, (A @ np.asarray(R, dtype=np.float64)).T).T    # (A R) A⁻¹
+    return H / H[2, 2]
+
+
+def birds_eye_homography(image_points, ground_points, pixels_per_unit):
+    """The 8×8 system with h33 = 1."""
+    M, b = [], []
+    for (x, y), (gx, gy) in zip(np.asarray(image_points, float), np.asarray(ground_points, float) * pixels_per_unit):
+        M.append([x, y, 1, 0, 0, 0, -gx * x, -gx * y])
+        M.append([0, 0, 0, x, y, 1, -gy * x, -gy * y])
+        b += [gx, gy]
+    return np.append(np.linalg.solve(np.array(M, dtype=float), np.array(b)), 1.0).reshape(3, 3)
+
+
+ALTERNATIVES = {
+    "calibration.chessboard_points": chessboard_points,
+    "calibration.find_chessboard_corners": find_chessboard_corners,
+    "calibration.homography_dlt": homography_dlt,
+    "calibration.levenberg_marquardt": levenberg_marquardt,
+    "calibration.refine_homography": refine_homography,
+    "calibration.intrinsics_from_homographies": intrinsics_from_homographies,
+    "calibration.extrinsics_from_homography": extrinsics_from_homography,
+    "calibration.estimate_radial_distortion": estimate_radial_distortion,
+    "calibration.calibrate": calibrate,
+    "warp.bilinear_sample": bilinear_sample,
+    "warp.warp_homography": warp_homography,
+    "warp.undistort_image": undistort_image,
+    "warp.rotation_homography": rotation_homography,
+    "warp.birds_eye_homography": birds_eye_homography,
+}

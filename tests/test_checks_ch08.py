@@ -1,0 +1,419 @@
+"""The Chapter 8 checks are worth their points: the reference and correct alternatives pass,
+every mistake of every bank fails and is named, the comparators say what is wrong, and the
+guard catches what it should.
+
+Mistake functions of the banks are built on the reference implementations (they run under
+the reference provider when the grader compares outputs). To grade a mistake *as a candidate*
+the tests therefore allow every reference building block; the guard itself is tested
+separately below on the checks as registered.
+"""
+from __future__ import annotations
+
+import copy
+import dataclasses
+import time
+
+import numpy as np
+import pytest
+
+import cvkit.calibration
+import cvkit.warp
+from cvkit import registry
+from cvkit.calibration._problems import Jacobian, Residuals, rebuild
+from cvkit.calibration.checks import CalibrationClose, CornersClose, HomographyClose, MinimumClose
+from cvkit.grading import Case, evaluate
+from cvkit.warp.checks import WarpClose
+
+try:
+    from . import alternatives_ch08 as alt
+except ImportError:  # tests/ is not a package: pytest puts it on sys.path
+    import alternatives_ch08 as alt
+
+SEEDS = (101, 202, 303)
+CH08 = [f"calibration.{name}" for name in cvkit.calibration.__all__] + [f"warp.{name}" for name in cvkit.warp.__all__]
+BLOCKS = tuple(CH08) + tuple(f"camera.{n}" for n in ("distort", "undistort_points", "project_full", "rotation_matrix")) + (
+    "filters.gaussian",)
+
+
+def _check(algorithm_id):
+    return registry.get(algorithm_id).check
+
+
+def _reference(algorithm_id):
+    return registry.get(algorithm_id).reference
+
+
+MISTAKES = [(aid, m.name) for aid in CH08 for m in _check(aid).mistakes]
+
+
+def _grade_everywhere(algorithm_id, candidate, check=None):
+    """Reports on the public cases and on the hidden cases of every seed."""
+    reports = [evaluate(algorithm_id, candidate, check=check)]
+    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
+    return reports
+
+
+def _hidden(algorithm_id, seed):
+    return _check(algorithm_id).hidden_cases(np.random.default_rng(seed))
+
+
+# --------------------------------------------------------------------------------------------
+# the shape of every check
+# --------------------------------------------------------------------------------------------
+def test_every_catalog_id_of_the_chapter_is_registered_with_its_section():
+    sections = {
+        "calibration.chessboard_points": "8.3", "calibration.find_chessboard_corners": "8.3",
+        "calibration.homography_dlt": "8.3.2", "calibration.levenberg_marquardt": "8.3.4",
+        "calibration.refine_homography": "8.3.4", "calibration.intrinsics_from_homographies": "8.3.5",
+        "calibration.extrinsics_from_homography": "8.3.6", "calibration.estimate_radial_distortion": "8.3.7",
+        "calibration.calibrate": "8.2–8.3.8", "warp.bilinear_sample": "8.4.2", "warp.warp_homography": "8.4.2",
+        "warp.undistort_image": "8.4.1", "warp.rotation_homography": "8.4.3", "warp.birds_eye_homography": "8.4.3",
+    }
+    assert set(CH08) == set(sections)
+    for algorithm_id, section in sections.items():
+        record = registry.get(algorithm_id)
+        module, name = algorithm_id.split(".")
+        assert record.section == section
+        assert record.reference is getattr(getattr(cvkit, module), name)
+
+
+@pytest.mark.parametrize("algorithm_id", CH08)
+def test_check_is_complete(algorithm_id):
+    spec = _check(algorithm_id)
+    public = spec.public_cases()
+    assert 1 <= len(public) <= 6
+    assert len(spec.mistakes) >= 4
+    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
+    for m in spec.mistakes:
+        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
+    for seed in SEEDS:
+        hidden = spec.hidden_cases(np.random.default_rng(seed))
+        assert 8 <= len(hidden) <= 14
+        assert all(case.label for case in public + hidden)
+
+
+def _flat(cases):
+    out = []
+    for case in cases:
+        for value in list(case.args) + list(case.kwargs.values()):
+            if isinstance(value, dict):
+                out.append(repr(sorted((k, np.asarray(v).tolist()) for k, v in value.items())))
+            elif isinstance(value, (np.ndarray, list, tuple)):
+                out.append(repr(np.asarray(value, dtype=object).tolist()))
+            else:
+                out.append(repr(value))
+    return out
+
+
+@pytest.mark.parametrize("algorithm_id", CH08)
+def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
+    first, again, other = _hidden(algorithm_id, 7), _hidden(algorithm_id, 7), _hidden(algorithm_id, 8)
+    assert _flat(first) == _flat(again)
+    assert _flat(first) != _flat(other), "the hidden cases do not depend on the seed"
+
+
+def test_hidden_cases_are_small():
+    """A student's plain version must finish fast: few views and points, small images."""
+    for seed in SEEDS:
+        for case in _hidden("calibration.calibrate", seed):
+            world, images = case.args
+            assert len(images) <= 5 and len(world) <= 24
+        for case in _hidden("calibration.find_chessboard_corners", seed):
+            assert np.asarray(case.args[0]).shape[0] * np.asarray(case.args[0]).shape[1] <= 130 * 170
+        for algorithm_id in ("warp.warp_homography", "warp.undistort_image", "warp.bilinear_sample"):
+            for case in _hidden(algorithm_id, seed):
+                assert np.asarray(case.args[0]).size <= 30 * 30 * 3
+
+
+def test_hidden_cases_separate_the_dlt_mistakes():
+    """Noisy, clustered pixel coordinates in the thousands; four points; normalize=False."""
+    for seed in SEEDS:
+        cases = _hidden("calibration.homography_dlt", seed)
+        assert any(np.asarray(c.args[1], dtype=float).min() > 1000 for c in cases)
+        assert any(len(c.args[0]) == 4 for c in cases)
+        assert any(c.kwargs.get("normalize") is False for c in cases)
+        assert any(np.asarray(c.args[0]).dtype.kind == "i" for c in cases)
+
+
+def test_hidden_cases_cover_the_awkward_inputs():
+    for seed in SEEDS:
+        rng_cases = _hidden("calibration.intrinsics_from_homographies", seed)
+        assert any(len(c.args[0]) == 3 for c in rng_cases)                       # the minimum
+        assert any(abs(np.asarray(c.args[0][0], dtype=float)).max() < 1e-3 for c in rng_cases)  # tiny scales
+        eh = _hidden("calibration.extrinsics_from_homography", seed)
+        dets = [np.linalg.det(np.asarray(c.args[1], dtype=float)) for c in eh]
+        assert any(d < 0 for d in dets) and any(d > 0 for d in dets)             # both signs of H
+        corners = _hidden("calibration.find_chessboard_corners", seed)
+        expected = [_reference("calibration.find_chessboard_corners")(*c.args) for c in corners]
+        assert sum(e is None for e in expected) >= 3 and sum(e is not None for e in expected) >= 8
+        kinds = {np.asarray(c.args[0]).dtype.kind for c in corners}
+        assert {"u", "f"} <= kinds and any(np.ndim(c.args[0]) == 3 for c in corners)
+        samples = _hidden("warp.bilinear_sample", seed)
+        assert any(np.asarray(c.args[0]).dtype == np.uint8 for c in samples)
+        assert any(np.isnan(np.asarray(c.args[1], dtype=float)).any() for c in samples)
+        warps = _hidden("warp.undistort_image", seed)
+        assert {len(np.atleast_1d(c.args[2])) for c in warps} == {1, 2, 3}
+
+
+# --------------------------------------------------------------------------------------------
+# right answers pass, wrong ones fail and are named
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("algorithm_id", CH08)
+def test_reference_passes(algorithm_id):
+    spec = _check(algorithm_id)
+    # Through a Check.call adapter the guard sees the adapter as the candidate's code, so the
+    # reference graded as a candidate counts as "calling the reference": allow it here.
+    check = dataclasses.replace(spec, allowed=spec.allowed + (algorithm_id,)) if spec.call else None
+    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id), check=check):
+        assert report.passed, report.text()
+        assert report.mistake is None
+
+
+@pytest.mark.parametrize("algorithm_id", CH08)
+def test_stub_scores_zero(algorithm_id):
+    def stub(*args, **kwargs):
+        raise NotImplementedError
+
+    for report in _grade_everywhere(algorithm_id, stub):
+        assert report.score == 0.0
+        assert "not implemented" in report.cases[0].message
+
+
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+def test_mistake_fails_and_is_named(algorithm_id, name):
+    spec = _check(algorithm_id)
+    mistake = spec.mistake(name)
+    allowing = dataclasses.replace(spec, allowed=BLOCKS)
+    public = evaluate(algorithm_id, mistake.function, check=allowing)
+    assert not public.passed, f"the public cases do not catch {name!r}"
+    for seed in SEEDS:
+        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
+        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
+        assert report.mistake == name, (
+            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
+            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
+        )
+        assert report.hint == mistake.hint
+
+
+@pytest.mark.parametrize(("algorithm_id", "function"), list(alt.ALTERNATIVES.items()),
+                         ids=list(alt.ALTERNATIVES))
+def test_correct_alternative_passes(algorithm_id, function):
+    for report in _grade_everywhere(algorithm_id, function):
+        assert report.passed, report.text()
+
+
+def test_every_algorithm_has_an_alternative():
+    assert set(alt.ALTERNATIVES) == set(CH08)
+
+
+def test_alternative_detector_passes_many_seeds():
+    """The detector's cases are images: a different correct detector must pass on many draws."""
+    for seed in range(4):
+        report = evaluate("calibration.find_chessboard_corners", alt.find_chessboard_corners, hidden=True,
+                          seed=1000 + seed)
+        assert report.passed, report.text()
+
+
+def test_reference_calibration_is_fast_enough_for_loops():
+    """Each hidden calibration case runs in a fraction of a second for the reference."""
+    for case in _hidden("calibration.calibrate", SEEDS[0]):
+        start = time.perf_counter()
+        _reference("calibration.calibrate")(*case.args)
+        assert time.perf_counter() - start < 2.0
+
+
+# --------------------------------------------------------------------------------------------
+# the comparators
+# --------------------------------------------------------------------------------------------
+def test_homography_close_judges_the_mapping_and_the_scale():
+    H = np.array([[2.0, 0.1, 10.0], [0.2, 1.5, -4.0], [1e-3, 2e-3, 1.0]])
+    case = Case((np.array([[0.0, 0.0], [100.0, 0.0], [0.0, 100.0], [100.0, 100.0]]),), {}, "")
+    compare = HomographyClose(atol=1e-4, rtol=1e-8)
+    assert compare(H.copy(), H, case) is None
+    message = compare(3 * H, H, case).message
+    assert "H[2, 2] = 3" in message and "dividing it by H[2, 2]" in message
+    assert compare(3 * H, 3 * H, case) is None                      # a mistake's unscaled H can be matched
+    shifted = H.copy()
+    shifted[0, 2] += 0.01
+    mismatch = compare(shifted, H, case)
+    assert mismatch is not None and "maps points elsewhere" in mismatch.message and mismatch.max_abs > 0.005
+    assert "shape mismatch" in compare(np.eye(2), H, case).message
+    assert "None" in compare(None, H, case).message
+
+
+def test_corners_close_accepts_the_180_degree_rotation_and_none():
+    expected = np.array([[10.0, 10.0], [20.0, 10.0], [30.0, 10.0], [10.0, 20.0], [20.0, 20.0], [30.0, 20.0]])
+    compare = CornersClose(mean=0.2, maximum=0.6)
+    assert compare(expected + 0.1, expected) is None
+    assert compare(expected[::-1] + 0.05, expected) is None
+    assert "Corners differ" in compare(expected[:, ::-1], expected).message
+    assert "mean distance" in compare(expected + 0.45, expected).message
+    assert "expected None" in compare(expected, None).message
+    assert compare(None, None) is None
+    assert "returned None" in compare(None, expected).message
+    assert "shape mismatch" in compare(expected[:4], expected).message
+
+
+def test_minimum_close_checks_x_cost_and_flags():
+    problem = Residuals("linear", M=np.eye(2), b=np.array([1.0, 2.0]))
+    case = Case((problem, np.zeros(2)), {}, "")
+    expected = (np.array([1.0, 2.0]), {"iterations": 3, "cost": 0.0, "converged": True})
+    compare = MinimumClose()
+    assert compare((np.array([1.0, 2.0]), {"iterations": 7, "cost": 0.0, "converged": True}), expected, case) is None
+    assert "tuple (x, info)" in compare(np.array([1.0, 2.0]), expected, case).message
+    assert "lacks" in compare((np.array([1.0, 2.0]), {"cost": 0.0}), expected, case).message
+    assert "converged" in compare((np.array([1.0, 2.0]), {"iterations": 3, "cost": 0.0, "converged": False}),
+                                  expected, case).message
+    assert "same minimum" in compare((np.array([1.0, 2.1]), {"iterations": 3, "cost": 0.0, "converged": True}),
+                                     expected, case).message
+    assert "diverged" in compare((np.array([np.nan, 2.0]), {"iterations": 3, "cost": 0.0, "converged": True}),
+                                 expected, case).message
+    assert "max_iter" in compare((np.array([1.0, 2.0]), {"iterations": 101, "cost": 0.0, "converged": True}),
+                                 expected, case).message
+
+
+def test_calibration_close_accepts_dicts_and_objects():
+    expected = {"A": np.array([[800.0, 0, 320], [0, 820, 240], [0, 0, 1]]), "k": np.array([-0.2, 0.05]),
+                "rotations": np.stack([np.eye(3)] * 3), "translations": np.ones((3, 3)) * 100, "rms": 0.3}
+    compare = CalibrationClose()
+    assert compare(copy.deepcopy(expected), expected) is None
+    result = cvkit.calibration.CalibrationResult(copy.deepcopy(expected))
+    assert compare(result, expected) is None and result.rms == 0.3
+    wrong = dict(copy.deepcopy(expected), rms=0.3 / np.sqrt(2))
+    assert compare(wrong, expected).message.startswith("rms")
+    missing = {k: v for k, v in expected.items() if k != "k"}
+    assert "no 'k'" in compare(missing, expected).message
+    bent = copy.deepcopy(expected)
+    bent["A"][0, 0] += 1.0
+    assert compare(bent, expected).message.startswith("A: ")
+
+
+def test_warp_close_ignores_only_sources_on_the_border():
+    image = np.arange(12.0).reshape(3, 4)
+    shift = np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])     # sources of column 0: x = −1
+    case = Case((image, shift, (3, 4)), {}, "")
+    expected = cvkit.warp.warp_homography(image, shift, (3, 4))
+    from cvkit.warp.checks import _warp_sources
+    compare = WarpClose(sources=_warp_sources)
+    assert compare(expected.copy(), expected, case) is None
+    off_border = expected.copy()
+    off_border[1, 2] += 1.0
+    assert compare(off_border, expected, case) is not None
+    nudged = np.array([[1.0, 0.0, 1.0 + 1e-9], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])   # column 3 source at 2 − 1e-9
+    border_case = Case((image, nudged, (3, 5)), {}, "")
+    exact = cvkit.warp.warp_homography(image, shift, (3, 5))
+    assert compare(cvkit.warp.warp_homography(image, nudged, (3, 5)), exact, border_case) is None
+
+
+# --------------------------------------------------------------------------------------------
+# the data-only test problems of the optimiser
+# --------------------------------------------------------------------------------------------
+def test_optimiser_cases_cross_the_wire_as_plain_data():
+    """The trusted grader sends cases to its worker as JSON: the residual functions go as plain
+    dicts and the check's adapter rebuilds them there."""
+    from cvkit.calibration._problems import least_squares_call
+    from cvkit.grading import wire
+
+    spec = _check("calibration.levenberg_marquardt")
+    assert spec.call is least_squares_call
+    for case in spec.public_cases() + _hidden("calibration.levenberg_marquardt", 11):
+        args, kwargs = wire.loads(wire.dumps(case.args)), wire.loads(wire.dumps(case.kwargs))
+        assert type(args[0]) is dict
+        x, info = least_squares_call(cvkit.calibration.levenberg_marquardt, *args, **kwargs)
+        want, want_info = least_squares_call(cvkit.calibration.levenberg_marquardt, *case.args, **case.kwargs)
+        np.testing.assert_array_equal(x, want)
+        assert info == want_info
+
+
+def test_problems_are_data_copies_and_rebuild_from_plain_dicts():
+    for case in _hidden("calibration.levenberg_marquardt", 5):
+        problem = case.args[0]
+        assert isinstance(problem, Residuals) and isinstance(problem, dict)
+        x = np.asarray(case.args[1], dtype=float)
+        clone = copy.deepcopy(problem)
+        assert clone == problem and clone is not problem
+        plain = {k: (np.asarray(v).tolist() if k != "kind" else v) for k, v in problem.items()}
+        np.testing.assert_allclose(rebuild(plain)(x), problem(x))
+        jac = case.kwargs.get("jacobian")
+        if jac is not None:
+            assert isinstance(jac, Jacobian)
+            numeric = np.column_stack([(problem(x + h) - problem(x - h)) / 2e-6 for h in np.eye(x.size) * 1e-6])
+            np.testing.assert_allclose(jac(x), numeric, rtol=1e-5, atol=1e-6)
+            np.testing.assert_allclose(rebuild(dict(jac), jacobian=True)(x), jac(x))
+    assert "Rosenbrock" in repr(Residuals("rosenbrock", a=10.0))
+    with pytest.raises(ValueError, match="kind"):
+        Residuals("quartic")
+
+
+# --------------------------------------------------------------------------------------------
+# the guard on Chapter 8 checks (as registered)
+# --------------------------------------------------------------------------------------------
+def test_opencv_is_forbidden_and_named():
+    cv2 = pytest.importorskip("cv2")
+
+    def homography_dlt(src, dst, normalize=True):
+        H, _ = cv2.findHomography(np.asarray(src, dtype=float), np.asarray(dst, dtype=float), 0)
+        return H / H[2, 2]
+
+    report = evaluate("calibration.homography_dlt", homography_dlt)
+    assert report.score == 0.0
+    assert all("cv2" in c.message for c in report.cases), report.text()
+
+
+def test_scipy_optimize_is_forbidden():
+    import scipy.optimize
+
+    def levenberg_marquardt(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
+        result = scipy.optimize.least_squares(residuals, np.asarray(x0, dtype=float), method="lm")
+        return result.x, {"iterations": int(result.nfev), "cost": float(result.cost), "converged": True}
+
+    report = evaluate("calibration.levenberg_marquardt", levenberg_marquardt)
+    assert report.score == 0.0 and all("scipy.optimize" in c.message for c in report.cases), report.text()
+
+
+def test_calling_the_reference_is_forbidden_but_building_blocks_are_allowed():
+    def refine_homography(H, src, dst):
+        return cvkit.calibration.refine_homography(H, src, dst)
+
+    report = evaluate("calibration.refine_homography", refine_homography)
+    assert report.score == 0.0 and "'calibration.refine_homography'" in report.cases[0].message
+
+    def warp_homography(image, H, output_shape, fill=0.0):                # bilinear_sample is allowed
+        inv = np.linalg.inv(np.asarray(H, dtype=float))
+        rows, cols = output_shape
+        x, y = np.meshgrid(np.arange(cols, dtype=float), np.arange(rows, dtype=float))
+        w = inv[2, 0] * x + inv[2, 1] * y + inv[2, 2]
+        return cvkit.warp.bilinear_sample(image, (inv[0, 0] * x + inv[0, 1] * y + inv[0, 2]) / w,
+                                          (inv[1, 0] * x + inv[1, 1] * y + inv[1, 2]) / w, fill)
+
+    for report in _grade_everywhere("warp.warp_homography", warp_homography):
+        assert report.passed, report.text()
+
+
+def test_modifying_the_input_fails():
+    def bilinear_sample(image, x, y, fill=0.0):
+        x = np.asarray(x)
+        if x.dtype.kind == "f":
+            np.clip(x, 0, np.asarray(image).shape[1] - 1, out=x)           # in place: the caller's array
+        return alt.bilinear_sample(image, x, y, fill)
+
+    report = evaluate("warp.bilinear_sample", bilinear_sample)
+    assert not report.passed
+    assert any("modified its input" in c.message for c in report.cases if not c.passed)
+
+
+def test_a_failing_report_names_the_mistake_and_hint():
+    def homography_dlt(src, dst, normalize=True):   # forgets the normalisation
+        src, dst = np.asarray(src, float), np.asarray(dst, float)
+        rows = []
+        for (x, y), (u, v) in zip(src, dst):
+            rows += [[x, y, 1, 0, 0, 0, -u * x, -u * y, -u], [0, 0, 0, x, y, 1, -v * x, -v * y, -v]]
+        L = np.array(rows, dtype=float)
+        L = np.vstack([L, np.zeros((max(0, 9 - len(L)), 9))])
+        H = np.linalg.svd(L)[2][-1].reshape(3, 3)
+        return H / H[2, 2]
+
+    report = evaluate("calibration.homography_dlt", homography_dlt)
+    assert not report.passed and report.mistake == "no Hartley normalisation"
+    assert "√2" in report.text()
