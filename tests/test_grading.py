@@ -310,3 +310,10 @@ def test_numpy_functions_reexported_by_forbidden_modules_are_fine():
         return _shift(image, steps)
 
     assert evaluate("testing.shift_right", uses_numpy_builtins).passed
+
+
+def test_nan_arguments_are_not_reported_as_modified():
+    from cvkit.grading.guard import run_guarded
+
+    outcome = run_guarded(lambda image, fill=0.0: image, (np.ones(2),), {"fill": float("nan")})
+    assert outcome.modified == [] and outcome.error is None
