@@ -57,3 +57,69 @@ def bovw_histogram(descriptors, codebook, normalize=True):
     """Not attempted."""
     # YOUR CODE HERE
     raise NotImplementedError()
+
+# --- second half of the chapter (§10.4–10.7, neural network layers): five typical mistakes,
+# --- and the receptive field left unattempted.
+
+# %% relu_backward_answer
+@student("nn.relu_backward")
+def relu_backward(dout, cache):
+    """PyTorch's convention: no gradient at x = 0 (the notes take ReLU'(0) = 1)."""
+    return np.where(cache["x"] > 0, dout, 0.0)
+
+# %% sigmoid_forward_answer
+@student("nn.sigmoid_forward")
+def sigmoid_forward(x):
+    """The textbook formula, which overflows: exp(1000) is inf and inf/inf is NaN."""
+    x = np.asarray(x, dtype=float)
+    out = np.exp(x) / (1.0 + np.exp(x))
+    return out, {"x": x, "out": out}
+
+# %% conv2d_forward_answer
+@student("nn.conv2d_forward")
+def conv2d_forward(x, w, b, stride=1, padding=0):
+    """Chapter 3's convolution: the kernel is flipped first (deep learning correlates)."""
+    x, w, b = (np.asarray(a, dtype=float) for a in (x, w, b))
+    w = w[:, :, ::-1, ::-1]
+    n, c, h, width = x.shape
+    f, _, kh, kw = w.shape
+    xp = np.pad(x, ((0, 0), (0, 0), (padding, padding), (padding, padding)))
+    ho, wo = (h + 2 * padding - kh) // stride + 1, (width + 2 * padding - kw) // stride + 1
+    out = np.zeros((n, f, ho, wo))
+    for i in range(ho):
+        for j in range(wo):
+            patch = xp[:, :, i * stride:i * stride + kh, j * stride:j * stride + kw]
+            out[:, :, i, j] = np.tensordot(patch, w, axes=([1, 2, 3], [1, 2, 3])) + b
+    return out, {"x": x, "w": w[:, :, ::-1, ::-1], "b": b, "stride": stride, "padding": padding}
+
+# %% receptive_field_answer
+@student("nn.receptive_field")
+def receptive_field(layers):
+    """Not attempted."""
+    # YOUR CODE HERE
+    raise NotImplementedError()
+
+# %% maxpool2d_backward_answer
+@student("nn.maxpool2d_backward")
+def maxpool2d_backward(dout, cache):
+    """Sends each window's gradient to every element of the window, not only to its maximum."""
+    x, size, stride = cache["x"], cache["size"], cache["stride"]
+    dx = np.zeros(np.shape(x))
+    ho, wo = np.shape(dout)[2:]
+    for i in range(ho):
+        for j in range(wo):
+            dx[:, :, i * stride:i * stride + size, j * stride:j * stride + size] += dout[:, :, i:i + 1, j:j + 1]
+    return dx
+
+# %% batchnorm2d_forward_answer
+@student("nn.batchnorm2d_forward")
+def batchnorm2d_forward(x, gamma, beta, running_mean, running_var, training, momentum=0.1, eps=1e-5):
+    """Normalises with the running statistics also while training (and updates them)."""
+    x = np.asarray(x, dtype=float)
+    mean, var = x.mean(axis=(0, 2, 3)), x.var(axis=(0, 2, 3), ddof=1)
+    new_mean = (1 - momentum) * running_mean + momentum * mean if training else running_mean
+    new_var = (1 - momentum) * running_var + momentum * var if training else running_var
+    x_hat = (x - running_mean[None, :, None, None]) / np.sqrt(running_var[None, :, None, None] + eps)
+    out = gamma[None, :, None, None] * x_hat + beta[None, :, None, None]
+    return out, {"x": x, "gamma": gamma, "beta": beta, "running_mean": new_mean, "running_var": new_var,
+                 "training": training, "momentum": momentum, "eps": eps}
