@@ -1,11 +1,16 @@
 """The nbgrader course pipeline behind ``cvkit course ...`` and ``cvkit demo``.
 
-Small steps, each a plain nbgrader command run in the course folder (so instructors can run
-any step by hand): ``generate_assignment`` → submissions → ``autograde`` (one process per
-submission, several in parallel) → ``generate_feedback`` → ``export``. Around nbgrader, cvkit
-adds only what a course needs: a grading salt kept for regrading, the student id passed to the
-kernel (hidden cases differ per student), retries and a final audit so that no submission and
-no grade is lost, and a grade table with the mistakes the checks recognised.
+Small steps, each a plain nbgrader command run in the course folder where nbgrader has one
+(so instructors can run any step by hand): ``generate_assignment`` → submissions → the
+parallel phase (each submission executed in isolation, then its checks decided by the trusted
+checks; several at once, or on a Dask cluster) → nbgrader's ``autograde`` as the single,
+batched writer of the gradebook → ``generate_feedback`` → ``export``. Around nbgrader, cvkit
+adds only what a course needs: a grading salt kept for regrading, per-student hidden cases, a
+journal and a final audit so that no submission and no grade is lost, and a grade table with
+the mistakes the checks recognised and the flags they raised.
+
+Local parallel grading uses worker processes started with ``spawn``: a script that calls
+:meth:`Course.grade` needs the usual ``if __name__ == "__main__":`` guard.
 """
 from __future__ import annotations
 
@@ -19,6 +24,7 @@ import secrets
 import shutil
 import subprocess
 import sys
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable
@@ -69,90 +75,136 @@ class JobResult:
 
 @dataclass
 class ExecutedSubmission:
-    """A submission's notebooks after execution in isolation (JSON text by file name)."""
+    """A submission's notebooks after execution in isolation (JSON text by file name).
+
+    ``verified`` is True when the trusted checks have already replaced the test cells'
+    outputs by their verdicts (:func:`grade_submission`); the writer then only records."""
 
     student: str
     assignment: str
     notebooks: dict
     ok: bool
     log: str = ""
+    verified: bool = False
 
 
-def template_gradebook(project, assignment: str) -> bytes:
-    """An SQLite gradebook holding only ``assignment``'s structure (its source cells), made
-    once per grading run and copied into every scratch course of that assignment."""
-    import tempfile
-
-    project = Path(project)
-    with tempfile.TemporaryDirectory(prefix="cvkit-template-") as name:
-        scratch = Path(name)
-        shutil.copy(project / "autograders" / "nbgrader_config.py", scratch / "nbgrader_config.py")
-        env = {k: v for k, v in os.environ.items() if not k.startswith("CVKIT_")}
-        env.update(CVKIT_COURSE_ROOT=str(scratch), CVKIT_SOURCE_DIR=str(project / "lectures"),
-                   CVKIT_DB_URL=f"sqlite:///{scratch / 'gradebook.db'}")
-        env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
-        for step in (("db", "assignment", "add", assignment), ("generate_assignment", assignment, "--force")):
-            done = subprocess.run([sys.executable, "-m", "nbgrader", *step], cwd=scratch, env=env,
-                                  capture_output=True, text=True)
-            if done.returncode != 0:
-                raise RuntimeError(f"nbgrader {' '.join(step)} failed:\n{done.stderr[-2000:]}")
-        return (scratch / "gradebook.db").read_bytes()
+EXECUTION_MEMORY_MB = 6144      # address space of the executing process and its kernel
+EXECUTION_WALL_SECONDS = 900    # a whole notebook; a cell has CVKIT_CELL_TIMEOUT (180 s)
 
 
-def execute_submission(project, student: str, assignment: str, files: dict, template: bytes | None = None) -> ExecutedSubmission:
-    """Run a submission's notebooks in a scratch copy of the course (picklable, for Dask).
+def _execution_limits(drop: bool):
+    """``preexec_fn`` of the executing process: resource limits, then ``nobody`` if root."""
+    def limit() -> None:
+        import resource
 
-    The scratch course has its own gradebook and only this submission; the process runs with
-    no grading salt and no path of the real course in its environment and, when started as
-    root, as the unprivileged user ``nobody``, so the student's code cannot reach the real
-    gradebook, other submissions or cvkit's own files. Grades are not decided here: checks in
-    the kernel are no-ops and the trusted checks run later, in :meth:`Course.record`.
+        memory = EXECUTION_MEMORY_MB * 1024 * 1024
+        for which, value in ((resource.RLIMIT_AS, memory), (resource.RLIMIT_CORE, 0),
+                             (resource.RLIMIT_FSIZE, 256 * 1024 * 1024)):
+            resource.setrlimit(which, (value, value))
+        if drop:
+            from .grading.sandbox import _drop_privileges
+
+            _drop_privileges()
+    return limit
+
+
+def execute_submission(project, student: str, assignment: str, files: dict,
+                       releases: dict | None = None) -> ExecutedSubmission:
+    """Run a submission's notebooks in a scratch folder (picklable, for Dask).
+
+    Each notebook is first sanitized here as nbgrader does (locked and test cells restored from
+    its release notebook in ``releases``, outputs cleared), then executed by a disposable
+    ``python -I -m cvkit.grading.execute`` process (:mod:`cvkit.grading.execute`) whose working
+    folder holds only this submission, with no grading salt and no path of the real course in
+    its environment, resource limits, and, when started as root, the unprivileged user
+    ``nobody``: the student's code cannot reach the gradebook, other submissions or cvkit's
+    own files. Grades are not decided here: checks in the kernel are no-ops.
     """
     import tempfile
 
-    from .grading.sandbox import NOBODY, _can_drop_privileges, _drop_privileges
+    from .grading.execute import prepare
+    from .grading.sandbox import NOBODY, _can_drop_privileges
 
-    project = Path(project)
+    releases = releases or {}
     drop = _can_drop_privileges()
     with tempfile.TemporaryDirectory(prefix="cvkit-grade-") as scratch_name:
         scratch = Path(scratch_name)
-        shutil.copy(project / "autograders" / "nbgrader_config.py", scratch / "nbgrader_config.py")
-        if template is None:
-            template = template_gradebook(project, assignment)
-        (scratch / "gradebook.db").write_bytes(template)
-        folder = scratch / "submitted" / student / assignment
+        folder = scratch / student / assignment
         for name, data in files.items():
             target = folder / name
             target.parent.mkdir(parents=True, exist_ok=True)
             target.write_bytes(data)
+        jobs = []
+        for name in sorted(n for n in files if n.endswith(".ipynb")):
+            try:
+                release = json.loads(releases[name]) if name in releases else None
+                prepared = prepare(json.loads(files[name]), release)
+            except (ValueError, TypeError, AttributeError, KeyError) as error:
+                return ExecutedSubmission(student, assignment, {}, False, f"{name}: not a notebook ({error})")
+            (folder / name).write_text(json.dumps(prepared))
+            jobs.append(name)
         if drop:
             for path in [scratch, *scratch.rglob("*")]:
                 os.chown(path, NOBODY, NOBODY)
-        env = {k: v for k, v in os.environ.items() if not k.startswith("CVKIT_")}
+        env = {k: os.environ[k] for k in ("PATH", "LANG", "LC_ALL") if k in os.environ}
         env.update(
-            CVKIT_COURSE_ROOT=str(scratch), CVKIT_SOURCE_DIR=str(project / "lectures"),
-            CVKIT_DB_URL=f"sqlite:///{scratch / 'gradebook.db'}", CVKIT_STUDENT_ID=student,
-            HOME=str(scratch), JUPYTER_RUNTIME_DIR=str(scratch / ".jupyter"), IPYTHONDIR=str(scratch / ".ipython"),
-            MPLCONFIGDIR=str(scratch / ".mpl"), MPLBACKEND="Agg", OMP_NUM_THREADS="1",
-            OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1",
+            HOME=str(scratch), TMPDIR=str(scratch), JUPYTER_RUNTIME_DIR=str(scratch / ".jupyter"),
+            IPYTHONDIR=str(scratch / ".ipython"), MPLCONFIGDIR=str(scratch / ".mpl"), MPLBACKEND="Agg",
+            OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1", PYTHONDONTWRITEBYTECODE="1",
         )
+        if os.environ.get("CVKIT_CELL_TIMEOUT"):
+            env["CVKIT_CELL_TIMEOUT"] = os.environ["CVKIT_CELL_TIMEOUT"]
         env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
-
-        def nbgrader(*args):
-            return subprocess.run([sys.executable, "-m", "nbgrader", *args], cwd=scratch, env=env,
-                                  capture_output=True, text=True, preexec_fn=_drop_privileges if drop else None,
-                                  start_new_session=True)
-
-        log = ""
-        steps = (("autograde", assignment, "--student", student, "--force", "--TrustedChecks.enabled=False"),)
-        for step in steps:
-            done = nbgrader(*step)
-            log += (done.stdout + done.stderr)[-3000:]
-            if done.returncode != 0:
+        notebooks, log = {}, ""
+        for name in jobs:
+            output = scratch / f"executed-{len(notebooks)}.ipynb"
+            try:
+                done = subprocess.run(
+                    [sys.executable, "-I", "-m", "cvkit.grading.execute", str(folder / name), str(output)],
+                    cwd=(folder / name).parent, env=env, capture_output=True, text=True,
+                    preexec_fn=_execution_limits(drop), start_new_session=True, timeout=EXECUTION_WALL_SECONDS,
+                )
+            except subprocess.TimeoutExpired:
+                return ExecutedSubmission(student, assignment, {}, False,
+                                          log + f"{name}: execution exceeded {EXECUTION_WALL_SECONDS} s")
+            log += f"{name}: " + (done.stdout + done.stderr)[-2000:]
+            if done.returncode != 0 or not output.exists():
                 return ExecutedSubmission(student, assignment, {}, False, log)
-        graded = scratch / "autograded" / student / assignment
-        notebooks = {str(p.relative_to(graded)): p.read_text() for p in graded.rglob("*.ipynb")}
+            notebooks[name] = output.read_text()
         return ExecutedSubmission(student, assignment, notebooks, bool(notebooks), log)
+
+
+def grade_submission(project, student: str, assignment: str, files: dict, releases: dict,
+                     sources: dict, salt: str, memory_mb: int = 3072) -> ExecutedSubmission:
+    """Execute a submission (:func:`execute_submission`), then decide its checks with the
+    trusted checks (:func:`cvkit.grading.nbgrader_plugins.apply_trusted_checks`), in this
+    process: the parallel phase of :meth:`Course.grade`, run by a local worker process or a
+    Dask worker. ``sources`` are the instructor's source notebooks (JSON text by file name);
+    ``salt`` is the course's grading salt, so Dask workers must be the instructor's own."""
+    import nbformat
+
+    from .grading.nbgrader_plugins import apply_trusted_checks
+
+    executed = execute_submission(project, student, assignment, files, releases)
+    if not executed.ok:
+        return executed
+    verified = {}
+    for name, text in executed.notebooks.items():
+        try:
+            nb = nbformat.reads(text, as_version=4)
+            source = json.loads(sources[name]) if name in sources else None
+            apply_trusted_checks(nb, student=student, salt=salt, source_notebook=source, memory_mb=memory_mb)
+        except Exception as error:  # leave the decision to the writer's own TrustedChecks
+            executed.log += f"\n{name}: trusted checks in the parallel phase failed ({error!r})"
+            return executed
+        verified[name] = nbformat.writes(nb)
+    executed.notebooks, executed.verified = verified, True
+    return executed
+
+
+def feedback_submissions(root, db_url, project, pairs) -> None:
+    """nbgrader feedback for (student, assignment) pairs of a course, in a worker process."""
+    Course(Path(root), db_url, Path(project)).feedback(pairs)
 
 
 @dataclass
@@ -248,6 +300,39 @@ class Course:
             cwd=self.root, env=self.env(student), capture_output=True, text=True, timeout=timeout,
         )
 
+    _CONFIG_VARIABLES = ("CVKIT_COURSE_ROOT", "CVKIT_SOURCE_DIR", "CVKIT_DB_URL", "CVKIT_GRADING_SALT",
+                         "CVKIT_CELL_TIMEOUT", "CVKIT_TRUSTED_GRADING")
+
+    def nbgrader_api(self, **settings):
+        """nbgrader's own API in this process, configured by the course's ``nbgrader_config.py``
+        (read once, with the course's environment) and ``settings`` such as
+        ``{"Execute.enabled": False}``. In-process steps skip nbgrader's start-up (≈3 s a run)."""
+        import copy
+
+        from nbgrader.apps import NbGraderAPI
+        from nbgrader.coursedir import CourseDirectory
+
+        if getattr(self, "_nbgrader_config", None) is None:
+            from traitlets.config.loader import PyFileConfigLoader
+
+            saved = {k: os.environ.get(k) for k in self._CONFIG_VARIABLES}
+            env = self.env()
+            try:  # the config file reads (and pops) these; restore them for the rest of this process
+                os.environ.update({k: env[k] for k in self._CONFIG_VARIABLES if k in env})
+                self._nbgrader_config = PyFileConfigLoader("nbgrader_config.py", path=str(self.root)).load_config()
+            finally:
+                for key, value in saved.items():
+                    if value is None:
+                        os.environ.pop(key, None)
+                    else:
+                        os.environ[key] = value
+        warnings.filterwarnings("ignore", message=r"Object of type <\w+> not in session")  # nbgrader + SQLAlchemy 2
+        config = copy.deepcopy(self._nbgrader_config)
+        for key, value in settings.items():
+            section, name = key.rsplit(".", 1)
+            config[section][name] = value
+        return NbGraderAPI(coursedir=CourseDirectory(config=config), config=config)
+
     # ------------------------------------------------------------------ build / release
     def build(self, assignments: Iterable[str] | None = None, progress: bool = False) -> list[str]:
         """``nbgrader generate_assignment`` for each chapter; due dates from the plan."""
@@ -338,8 +423,15 @@ class Course:
 
     def autograde_one(self, student: str, assignment: str) -> JobResult:
         """Execute one submission in isolation, then record its trusted grades."""
-        executed = execute_submission(self.project, student, assignment, self._submission_files(student, assignment))
-        return self.record(executed)
+        return self.record(grade_submission(*self._payload(student, assignment)))
+
+    def _payload(self, student: str, assignment: str) -> tuple:
+        """Arguments of :func:`grade_submission` for one submission."""
+        def texts(folder: Path) -> dict[str, str]:
+            return {str(p.relative_to(folder)): p.read_text() for p in sorted(folder.rglob("*.ipynb"))}
+
+        return (str(self.project), student, assignment, self._submission_files(student, assignment),
+                texts(self.root / "release" / assignment), texts(self.source_dir / assignment), self.salt())
 
     def _submission_files(self, student: str, assignment: str) -> dict[str, bytes]:
         folder = self.root / "submitted" / student / assignment
@@ -384,12 +476,16 @@ class Course:
 
     def record_many(self, batch: list, repair: bool = False) -> list[JobResult]:
         """The single writer: nbgrader's own autograde, without execution, on executed
-        notebooks (one nbgrader run per assignment for the whole batch). The trusted checks
-        decide every grade here, and only this process writes the gradebook. A submission
-        whose execution failed is graded from its raw files, so a grade is never lost."""
+        notebooks (one nbgrader run per assignment for the whole batch); only this process
+        writes the gradebook. Notebooks whose checks were decided in the parallel phase are
+        recorded as they are; for any other (execution failed: graded from its raw files, so
+        a grade is never lost; or a repaired copy) nbgrader's TrustedChecks decides here."""
         results = []
-        for assignment in sorted({e.assignment for e in batch}):
-            group = [e for e in batch if e.assignment == assignment]
+        groups = {}
+        for executed in batch:  # one nbgrader run per assignment and kind of verification
+            key = (executed.assignment, bool(executed.verified and executed.ok))
+            groups.setdefault(key, []).append(executed)
+        for (assignment, _), group in sorted(groups.items()):
             staging = self.root / ".cvkit" / "staging"
             shutil.rmtree(staging, ignore_errors=True)
             for executed in group:
@@ -403,11 +499,16 @@ class Course:
                         data = json.dumps(self.repaired(executed.student, assignment, name, json.loads(data))).encode()
                     target.write_bytes(files[name].encode() if name in files else data)
             students = [] if len(group) > 1 else ["--student", group[0].student]
-            done = self.nbgrader(
-                "autograde", assignment, *students, "--force",
-                f"--CourseDirectory.submitted_directory={staging}",
-                "--Execute.enabled=False", "--ClearOutput.enabled=False",
-            )
+            # notebooks verified in the parallel phase carry their verdicts; any other
+            # (execution failed, repaired copy) is verified here by nbgrader's TrustedChecks
+            verified = all(e.verified and e.ok for e in group) and not repair
+            api = self.nbgrader_api(**{
+                "CourseDirectory.submitted_directory": str(staging), "Execute.enabled": False,
+                "ClearOutput.enabled": False, "TrustedChecks.enabled": not verified})
+            outcome = api.autograde(assignment, group[0].student if len(group) == 1 else "*", force=True, create=True)
+            done = subprocess.CompletedProcess(["nbgrader", "autograde", assignment, *students],
+                                               0 if outcome.get("success") else 1,
+                                               outcome.get("log", ""), outcome.get("error", ""))
             shutil.rmtree(staging, ignore_errors=True)
             if done.returncode != 0 and len(group) > 1:  # isolate the submission that fails
                 results += [r for e in group for r in self.record_many([e], repair=repair)]
@@ -439,17 +540,6 @@ class Course:
             meta.setdefault("flags", []).append(flag)
             path.write_text(json.dumps(nb, indent=1))
 
-    def template(self, assignment: str) -> bytes:
-        """The template gradebook of an assignment, cached by its source notebooks."""
-        digest = hashlib.sha256()
-        for path in sorted((self.source_dir / assignment).rglob("*.ipynb")):
-            digest.update(path.read_bytes())
-        cache = self.root / ".cvkit" / "templates" / f"{assignment}-{digest.hexdigest()[:16]}.db"
-        if not cache.exists():
-            cache.parent.mkdir(parents=True, exist_ok=True)
-            cache.write_bytes(template_gradebook(self.project, assignment))
-        return cache.read_bytes()
-
     def grade(
         self,
         assignments: Iterable[str] | None = None,
@@ -457,56 +547,102 @@ class Course:
         scheduler: str | None = None,
         progress: bool = False,
         regrade: bool = False,
+        batch: int | None = None,
     ) -> list[JobResult]:
         """Autograde every submission, then write feedback and the CSV exports.
 
-        Notebooks of different submissions execute concurrently (``workers`` local processes,
-        or the workers of the Dask distributed ``scheduler``; they only need the project, not
-        this course folder); their results come back to this process, which alone writes the
-        gradebook. Submissions graded before from the same files are skipped unless
-        ``regrade``.
+        The parallel phase (:func:`grade_submission`: execution in isolation, then the trusted
+        checks) runs in ``workers`` local processes, or on the workers of the Dask distributed
+        ``scheduler`` (they need the project, not this course folder). Results come back to
+        this process, which alone writes the gradebook, in batches of ``batch`` submissions
+        (default ``3 * workers``: nbgrader's start-up is paid once per batch). Submissions
+        graded before from the same files are skipped unless ``regrade``.
         """
         jobs = self.submissions(assignments)
         todo = [(s, a) for s, a in jobs if regrade or not self.is_graded(s, a)]
-        templates = {a: self.template(a) for a in sorted({a for _, a in todo})}
-        payloads = [(str(self.project), s, a, self._submission_files(s, a), templates[a]) for s, a in todo]
+        payloads = [self._payload(s, a) for s, a in todo]
+        batch = max(1, batch if batch is not None else 3 * max(1, workers))
+        if payloads:
+            self.nbgrader_api()  # load nbgrader and the configuration while the workers start
         results: list[JobResult] = []
         bar = _progress(None, "autograde", progress, total=len(payloads))
+        finished: list = []
+        owners: dict = {}
+        recorded_pairs: list = []
 
-        def drain(done_futures) -> None:
-            # record everything that has finished so far in one writer pass
-            batch = [f.result() for f in done_futures]
-            results.extend(self.record_many(batch))
-            if bar is not None:
-                bar.update(len(batch))
+        def outcome(future) -> ExecutedSubmission:
+            try:
+                return future.result()
+            except Exception as error:  # a lost worker: the writer grades the raw files
+                student, assignment = owners[future]
+                return ExecutedSubmission(student, assignment, {}, False, f"parallel phase failed: {error!r}")
+
+        def drain(done_futures, pending_count: int) -> None:
+            # record what has finished, once a batch is full or nothing else is coming
+            finished.extend(outcome(f) for f in done_futures)
+            if finished and (len(finished) >= batch or pending_count == 0):
+                written = list(finished)
+                finished.clear()
+                recorded = self.record_many(written)
+                results.extend(recorded)
+                recorded_pairs.extend((r.student, r.assignment) for r in recorded if r.ok)
+                if bar is not None:
+                    bar.update(len(written))
 
         if scheduler and payloads:
             from dask.distributed import Client, wait
 
             with Client(scheduler) as client:
-                pending = {client.submit(execute_submission, *payload, pure=False) for payload in payloads}
+                owners.update({client.submit(grade_submission, *payload, pure=False): payload[1:3]
+                               for payload in payloads})
+                pending = set(owners)
                 while pending:
-                    finished = wait(pending, return_when="FIRST_COMPLETED").done
-                    pending -= finished
-                    drain(finished)
+                    done = wait(pending, return_when="FIRST_COMPLETED").done
+                    pending -= done
+                    drain(done, len(pending))
         elif payloads:
-            with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-                pending = {pool.submit(execute_submission, *payload) for payload in payloads}
+            import multiprocessing
+
+            context = multiprocessing.get_context("spawn")  # no inherited threads or state
+            with concurrent.futures.ProcessPoolExecutor(max_workers=max(1, workers), mp_context=context) as pool:
+                owners.update({pool.submit(grade_submission, *payload): payload[1:3] for payload in payloads})
+                pending = set(owners)
                 while pending:
-                    finished, pending = concurrent.futures.wait(pending, return_when=concurrent.futures.FIRST_COMPLETED)
-                    drain(finished)
+                    done, pending = concurrent.futures.wait(pending, return_when=concurrent.futures.FIRST_COMPLETED)
+                    drain(done, len(pending))
+                # feedback pages (nbconvert, CPU-heavy) by the same workers, now that all is written
+                chunks = [recorded_pairs[i::max(1, workers)] for i in range(max(1, workers))]
+                steps = {pool.submit(feedback_submissions, str(self.root), self.db_url, str(self.project), chunk): chunk
+                         for chunk in chunks if chunk}
+                for step, chunk in steps.items():
+                    try:
+                        step.result()
+                    except Exception:  # a lost worker: this process writes them (below)
+                        pass
         if bar is not None:
             bar.close()
-        missing = self.audit(jobs)
+        missing = missing_before = self.audit(jobs)
         for student, assignment in missing:  # never lose a grade: one more, plain attempt
             results = [r for r in results if (r.student, r.assignment) != (student, assignment)]
             results.append(self.autograde_one(student, assignment))
         missing = self.audit(jobs)
         results += [JobResult(s, a, 1, 0, "no grade recorded after autograding") for s, a in missing]
-        for assignment in sorted({a for _, a in jobs}):
-            self.nbgrader("generate_feedback", assignment, "--force")
+        retried = [(r.student, r.assignment) for r in results if r.ok and (r.student, r.assignment) in missing_before]
+        self.feedback(retried + [(s, a) for s, a in jobs if not (self.root / "feedback" / s / a).is_dir()])
         self.export()
         return sorted(results, key=lambda r: (r.assignment, r.student))
+
+    def feedback(self, submissions: Iterable[tuple[str, str]]) -> None:
+        """nbgrader's ``generate_feedback`` (in this process) for these (student, assignment)
+        pairs: HTML pages with the trusted reports, hidden tests' source removed."""
+        pairs = sorted(set(submissions))
+        if not pairs:
+            return
+        api = self.nbgrader_api()
+        for student, assignment in pairs:
+            outcome = api.generate_feedback(assignment, student_id=student, force=True)
+            if not outcome.get("success"):
+                raise RuntimeError(f"feedback for {student}/{assignment} failed:\n{outcome.get('error', '')[-2000:]}")
 
     def audit(self, jobs: Iterable[tuple[str, str]]) -> list[tuple[str, str]]:
         """Submissions with no autograded notebook or no grade in the gradebook."""
@@ -533,7 +669,11 @@ class Course:
 
         target = self.root / "exports" / "grades.csv"
         target.parent.mkdir(exist_ok=True)
-        self.nbgrader("export", f"--to={target}")
+        from nbgrader.api import Gradebook
+        from nbgrader.plugins import CsvExportPlugin
+
+        with Gradebook(self.db_url) as gradebook:
+            CsvExportPlugin(to=str(target)).export(gradebook)
         with (self.root / "exports" / "exercises.csv").open("w", newline="") as handle:
             writer = csv.writer(handle)
             writer.writerow(["assignment", "student", "exercise", "score", "max_score", "mistakes", "problems", "flags"])

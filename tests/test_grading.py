@@ -252,6 +252,42 @@ def test_report_html_shows_images_and_json_roundtrip():
     assert MIME_TYPE.startswith("application/vnd.cvkit")
 
 
+def _html_elements(page: str) -> list[tuple[str, dict]]:
+    from html.parser import HTMLParser
+
+    found = []
+
+    class Collect(HTMLParser):
+        def handle_starttag(self, tag, attrs):
+            found.append((tag, dict(attrs)))
+
+    Collect().feed(page)
+    return found
+
+
+def test_report_html_is_accessible():
+    """Alt text on every image, the verdict in words (not only colour), colours from the
+    JupyterLab theme variables so the dark theme stays readable."""
+    import re
+
+    failing = evaluate("testing.shift_right", lambda image, steps=1: np.roll(image, steps, axis=0))
+    passing = evaluate("testing.shift_right", lambda image, steps=1: _shift(image, steps))
+    for report, word in ((failing, "FAILED"), (passing, "passed")):
+        page = report._repr_html_()
+        elements = _html_elements(page)
+        images = [attrs for tag, attrs in elements if tag == "img"]
+        assert all(len(attrs.get("alt", "").strip()) > 20 for attrs in images), images
+        assert word in page  # the verdict is a word, not only a colour
+        cases = page.split("<tbody>")[1]
+        assert cases.count(" pass") + cases.count("<b>fail</b>") == len(report.cases)
+        assert all(attrs.get("scope") == "col" for tag, attrs in elements if tag == "th")
+        for colour in re.findall(r"color:\s*([^;'\"]+)", page):
+            assert colour.startswith("var(--jp-"), f"hard-coded colour {colour!r} ignores the theme"
+    alts = [attrs["alt"] for tag, attrs in _html_elements(failing._repr_html_()) if tag == "img"]
+    assert len(alts) == 3 and alts[0].startswith("Your output") and alts[1].startswith("Expected output")
+    assert "difference" in alts[2]
+
+
 def test_close_comparator_nan_inf_and_tuples():
     cmp = close(rtol=0, atol=1e-9)
     assert cmp(np.array([1.0, np.nan, np.inf]), np.array([1.0, np.nan, np.inf])) is None

@@ -49,29 +49,9 @@ class TrustedChecks(NbGraderPreprocessor):
             path = Path(self.source_directory) / info["assignment"] / f"{info['notebook']}.ipynb"
             if path.exists():
                 source_nb = json.loads(path.read_text())
-        grade = grade_notebook(nb, student=student, salt=self.salt or "practice", source_notebook=source_nb,
-                               memory_mb=self.memory_mb)
-        for cell in nb.cells:
-            meta = cell.metadata.get("nbgrader", {})
-            grade_id = meta.get("grade_id")
-            if not (meta.get("grade") and not meta.get("solution")) or grade_id not in grade.reports:
-                continue
-            outputs = [new_output("display_data", data=_bundle(report)) for _, report in grade.reports[grade_id]]
-            credit, reasons = grade.credit(grade_id, float(meta.get("points", 0)))
-            hidden = any(call.hidden for call, _ in grade.reports[grade_id])
-            if hidden:
-                outputs.append(new_output("execute_result", data={"text/plain": repr(credit)},
-                                          execution_count=cell.get("execution_count")))
-            elif credit <= 0:
-                message = "; ".join(reasons) or "failed"
-                outputs.append(new_output("error", ename="AssertionError", evalue=message,
-                                          traceback=[f"AssertionError: {message}"]))
-            cell.outputs = outputs
-        cvkit_meta = dict(nb.metadata.get("cvkit", {}))
-        cvkit_meta.update(trusted=True, flags=grade.flags, worker_problem=grade.worker_problem,
-                          cell_errors=grade.cell_errors[:20])
-        nb.metadata["cvkit"] = cvkit_meta
-        for flag in grade.flags:
+        flags = apply_trusted_checks(nb, student=student, salt=self.salt or "practice", source_notebook=source_nb,
+                                     memory_mb=self.memory_mb)
+        for flag in flags:
             self.log.warning("cvkit flag for %s: %s", student, flag)
         return nb, resources
 
@@ -88,6 +68,37 @@ class HideHiddenTests(NbGraderPreprocessor):
         if cell.cell_type == "code" and "### BEGIN HIDDEN TESTS" in cell.source:
             cell.source = hide_hidden_tests(cell.source)
         return cell, resources
+
+
+def apply_trusted_checks(nb, *, student: str, salt: str, source_notebook=None, memory_mb: int = 3072) -> list[str]:
+    """Decide every check of ``nb`` (a NotebookNode) outside the student's kernel and put the
+    verdicts in place: each test cell's outputs become the trusted reports and its credit
+    (an error for a failed visible test, the partial credit of a hidden one), which is what
+    nbgrader's ``SaveAutoGrades`` records. Returns the flags of the static scan, which also go
+    into ``nb.metadata.cvkit``. Used by :class:`TrustedChecks` and by the parallel phase of
+    :meth:`cvkit.course.Course.grade`."""
+    grade = grade_notebook(nb, student=student, salt=salt, source_notebook=source_notebook, memory_mb=memory_mb)
+    for cell in nb.cells:
+        meta = cell.metadata.get("nbgrader", {})
+        grade_id = meta.get("grade_id")
+        if not (meta.get("grade") and not meta.get("solution")) or grade_id not in grade.reports:
+            continue
+        outputs = [new_output("display_data", data=_bundle(report)) for _, report in grade.reports[grade_id]]
+        credit, reasons = grade.credit(grade_id, float(meta.get("points", 0)))
+        hidden = any(call.hidden for call, _ in grade.reports[grade_id])
+        if hidden:
+            outputs.append(new_output("execute_result", data={"text/plain": repr(credit)},
+                                      execution_count=cell.get("execution_count")))
+        elif credit <= 0:
+            message = "; ".join(reasons) or "failed"
+            outputs.append(new_output("error", ename="AssertionError", evalue=message,
+                                      traceback=[f"AssertionError: {message}"]))
+        cell.outputs = outputs
+    cvkit_meta = dict(nb.metadata.get("cvkit", {}))
+    cvkit_meta.update(trusted=True, flags=grade.flags, worker_problem=grade.worker_problem,
+                      cell_errors=grade.cell_errors[:20])
+    nb.metadata["cvkit"] = cvkit_meta
+    return list(grade.flags)
 
 
 def trusted_grading_active() -> bool:

@@ -135,35 +135,60 @@ class Report:
 
     # ---------------------------------------------------------------- HTML for JupyterLab
     def _repr_html_(self) -> str:
-        colour = "#1a7f37" if self.passed else "#cf222e"
+        """The report for JupyterLab and the feedback pages.
+
+        Accessible by construction: the verdict is a word (PASSED / FAILED) and a symbol as
+        well as a colour; every image has an alt text saying what it shows; colours come from
+        JupyterLab's theme variables (with light-theme fallbacks for plain HTML), so the
+        report stays readable in the dark theme. Text is always in the theme's main text
+        colour; green and red only mark the border and the ✓ / ✗ symbol, because no pair of
+        theme greens/reds keeps a 4.5:1 text contrast in both the light and the dark theme."""
+        verdict = "passed" if self.passed else "failed"
+        accent = _SUCCESS if self.passed else _ERROR
+        title = html.escape(self.summary().splitlines()[0])
         parts = [
-            f'<div class="cvkit-report" style="border-left:4px solid {colour};padding:4px 10px;font-family:sans-serif">',
-            f"<b style='color:{colour}'>{html.escape(self.summary().splitlines()[0])}</b>",
+            f'<section class="cvkit-report cvkit-{verdict}" role="region" aria-label="{title}" '
+            f'style="border-left:4px solid {accent};padding:4px 10px;font-family:var(--jp-content-font-family, sans-serif);'
+            f'color:{_TEXT}">',
+            f"<p class='cvkit-summary' style='margin:2px 0;font-weight:bold;color:{_TEXT}'>"
+            f"<span aria-hidden='true' style='color:{accent}'>{'✓' if self.passed else '✗'} </span>{title}</p>",
         ]
         if self.mistake:
             parts.append(
-                f"<p>Your output matches a known mistake: <b>{html.escape(self.mistake)}</b>. "
+                f"<p class='cvkit-mistake'>Your output matches a known mistake: <b>{html.escape(self.mistake)}</b>. "
                 f"{html.escape(self.hint or '')}</p>"
             )
         rows = []
         for case in self.cases:
-            mark = "✓" if case.passed else "✗"
+            mark = (f"<span aria-hidden='true'>{'✓' if case.passed else '✗'}</span> "
+                    f"{'pass' if case.passed else '<b>fail</b>'}")
             detail = "" if case.passed else html.escape(case.message.splitlines()[0] if case.message else "")
             rows.append(
-                f"<tr><td>{mark}</td><td>{html.escape(case.label)}</td>"
+                f"<tr><td style='white-space:nowrap'>{mark}</td><td>{html.escape(case.label)}</td>"
                 f"<td><code>{html.escape(case.description[:120])}</code></td><td>{detail}</td></tr>"
             )
-        parts.append("<table style='font-size:90%'><tr><th></th><th>case</th><th>input</th><th>problem</th></tr>"
-                     + "".join(rows) + "</table>")
+        kind = "hidden" if self.hidden else "visible"
+        parts.append(f"<table class='cvkit-cases' style='font-size:90%;color:{_TEXT}'>"
+                     f"<caption style='text-align:left;color:{_MUTED}'>{len(self.cases)} {kind} cases</caption>"
+                     "<thead><tr><th scope='col'>result</th><th scope='col'>case</th><th scope='col'>input</th>"
+                     "<th scope='col'>problem</th></tr></thead><tbody>" + "".join(rows) + "</tbody></table>")
         failing = [c for c in self.cases if not c.passed]
         if failing:
             first = failing[0]
-            parts.append(f"<pre style='font-size:85%'>{html.escape(first.message)}</pre>")
+            parts.append(f"<pre class='cvkit-message' style='font-size:85%;color:{_TEXT}'>{html.escape(first.message)}</pre>")
             if first.traceback:
-                parts.append(f"<pre style='font-size:80%;color:#555'>{html.escape(first.traceback)}</pre>")
+                parts.append(f"<pre class='cvkit-traceback' style='font-size:80%;color:{_MUTED}'>"
+                             f"{html.escape(first.traceback)}</pre>")
             parts.append(_image_comparison(first))
-        parts.append("</div>")
+        parts.append("</section>")
         return "".join(parts)
+
+
+# JupyterLab theme variables, with fallbacks (GitHub's light palette) for plain HTML pages
+_TEXT = "var(--jp-content-font-color1, #1f2328)"
+_MUTED = "var(--jp-content-font-color2, #59636e)"
+_SUCCESS = "var(--jp-success-color1, #1a7f37)"
+_ERROR = "var(--jp-error-color1, #cf222e)"
 
 
 def _png(array: np.ndarray, vmin: float, vmax: float, cmap: str) -> str:
@@ -198,17 +223,25 @@ def _image_comparison(case: CaseResult) -> str:
         hi = lo + 1.0
     scale = max(1, 160 // max(exp.shape[:2]))
     style = f"image-rendering:pixelated;width:{exp.shape[1] * scale}px"
+    shape = "×".join(str(n) for n in exp.shape)
+    where = f"case {case.index + 1} ({case.label})"
     try:
         tiles = [
-            ("yours", _png(got, lo, hi, "gray")),
-            ("expected", _png(exp, lo, hi, "gray")),
-            (f"|difference| (max {diff.max():.3g})", _png(diff, 0.0, float(diff.max()) or 1.0, "magma")),
+            ("yours", f"Your output for {where}: a {shape} image, grey levels {lo:.3g} (black) to {hi:.3g} (white)",
+             _png(got, lo, hi, "gray")),
+            ("expected", f"Expected output for {where}: a {shape} image on the same grey scale",
+             _png(exp, lo, hi, "gray")),
+            (f"|difference| (max {diff.max():.3g})",
+             f"Absolute difference between your output and the expected one for {where}: dark where they agree, "
+             f"bright where they differ; the largest difference is {diff.max():.3g}",
+             _png(diff, 0.0, float(diff.max()) or 1.0, "magma")),
         ]
     except Exception:
         return ""
     cells = "".join(
-        f"<figure style='display:inline-block;margin:4px'><img style='{style}' src='data:image/png;base64,{data}'/>"
+        f"<figure style='display:inline-block;margin:4px'><img style='{style}' alt='{html.escape(alt, quote=True)}' "
+        f"src='data:image/png;base64,{data}'/>"
         f"<figcaption style='font-size:80%;text-align:center'>{html.escape(name)}</figcaption></figure>"
-        for name, data in tiles
+        for name, alt, data in tiles
     )
-    return f"<div>{cells}</div>"
+    return f"<div class='cvkit-images'>{cells}</div>"

@@ -1,0 +1,105 @@
+"""Execution of a student's notebook for autograding, in a disposable process.
+
+The parallel phase of ``cvkit course grade`` runs every submitted notebook once, so that the
+feedback shows the student's own figures and printed results. Grades are *not* decided by this
+run (test cells are no-ops in the kernel, ``CVKIT_TRUSTED_GRADING=1``); they are decided
+afterwards by the trusted checks (:mod:`cvkit.grading.trusted`).
+
+The steps mirror nbgrader's autograde, with nbgrader's own settings:
+
+1. :func:`prepare` (trusted side) — nbgrader's *sanitizing* steps: the source of every locked
+   or test cell is put back from the release notebook (matched by grade id, as nbgrader's
+   ``OverwriteCells`` does), outputs are cleared and the kernel is the release's.
+2. ``python -I -m cvkit.grading.execute IN OUT`` (the caller starts it as ``nobody`` when it
+   runs as root, in a scratch folder, with a scrubbed environment and resource limits) — the
+   notebook is executed with :mod:`nbclient` as nbgrader's ``Execute`` preprocessor does:
+   errors are recorded and execution goes on, a cell that exceeds its time limit is
+   interrupted and gets a ``CellTimeoutError``.
+
+Running this small program instead of a whole ``nbgrader autograde`` per submission saves
+nbgrader's start-up and database work (about 4 s per notebook); nbgrader itself still records
+every grade, in one batched run (:meth:`cvkit.course.Course.record_many`).
+"""
+from __future__ import annotations
+
+import copy
+import json
+import os
+import sys
+
+CELL_TIMEOUT_VARIABLE = "CVKIT_CELL_TIMEOUT"
+DEFAULT_CELL_TIMEOUT = 180
+TIMEOUT_ERROR = {
+    "ename": "CellTimeoutError",
+    "evalue": "",
+    "traceback": ["\x1b[0;31mCellTimeoutError\x1b[0m: No reply from kernel before timeout"],
+}
+
+
+def _nbgrader_meta(cell: dict) -> dict:
+    return dict(cell.get("metadata", {}).get("nbgrader", {}) or {})
+
+
+def prepare(notebook: dict, release: dict | None) -> dict:
+    """The notebook as nbgrader would execute it: locked and test cells restored from
+    ``release`` (by grade id), every output cleared. ``notebook`` is not modified."""
+    nb = copy.deepcopy(notebook)
+    originals = {}
+    if release is not None:
+        for cell in release.get("cells", []):
+            meta = _nbgrader_meta(cell)
+            if meta.get("grade_id") and (meta.get("locked") or (meta.get("grade") and not meta.get("solution"))):
+                originals[meta["grade_id"]] = cell
+        kernelspec = release.get("metadata", {}).get("kernelspec")
+        if kernelspec:
+            nb.setdefault("metadata", {})["kernelspec"] = copy.deepcopy(kernelspec)
+    for index, cell in enumerate(nb.get("cells", [])):
+        meta = _nbgrader_meta(cell)
+        original = originals.get(meta.get("grade_id"))
+        if original is not None and not meta.get("solution"):
+            cell = nb["cells"][index] = dict(cell, source=original["source"], cell_type=original["cell_type"],
+                                             metadata=copy.deepcopy(original.get("metadata", {})))
+        if cell.get("cell_type") == "code":
+            cell["outputs"] = []
+            cell["execution_count"] = None
+        else:
+            cell.pop("outputs", None)
+            cell.pop("execution_count", None)
+    return nb
+
+
+def execute(notebook: dict, folder: str, timeout: int | None = None) -> dict:
+    """Run ``notebook`` (a dict) in a fresh kernel with working directory ``folder``."""
+    import nbformat
+    from nbclient import NotebookClient
+
+    nb = nbformat.reads(json.dumps(notebook), as_version=4)  # joins multi-line sources
+    timeout = int(os.environ.get(CELL_TIMEOUT_VARIABLE, DEFAULT_CELL_TIMEOUT)) if timeout is None else timeout
+    kernel = (nb.metadata.get("kernelspec") or {}).get("name") or "python3"
+    client = NotebookClient(
+        nb, timeout=timeout, kernel_name=kernel, allow_errors=True, interrupt_on_timeout=True,
+        raise_on_iopub_timeout=True, error_on_timeout=TIMEOUT_ERROR, record_timing=False,
+        extra_arguments=["--HistoryManager.hist_file=:memory:"] if kernel.startswith("python") else [],
+        resources={"metadata": {"path": folder}},
+    )
+    client.execute()
+    return json.loads(nbformat.writes(nb))
+
+
+def main(argv: list[str] | None = None) -> int:  # pragma: no cover - runs in the disposable process
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) != 2:
+        print("usage: python -m cvkit.grading.execute IN.ipynb OUT.ipynb", file=sys.stderr)
+        return 2
+    source, target = argv
+    os.environ["CVKIT_TRUSTED_GRADING"] = "1"  # the kernel's check() calls are no-ops
+    with open(source, encoding="utf-8") as handle:
+        notebook = json.load(handle)
+    executed = execute(notebook, os.path.dirname(os.path.abspath(source)))
+    with open(target, "w", encoding="utf-8") as handle:
+        json.dump(executed, handle, indent=1)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

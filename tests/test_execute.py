@@ -1,0 +1,83 @@
+"""The execution step of autograding (cvkit.grading.execute): nbgrader's sanitizing rules,
+then a run that records errors, goes on after them and interrupts a cell past its limit."""
+import copy
+import json
+import subprocess
+import sys
+
+from cvkit.grading.execute import TIMEOUT_ERROR, execute, prepare
+
+
+def _cell(source, grade_id=None, *, solution=False, grade=False, locked=False, outputs=None):
+    meta = {}
+    if grade_id:
+        meta["nbgrader"] = {"grade_id": grade_id, "solution": solution, "grade": grade, "locked": locked,
+                            "schema_version": 3}
+        if grade:
+            meta["nbgrader"]["points"] = 1
+    return {"cell_type": "code", "source": source, "metadata": meta, "execution_count": 3 if outputs else None,
+            "outputs": outputs or []}
+
+
+FAKE_PASS = [{"output_type": "stream", "name": "stdout", "text": "all tests passed\n"}]
+
+
+def _release():
+    return {"nbformat": 4, "nbformat_minor": 5,
+            "metadata": {"kernelspec": {"name": "python3", "display_name": "Python 3", "language": "python"}},
+            "cells": [_cell("x = 1", "setup", locked=True),
+                      _cell("# YOUR CODE HERE", "answer", solution=True),
+                      _cell("assert answer() == 2", "answer_test", grade=True, locked=True)]}
+
+
+def test_prepare_restores_locked_and_test_cells_and_clears_outputs():
+    release = _release()
+    submitted = copy.deepcopy(release)
+    submitted["metadata"]["kernelspec"] = {"name": "evil", "display_name": "x", "language": "python"}
+    submitted["cells"][0] = _cell("x = 2  # changed", "setup", locked=True, outputs=FAKE_PASS)
+    submitted["cells"][1] = _cell("def answer():\n    return 2", "answer", solution=True, outputs=FAKE_PASS)
+    submitted["cells"][2] = _cell("pass  # the test, emptied", "answer_test", grade=True, outputs=FAKE_PASS)
+    submitted["cells"].append(_cell("print('mine')", outputs=FAKE_PASS))
+    before = json.dumps(submitted, sort_keys=True)
+    prepared = prepare(submitted, release)
+    assert json.dumps(submitted, sort_keys=True) == before, "the submission must not be modified"
+    sources = [c["source"] for c in prepared["cells"]]
+    assert sources == ["x = 1", "def answer():\n    return 2", "assert answer() == 2", "print('mine')"]
+    assert all(c["outputs"] == [] and c["execution_count"] is None for c in prepared["cells"])
+    assert prepared["metadata"]["kernelspec"]["name"] == "python3"
+
+
+def test_prepare_restores_a_test_cell_retyped_as_markdown():
+    release = _release()
+    submitted = copy.deepcopy(release)
+    submitted["cells"][2] = {"cell_type": "markdown", "source": "nothing to see", "metadata": submitted["cells"][2]["metadata"]}
+    prepared = prepare(submitted, release)
+    assert prepared["cells"][2]["cell_type"] == "code" and prepared["cells"][2]["source"] == "assert answer() == 2"
+
+
+def test_execute_records_errors_goes_on_and_interrupts_long_cells(tmp_path):
+    nb = _release()
+    nb["cells"] = [
+        _cell("import os\nprint(os.environ.get('CVKIT_TRUSTED_GRADING'))"),
+        _cell(["raise ValueError(", "'boom')"]),            # a multi-line source, as stored on disk
+        _cell("import time\ntime.sleep(30)"),
+        _cell("print('still running')"),
+    ]
+    done = execute(nb, str(tmp_path), timeout=3)
+    outputs = [c["outputs"] for c in done["cells"]]
+    assert outputs[1][0]["ename"] == "ValueError"
+    assert outputs[2][-1]["ename"] in ("KeyboardInterrupt", TIMEOUT_ERROR["ename"])  # interrupted
+    assert "".join(outputs[3][0]["text"]) == "still running\n"
+    assert all(c["execution_count"] for c in done["cells"])
+
+
+def test_command_line_marks_checks_as_decided_elsewhere(tmp_path):
+    nb = _release()
+    nb["cells"] = [_cell("import os\nprint(os.environ.get('CVKIT_TRUSTED_GRADING'))")]
+    source, target = tmp_path / "in.ipynb", tmp_path / "out.ipynb"
+    source.write_text(json.dumps(nb))
+    subprocess.run([sys.executable, "-m", "cvkit.grading.execute", str(source), str(target)], check=True,
+                   capture_output=True, timeout=120)
+    assert "".join(json.loads(target.read_text())["cells"][0]["outputs"][0]["text"]) == "1\n"
+    bad = subprocess.run([sys.executable, "-m", "cvkit.grading.execute", str(source)], capture_output=True, text=True)
+    assert bad.returncode == 2 and "usage" in bad.stderr
