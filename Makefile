@@ -11,4 +11,4 @@ bench:
 bench-grading:
 	python3 scripts/_venv.py && .venv/bin/python benchmarks/bench_grading.py
 clean:
-	rm -rf .venv cvkit-demo autograders/release autograders/submitted autograders/autograded autograders/feedback autograders/*.db
+	rm -rf .venv cvkit-demo artefacts autograders/release autograders/submitted autograders/autograded autograders/feedback autograders/*.db
