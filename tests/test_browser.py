@@ -166,6 +166,19 @@ def _run_notebook(browser, url: str, token: str, name: str, shot: str, timeout_s
     return page
 
 
+def _retry(what: str, page, shot: str, action, ready, attempts: int = 3):
+    """Do ``action`` until ``ready`` succeeds (a slow first page load on a loaded machine must
+    not fail the test); on the last failure save a screenshot and say which step it was."""
+    for attempt in range(attempts):
+        try:
+            action()
+            ready()
+            return
+        except sync_api.TimeoutError:
+            page.screenshot(path=str(ARTEFACTS / f"{shot}-timeout-{attempt}.png"), full_page=True)
+    pytest.fail(f"{what} did not appear after {attempts} attempts (screenshots: {shot}-timeout-*.png)")
+
+
 # code cells still waiting to run: not executed yet, and not after a cell that raised
 _RUN_STATE = """() => {
     const panel = window.jupyterapp.shell.currentWidget;
@@ -348,12 +361,10 @@ def test_formgrader_lists_the_autograded_samples(browser, course):
                                       extra_http_headers={"Authorization": f"token {token}"})
         page = context.new_page()
         page.set_default_timeout(60_000)
-        page.goto(f"{url}/formgrader/manage_submissions/{CHAPTER}")
         rows = page.locator("table tbody tr")
-        try:
-            rows.filter(has_text="sample_mistakes").first.wait_for()
-        finally:
-            page.screenshot(path=str(ARTEFACTS / "formgrader-submissions.png"), full_page=True)
+        _retry("the formgrader's submission list", page, "formgrader-submissions",
+               lambda: page.goto(f"{url}/formgrader/manage_submissions/{CHAPTER}"),
+               lambda: rows.filter(has_text="sample_mistakes").first.wait_for(timeout=30_000))
         for student, (score, max_score) in expected.items():
             row = rows.filter(has_text=student).first
             text = " ".join(row.text_content().split())
@@ -362,10 +373,13 @@ def test_formgrader_lists_the_autograded_samples(browser, course):
         page.screenshot(path=str(ARTEFACTS / "formgrader-submissions.png"), full_page=True)
 
         # and from inside JupyterLab: the Nbgrader menu opens the formgrader in a tab
-        page.goto(f"{url}/lab?token={token}")
-        page.locator(".jp-LabShell").wait_for()
-        page.evaluate("() => window.jupyterapp.commands.execute('nbgrader:open-formgrader')")
+        def open_formgrader():
+            page.goto(f"{url}/lab?token={token}")
+            page.locator(".jp-LabShell").wait_for()
+            page.evaluate("() => window.jupyterapp.commands.execute('nbgrader:open-formgrader')")
+
         frame = page.frame_locator("iframe").first
-        frame.get_by_text(CHAPTER).first.wait_for()
+        _retry("the formgrader inside JupyterLab", page, "formgrader-in-jupyterlab", open_formgrader,
+               lambda: frame.get_by_text(CHAPTER).first.wait_for(timeout=30_000))
         page.screenshot(path=str(ARTEFACTS / "formgrader-in-jupyterlab.png"))
         context.close()

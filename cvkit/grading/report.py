@@ -164,14 +164,16 @@ class Report:
                     f"{'pass' if case.passed else '<b>fail</b>'}")
             detail = "" if case.passed else html.escape(case.message.splitlines()[0] if case.message else "")
             rows.append(
-                f"<tr><td style='white-space:nowrap'>{mark}</td><td>{html.escape(case.label)}</td>"
-                f"<td><code>{html.escape(case.description[:120])}</code></td><td>{detail}</td></tr>"
+                f"<tr><td style='white-space:nowrap;{_LEFT}'>{mark}</td><td style='{_LEFT}'>{html.escape(case.label)}</td>"
+                f"<td style='{_LEFT}'><code>{html.escape(case.description[:120])}</code></td>"
+                f"<td style='{_LEFT}'>{detail}</td></tr>"
             )
         kind = "hidden" if self.hidden else "visible"
         parts.append(f"<table class='cvkit-cases' style='font-size:90%;color:{_TEXT}'>"
                      f"<caption style='text-align:left;color:{_MUTED}'>{len(self.cases)} {kind} cases</caption>"
-                     "<thead><tr><th scope='col'>result</th><th scope='col'>case</th><th scope='col'>input</th>"
-                     "<th scope='col'>problem</th></tr></thead><tbody>" + "".join(rows) + "</tbody></table>")
+                     "<thead><tr>" + "".join(f"<th scope='col' style='{_LEFT}'>{name}</th>"
+                                             for name in ("result", "case", "input", "problem"))
+                     + "</tr></thead><tbody>" + "".join(rows) + "</tbody></table>")
         failing = [c for c in self.cases if not c.passed]
         if failing:
             first = failing[0]
@@ -189,6 +191,7 @@ _TEXT = "var(--jp-content-font-color1, #1f2328)"
 _MUTED = "var(--jp-content-font-color2, #59636e)"
 _SUCCESS = "var(--jp-success-color1, #1a7f37)"
 _ERROR = "var(--jp-error-color1, #cf222e)"
+_LEFT = "text-align:left;vertical-align:top"  # JupyterLab right-aligns table cells by default
 
 
 def _png(array: np.ndarray, vmin: float, vmax: float, cmap: str) -> str:
