@@ -87,6 +87,18 @@ def test_numerical_gradient_properties():
     assert learn.numerical_gradient(lambda v: float(v.sum() ** 2), np.array([1, 2]))[0] == pytest.approx(6.0)  # int x
     with pytest.raises(TypeError, match="f must return a single number"):
         learn.numerical_gradient(lambda v: v, np.ones(3))
+
+
+@pytest.mark.parametrize("layout", ["transposed", "fortran", "axes swapped", "strided"])
+def test_numerical_gradient_of_a_non_contiguous_x(layout):
+    # the coordinates must be moved in the array f sees, whatever the memory layout of x
+    base = np.arange(1.0, 25.0).reshape(2, 3, 4) / 7
+    x = {"transposed": base[0].T, "fortran": np.asfortranarray(base[1]),
+         "axes swapped": base.transpose(1, 0, 2), "strided": base[:, ::2, ::-1]}[layout]
+    before = x.copy()
+    g = learn.numerical_gradient(lambda v: float(np.sum(v ** 2)), x)
+    assert g.shape == x.shape and _rel(g, 2 * x) < 1e-9
+    assert np.array_equal(x, before)
     with pytest.raises(TypeError, match="f must be a callable"):
         learn.numerical_gradient(np.ones(3), np.ones(3))
 

@@ -67,6 +67,15 @@ def test_bilinear_sample_colour_shapes_and_exact_pixels():
     np.testing.assert_array_equal(warp.bilinear_sample(u8, 2.0, 3.0), u8[3, 2].astype(float))
 
 
+def test_bilinear_sample_inside_is_exactly_the_closed_pixel_range():
+    img = np.arange(20.0).reshape(4, 5)
+    for x, y, inside in [(0.0, 1.0, True), (4.0, 3.0, True), (-1e-16, 1.0, False), (1.0, -1e-300, False),
+                         (4.0 + 1e-15, 1.0, False), (2.0, 3.0 + 4e-16, False)]:
+        got = warp.bilinear_sample(img, [x], [y], fill=-1.0)[0]
+        want = scipy.ndimage.map_coordinates(img, [[y], [x]], order=1, mode="constant", cval=-1.0)[0]
+        assert (got != -1.0) == inside and got == pytest.approx(want), (x, y, got, want)
+
+
 def test_bilinear_sample_is_linear_in_the_image_and_exact_on_planes():
     a, b = _image((5, 6), 1), _image((5, 6), 2)
     x, y = np.random.default_rng(0).uniform(0, 4, (2, 50))

@@ -254,7 +254,9 @@ def numerical_gradient(f, x, eps=1e-5):
         raise TypeError(f"f must be a callable returning a number, got {type(f).__name__}")
     point = as_float_array(x, "x", allow_empty=True)
     eps = check_real(eps, "eps", positive=True)
-    work = np.array(point, dtype=np.float64, copy=True)
+    # C order, so that the flat reshape below is a view (for a transposed or Fortran-ordered x
+    # it would be a copy, and f would never see the moved coordinate)
+    work = np.array(point, dtype=np.float64, order="C", copy=True)
     flat = work.reshape(-1)  # a view: moving flat[i] moves work
     grad = np.empty(flat.size)
 

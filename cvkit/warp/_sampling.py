@@ -87,7 +87,6 @@ def bilinear_sample(image, x, y, fill=0.0):
     except ValueError:
         raise ValueError(f"x and y must have the same (or broadcastable) shapes, got {xs.shape} and {ys.shape}") from None
     H, W = img.shape[:2]
-    cx, cy = (W - 1) / 2.0, (H - 1) / 2.0
     flat = img.reshape(H * W, -1) if img.ndim == 3 else img.reshape(-1)
     dx, dy = (1 if W > 1 else 0), (W if H > 1 else 0)
     right, below, diagonal = flat[dx:], flat[dy:], flat[dy + dx:]    # shifted views: no index arithmetic
@@ -97,7 +96,9 @@ def bilinear_sample(image, x, y, fill=0.0):
         xc, yc = x[start:start + _CHUNK], y[start:start + _CHUNK]
         with np.errstate(invalid="ignore"):
             # outside: beyond [0, W − 1] × [0, H − 1], or NaN (every comparison with NaN is False)
-            outside = ~((np.abs(xc - cx) <= cx) & (np.abs(yc - cy) <= cy))
+            # (compared with 0 and W − 1 themselves: |x − c| ≤ c with c = (W − 1)/2 would let
+            # a tiny negative x round to inside)
+            outside = ~((xc >= 0) & (xc <= W - 1) & (yc >= 0) & (yc <= H - 1))
             # the left/top neighbour: truncation is the floor for the positions inside (≥ 0),
             # kept one pixel from the far edge so that x = W − 1 uses a = 1 (positions outside
             # get some index in the image, and `fill` below)
