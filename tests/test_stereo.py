@@ -56,6 +56,28 @@ def test_block_matching_equals_the_definition_on_integer_images(cost, shape, max
 
 
 @pytest.mark.parametrize("cost", stereo.COSTS)
+@pytest.mark.parametrize("levels", [2, 4])
+def test_ties_go_to_the_smallest_d_on_images_with_few_grey_levels(cost, levels):
+    """Few grey levels make exact ties common: the chosen d is the first whose score equals the
+    best (for ZNCC within 1e-9, far above the round-off of the direct sums of cost_volume)."""
+    rng = np.random.default_rng(levels)
+    for trial in range(40):
+        h, w = int(rng.integers(1, 5)), int(rng.integers(3, 12))
+        left, right = (rng.integers(0, levels, (h, w)).astype(float) for _ in range(2))
+        max_disparity, block_size = int(rng.integers(0, w)), int(rng.choice([1, 3, 5]))
+        got = stereo.block_matching(left, right, max_disparity, block_size, cost)
+        volume = stereo.cost_volume(left, right, max_disparity, block_size, cost)
+        if cost == "zncc":
+            best = np.nanmax(volume, axis=0)
+            first = np.argmax(np.nan_to_num(volume, nan=-9) >= best - 1e-9, axis=0)
+        else:
+            first = np.argmax(volume == np.nanmin(volume, axis=0), axis=0)
+        np.testing.assert_array_equal(got, first, err_msg=f"trial {trial}: {left.tolist()} {right.tolist()} "
+                                                          f"D={max_disparity} b={block_size}")
+    assert stereo.block_matching([[1, 3, 0, 3, 3, 0]], [[3, 0, 1, 0, 0, 0]], 5, 3, "zncc")[0, 3] == 1
+
+
+@pytest.mark.parametrize("cost", stereo.COSTS)
 def test_block_matching_equals_the_vectorised_definition_on_float_images(cost):
     left, right = _pair(5, 20, 30, shift=4)
     got = stereo.block_matching(left, right, 8, 5, cost)

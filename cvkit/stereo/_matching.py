@@ -30,6 +30,12 @@ COSTS = ("sad", "ssd", "zncc")
 # dozen passes of one disparity run over it.
 _BAND_ELEMENTS = 48 * 1024
 
+# Ties: scores this close to the best so far count as equal, so that round-off of the running
+# sums cannot take a tie away from the smallest d. ZNCC: absolute, on its [-1, 1] scale; SAD and
+# SSD: relative (their sums are exact on integer-valued images, where ties are common).
+_ZNCC_TIE = 1e-9
+_SUM_TIE = 1e-12
+
 
 def _check_cost(cost) -> str:
     if not isinstance(cost, str) or cost not in COSTS:
@@ -139,7 +145,8 @@ def block_matching(left, right, max_disparity, block_size=7, cost="sad"):
     (H, W) int64 ndarray
         The disparity of every left pixel: the winner-takes-all d over the candidates, ties
         going to the smallest d (so a pixel with no information, e.g. in a flat region,
-        gets 0).
+        gets 0). Scores that differ by round-off only are ties: ZNCC values within 1e-9,
+        SAD/SSD values within a relative 1e-12.
 
     Raises
     ------
@@ -200,6 +207,12 @@ def block_matching(left, right, max_disparity, block_size=7, cost="sad"):
         sum_r, inv_r = _window_stats(right_p, b)
         sum_l /= b * b                               # n·L̄·R̄ = (Σ L / n)·Σ R
 
+        # The running sums leave round-off in the scores: a ZNCC within _ZNCC_TIE of the best so
+        # far is a tie (the smaller d stays). The score below is −ZNCC·‖L − L̄‖, so the slack
+        # of each pixel is _ZNCC_TIE·‖L − L̄‖ (0 for a flat left window, set to d = 0 anyway).
+        with np.errstate(divide="ignore"):
+            slack = np.where(inv_l > 0, _ZNCC_TIE / np.where(inv_l > 0, inv_l, 1.0), 0.0)
+
     band = max(8, _BAND_ELEMENTS // wp)
     term = np.empty((band + 2 * r, wp))
     scratch = (np.empty((band + 2 * r, wp)), np.empty((band + 2 * r, wp)))
@@ -239,7 +252,12 @@ def block_matching(left, right, max_disparity, block_size=7, cost="sad"):
                 continue
             target = best_band[:, d:]
             mask = better[:h, :n]
-            np.less(s, target, out=mask)             # strict: ties keep the smaller d
+            limit = tmp[:h, :n]                      # better means below this (ties keep the smaller d)
+            if cost == "zncc":
+                np.subtract(target, slack[y0:y1, d:], out=limit)
+            else:                                    # SAD, SSD ≥ 0: exact for integer images
+                np.multiply(target, 1.0 - _SUM_TIE, out=limit)
+            np.less(s, limit, out=mask)
             np.copyto(target, s, where=mask)
             np.copyto(disparity_band[:, d:], d, where=mask)
     if cost == "zncc":
