@@ -76,6 +76,8 @@ def check_real(value, name: str, *, positive: bool = False, nonnegative: bool = 
 
 def as_rng(rng) -> np.random.Generator:
     """``rng`` (a Generator, an int seed or None) as a ``numpy.random.Generator``."""
+    if isinstance(rng, (numbers.Integral, np.integer)) and not isinstance(rng, bool) and rng < 0:
+        raise ValueError(f"rng as an int seed must be >= 0, got {rng}")
     if rng is None or isinstance(rng, (numbers.Integral, np.integer)) and not isinstance(rng, bool):
         return np.random.default_rng(rng)
     if isinstance(rng, np.random.Generator):

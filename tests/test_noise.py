@@ -248,3 +248,9 @@ def test_bad_levels(name, value):
 def test_bad_rng(rng):
     _raises(TypeError, "rng", noise.add_gaussian, good, 1.0, rng=rng)
     _raises(TypeError, "rng", noise.add_salt_and_pepper, good, 0.5, rng=rng)
+
+
+@pytest.mark.parametrize("rng", [-1, np.int64(-7)])
+def test_negative_seed_is_named(rng):
+    _raises(ValueError, "rng", noise.add_gaussian, good, 1.0, rng=rng)
+    _raises(ValueError, "rng", noise.add_salt_and_pepper, good, 0.5, rng=rng)
