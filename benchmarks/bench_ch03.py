@@ -13,18 +13,13 @@ only: OpenCV runs multi-threaded and, for the median and NLM, on uint8 data.
 """
 from __future__ import annotations
 
-import argparse
-import os
-import platform
-import statistics
 import sys
-import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE.parent), str(HERE)]  # cvkit and _timing from this checkout, however started
 
 import scipy
 import scipy.ndimage as ndi
@@ -34,24 +29,12 @@ from skimage.restoration import denoise_bilateral, denoise_nl_means
 
 from cvkit.filters import bilateral, gaussian, median, nl_means
 
-try:
-    import cv2
-except ImportError:  # OpenCV is a test-only dependency
-    cv2 = None
+from _timing import BenchmarkParser, Row, Targets, comparison_table, machine_line, optional_import, timeit
+
+cv2 = optional_import("cv2")  # OpenCV is a test-only dependency
 
 NOISE_SIGMA = 20 / 255
 OPENCV_BEST_PSNR = 29.4  # dB, the quality target (OpenCV's best on this input)
-
-
-def timeit(fn, repeats: int) -> float:
-    """Median wall time of ``repeats`` calls, in ms, after one warm-up call."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return 1e3 * statistics.median(times)
 
 
 def psnr(estimate: np.ndarray, clean: np.ndarray) -> float:
@@ -60,32 +43,6 @@ def psnr(estimate: np.ndarray, clean: np.ndarray) -> float:
 
 def to_uint8(image: np.ndarray) -> np.ndarray:
     return np.clip(np.round(image * 255), 0, 255).astype(np.uint8)
-
-
-@dataclass
-class Row:
-    operation: str
-    ours_ms: float
-    peer: str
-    peer_ms: float
-    target: float | None  # maximal ratio, None = informative
-    strict: bool = False  # ratio must be < target instead of <=
-
-    @property
-    def ratio(self) -> float:
-        return self.ours_ms / self.peer_ms
-
-    @property
-    def verdict(self) -> str:
-        if self.target is None:
-            return "info"
-        ok = self.ratio < self.target if self.strict else self.ratio <= self.target
-        return "ok" if ok else "MISSED"
-
-    def target_text(self) -> str:
-        if self.target is None:
-            return "informative"
-        return f"{'<' if self.strict else '<='} {self.target:g}x"
 
 
 def timing_rows(clean: np.ndarray, noisy: np.ndarray, repeats: int, nlm_h: float) -> list[Row]:
@@ -152,45 +109,22 @@ def psnr_rows(clean: np.ndarray, noisy: np.ndarray, quick: bool) -> list[tuple[s
     return out
 
 
-def machine_line() -> str:
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    parts = [
-        f"CPUs {os.cpu_count()} (usable {usable})",
-        platform.processor() or platform.machine(),
-        f"Python {platform.python_version()}",
-        f"numpy {np.__version__}",
-        f"scipy {scipy.__version__}",
-        f"scikit-image {skimage.__version__}",
-        f"opencv {cv2.__version__} ({cv2.getNumThreads()} threads)" if cv2 is not None else "opencv not installed",
-    ]
-    return "machine: " + ", ".join(parts)
-
-
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="2 repeats and coarser h grids (about a minute)")
-    parser.add_argument("--repeats", type=int, default=None, help="timing repeats (default 5, or 2 with --quick)")
+    parser = BenchmarkParser(__doc__, repeats=5, quick_repeats=2, quick_help="2 repeats and coarser h grids (about a minute)")
     parser.add_argument("--no-psnr", action="store_true", help="skip the NLM quality search")
-    parser.add_argument("--check", action="store_true", help="exit with status 1 if a target is missed")
     args = parser.parse_args(argv)
-    repeats = args.repeats or (2 if args.quick else 5)
+    repeats = args.repeats
 
     clean = skdata.camera().astype(np.float64) / 255.0
     noisy = clean + np.random.default_rng(0).normal(0.0, NOISE_SIGMA, clean.shape)
-    print(machine_line())
+    print(machine_line(scipy, skimage, opencv=cv2))
     print(f"images: skimage camera {clean.shape} float64 in [0, 1]; noisy = + N(0, (20/255)²), seed 0; "
           f"{repeats} repeats (median)\n")
 
     rows = timing_rows(clean, noisy, repeats, nlm_h=0.072)
-    header = f"{'operation':<15} {'cvkit ms':>9}  {'peer':<36} {'peer ms':>9} {'ratio':>7}  {'target':<12} {'':<6}"
-    print(header)
-    print("-" * len(header))
-    for row in rows:
-        print(f"{row.operation:<15} {row.ours_ms:>9.1f}  {row.peer:<36} {row.peer_ms:>9.1f} {row.ratio:>6.2f}x  {row.target_text():<12} {row.verdict:<6}")
-    missed = [row for row in rows if row.verdict == "MISSED"]
+    comparison_table(rows)
+    targets = Targets()
+    targets.check_rows(rows)
 
     if not args.no_psnr:
         print(f"\nNLM quality on camera + σ=20/255 noise: best PSNR over h (target: cvkit >= {OPENCV_BEST_PSNR} dB)")
@@ -198,13 +132,10 @@ def main(argv=None) -> int:
         print(f"  noisy input: {psnr(noisy, clean):.2f} dB")
         for name, value, _h, h_text in results:
             print(f"  {name:<44} {value:6.2f} dB   at h = {h_text}")
-        if results[0][1] < OPENCV_BEST_PSNR:
-            missed.append(results[0][0])
+        if targets.check(results[0][0], results[0][1] >= OPENCV_BEST_PSNR) == "MISSED":
             print("  MISSED: cvkit's best PSNR is below the target")
 
-    if missed:
-        print(f"\n{len(missed)} target(s) missed (timings are noisy on a loaded machine: rerun to confirm)")
-    return 1 if (missed and args.check) else 0
+    return targets.finish(args.check)
 
 
 if __name__ == "__main__":

@@ -18,18 +18,13 @@ smoothing; we blur with ``cv2.GaussianBlur`` first and include that time).
 """
 from __future__ import annotations
 
-import argparse
-import os
-import platform
-import statistics
 import sys
-import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE.parent), str(HERE)]  # cvkit and _timing from this checkout, however started
 
 import scipy
 import scipy.ndimage as ndi
@@ -41,45 +36,11 @@ from skimage import filters as skfilters
 from cvkit import edges, filters
 from cvkit.edges.checks import edge_f1
 
-try:
-    import cv2
-except ImportError:  # OpenCV is a test-only dependency
-    cv2 = None
+from _timing import BenchmarkParser, Row, Targets, comparison_table, machine_line, optional_import, timeit
+
+cv2 = optional_import("cv2")  # OpenCV is a test-only dependency
 
 SIGMA, LOW, HIGH = 1.4, 0.1, 0.2
-
-
-def timeit(fn, repeats: int) -> float:
-    """Median wall time of ``repeats`` calls, in ms, after one warm-up call."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return 1e3 * statistics.median(times)
-
-
-@dataclass
-class Row:
-    operation: str
-    ours_ms: float
-    peer: str
-    peer_ms: float
-    target: float | None  # maximal ratio, None = informative
-
-    @property
-    def ratio(self) -> float:
-        return self.ours_ms / self.peer_ms
-
-    @property
-    def verdict(self) -> str:
-        if self.target is None:
-            return "info"
-        return "ok" if self.ratio <= self.target else "MISSED"
-
-    def target_text(self) -> str:
-        return "informative" if self.target is None else f"<= {self.target:g}x"
 
 
 def largest_magnitude(image: np.ndarray) -> float:
@@ -164,57 +125,29 @@ def _canny_l1(image):
     return canny_check.mistake("L1 magnitude instead of L2").function(image, SIGMA, LOW, HIGH)
 
 
-def machine_line() -> str:
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    parts = [
-        f"CPUs {os.cpu_count()} (usable {usable})",
-        platform.processor() or platform.machine(),
-        f"Python {platform.python_version()}",
-        f"numpy {np.__version__}",
-        f"scipy {scipy.__version__}",
-        f"scikit-image {skimage.__version__}",
-        f"opencv {cv2.__version__} ({cv2.getNumThreads()} threads)" if cv2 is not None else "opencv not installed",
-    ]
-    return "machine: " + ", ".join(parts)
-
-
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="3 repeats")
-    parser.add_argument("--repeats", type=int, default=None, help="timing repeats (default 7, or 3 with --quick)")
-    parser.add_argument("--check", action="store_true", help="exit with status 1 if a target is missed")
-    args = parser.parse_args(argv)
-    repeats = args.repeats or (3 if args.quick else 7)
+    args = BenchmarkParser(__doc__, repeats=7, quick_repeats=3).parse_args(argv)
+    repeats = args.repeats
 
     camera = skdata.camera().astype(np.float64) / 255.0
-    print(machine_line())
+    print(machine_line(scipy, skimage, opencv=cv2))
     print(f"image: skimage camera {camera.shape} float64 in [0, 1]; Canny σ = {SIGMA}, thresholds {LOW} / {HIGH} "
           f"of the largest magnitude; {repeats} repeats (median)\n")
 
     rows = timing_rows(camera, repeats)
-    header = f"{'operation':<19} {'cvkit ms':>9}  {'peer':<50} {'peer ms':>9} {'ratio':>7}  {'target':<12} {'':<6}"
-    print(header)
-    print("-" * len(header))
-    for row in rows:
-        print(f"{row.operation:<19} {row.ours_ms:>9.1f}  {row.peer:<50} {row.peer_ms:>9.1f} {row.ratio:>6.2f}x  "
-              f"{row.target_text():<12} {row.verdict:<6}")
-    missed = [row for row in rows if row.verdict == "MISSED"]
+    comparison_table(rows)
+    targets = Targets()
+    targets.check_rows(rows)
 
     print("\nCanny agreement with skimage.feature.canny (same σ and thresholds): F1 of the edge maps")
     images = {"camera 512×512": camera, "coins 303×384": skdata.coins().astype(np.float64) / 255.0}
     for name, f1_1, f1_0, f1_l1, n_ours, n_theirs in agreement_rows(images):
         print(f"  {name:<16} F1 within 1 px {f1_1:.4f}, exact {f1_0:.4f}  ({n_ours} vs {n_theirs} edge pixels); "
               f"an L1-magnitude Canny vs ours: F1 within 1 px {f1_l1:.4f}")
-        if f1_1 < 0.95:
-            missed.append(name)
+        if targets.check(f"Canny agreement on {name}", f1_1 >= 0.95) == "MISSED":
             print("  MISSED: F1 within 1 px below 0.95")
 
-    if missed:
-        print(f"\n{len(missed)} target(s) missed (timings are noisy on a loaded machine: rerun to confirm)")
-    return 1 if (missed and args.check) else 0
+    return targets.finish(args.check)
 
 
 if __name__ == "__main__":

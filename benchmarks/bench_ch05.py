@@ -17,18 +17,13 @@ OpenCV's SIFT runs on the uint8 image with all its threads; cvkit and scikit-ima
 """
 from __future__ import annotations
 
-import argparse
-import os
-import platform
-import statistics
 import sys
-import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE.parent), str(HERE)]  # cvkit and _timing from this checkout, however started
 
 import scipy
 import skimage
@@ -38,48 +33,14 @@ from skimage import feature
 
 from cvkit import features
 
-try:
-    import cv2
-except ImportError:  # OpenCV is a test-only dependency
-    cv2 = None
+from _timing import BenchmarkParser, Row, Targets, comparison_table, machine_line, optional_import, timeit
+
+cv2 = optional_import("cv2")  # OpenCV is a test-only dependency
 
 try:
     from scipy.spatial import cKDTree
 except ImportError:  # pragma: no cover
     cKDTree = None
-
-
-def timeit(fn, repeats: int) -> float:
-    """Median wall time of ``repeats`` calls, in ms, after one warm-up call."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return 1e3 * statistics.median(times)
-
-
-@dataclass
-class Row:
-    operation: str
-    ours_ms: float
-    peer: str
-    peer_ms: float
-    target: float | None  # maximal ratio, None = informative
-
-    @property
-    def ratio(self) -> float:
-        return self.ours_ms / self.peer_ms
-
-    @property
-    def verdict(self) -> str:
-        if self.target is None:
-            return "info"
-        return "ok" if self.ratio <= self.target else "MISSED"
-
-    def target_text(self) -> str:
-        return "informative" if self.target is None else f"<= {self.target:g}x"
 
 
 def skimage_sift(image):
@@ -166,63 +127,30 @@ def quality(pair) -> tuple[list[tuple[str, int, int]], tuple, float]:
     return out, (d1, d2), recall
 
 
-def machine_line() -> str:
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    parts = [
-        f"CPUs {os.cpu_count()} (usable {usable})",
-        platform.processor() or platform.machine(),
-        f"Python {platform.python_version()}",
-        f"numpy {np.__version__}",
-        f"scipy {scipy.__version__}",
-        f"scikit-image {skimage.__version__}",
-        f"opencv {cv2.__version__} ({cv2.getNumThreads()} threads)" if cv2 is not None else "opencv not installed",
-    ]
-    try:
-        parts.append(f"load average {os.getloadavg()[0]:.1f}")
-    except OSError:
-        pass
-    return "machine: " + ", ".join(parts)
-
-
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="2 repeats")
-    parser.add_argument("--repeats", type=int, default=None, help="timing repeats (default 5, or 2 with --quick)")
-    parser.add_argument("--check", action="store_true", help="exit with status 1 if a target is missed")
-    args = parser.parse_args(argv)
-    repeats = args.repeats or (2 if args.quick else 5)
+    args = BenchmarkParser(__doc__, repeats=5, quick_repeats=2).parse_args(argv)
+    repeats = args.repeats
 
     camera = skdata.camera().astype(np.float64) / 255.0
-    print(machine_line())
+    print(machine_line(scipy, skimage, opencv=cv2))
     print(f"image: skimage camera {camera.shape} float64 in [0, 1]; {repeats} repeats (median)\n")
 
     results, descriptors, recall = quality(rotation_scale_pair())
     rows = timing_rows(camera, descriptors, repeats)
-    header = f"{'operation':<22} {'cvkit ms':>9}  {'peer':<38} {'peer ms':>9} {'ratio':>7}  {'target':<12} {'':<6}"
-    print(header)
-    print("-" * len(header))
-    for row in rows:
-        print(f"{row.operation:<22} {row.ours_ms:>9.1f}  {row.peer:<38} {row.peer_ms:>9.1f} {row.ratio:>6.2f}x  "
-              f"{row.target_text():<12} {row.verdict:<6}")
-    missed = [row.operation for row in rows if row.verdict == "MISSED"]
+    comparison_table(rows)
+    targets = Targets()
+    targets.check_rows(rows)
 
     print("\nastronaut vs itself rotated 30° and scaled 0.8 (ratio test 0.8, correct = within 3 px of the transform):")
     for name, good, total in results:
         print(f"  {name:<16} {good:4d} correct of {total:4d} matches ({100 * good / max(total, 1):.1f} %)")
     good, total = results[0][1], results[0][2]
-    if good < 600 or good < 0.95 * total:
-        missed.append("SIFT matching quality")
+    if targets.check("SIFT matching quality", good >= 600 and good >= 0.95 * total) == "MISSED":
         print("  MISSED: cvkit needs at least 600 correct matches at >= 95 % precision")
     print(f"Best-Bin-First (200 checks) recall@1 on the astronaut descriptors: {recall:.3f} (target >= 0.9)")
-    if recall < 0.9:
-        missed.append("BBF recall")
+    targets.check("BBF recall", recall >= 0.9)
 
-    if missed:
-        print(f"\n{len(missed)} target(s) missed: {', '.join(missed)} (timings are noisy on a loaded machine: rerun to confirm)")
-    return 1 if (missed and args.check) else 0
+    return targets.finish(args.check)
 
 
 if __name__ == "__main__":

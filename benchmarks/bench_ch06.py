@@ -16,19 +16,16 @@ works in float32 (the image is converted, conversion included), SAD has no libra
 """
 from __future__ import annotations
 
-import argparse
 import math
-import os
-import platform
 import statistics
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE.parent), str(HERE)]  # cvkit and _timing from this checkout, however started
 
 import skimage
 from skimage import feature
@@ -36,43 +33,9 @@ from skimage import transform as sktransform
 
 from cvkit import data, detection, edges
 
-try:
-    import cv2
-except ImportError:  # OpenCV is a test-only dependency
-    cv2 = None
+from _timing import BenchmarkParser, Row, Targets, comparison_table, machine_line, optional_import, timeit
 
-
-def timeit(fn, repeats: int) -> float:
-    """Median wall time of ``repeats`` calls, in ms, after one warm-up call."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return 1e3 * statistics.median(times)
-
-
-@dataclass
-class Row:
-    operation: str
-    ours_ms: float
-    peer: str
-    peer_ms: float
-    target: float | None  # maximal ratio, None = informative
-
-    @property
-    def ratio(self) -> float:
-        return self.ours_ms / self.peer_ms
-
-    @property
-    def verdict(self) -> str:
-        if self.target is None:
-            return "info"
-        return "ok" if self.ratio <= self.target else "MISSED"
-
-    def target_text(self) -> str:
-        return "informative" if self.target is None else f"<= {self.target:g}x"
+cv2 = optional_import("cv2")  # OpenCV is a test-only dependency
 
 
 def timing_rows(repeats: int) -> list[Row]:
@@ -134,26 +97,19 @@ def ght_rate(scenes: int = 10) -> tuple[int, float]:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="3 repeats instead of 7")
-    parser.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
-    args = parser.parse_args(argv)
-    repeats = 3 if args.quick else 7
-    print(f"cvkit Chapter 6 benchmark — Python {platform.python_version()}, NumPy {np.__version__}, "
-          f"scikit-image {skimage.__version__}, OpenCV {cv2.__version__ if cv2 else 'absent'}, "
-          f"{os.cpu_count()} CPUs, median of {repeats}")
+    args = BenchmarkParser(__doc__, repeats=7, quick_repeats=3).parse_args(argv)
+    repeats = args.repeats
+    print(machine_line(skimage, opencv=cv2))
+    print(f"{repeats} repeats (median)\n")
     rows = timing_rows(repeats)
-    width = max(len(r.operation) for r in rows)
-    peer_width = max(len(r.peer) for r in rows)
-    print(f"{'operation':{width}s}  {'cvkit ms':>9s}  {'peer':{peer_width}s}  {'peer ms':>9s}  {'ratio':>6s}  target")
-    for r in rows:
-        print(f"{r.operation:{width}s}  {r.ours_ms:9.2f}  {r.peer:{peer_width}s}  {r.peer_ms:9.2f}  "
-              f"{r.ratio:6.2f}  {r.target_text()} {r.verdict}")
+    comparison_table(rows, digits=2)
+    targets = Targets()
+    targets.check_rows(rows)
     found, ms = ght_rate()
-    print(f"GHT, 5 scales × 36 angles on 112×112 scenes with clutter and 30% occlusion: found in {found} / 10 "
+    print(f"\nGHT, 5 scales × 36 angles on 112×112 scenes with clutter and 30% occlusion: found in {found} / 10 "
           f"(target >= 9), median {ms:.0f} ms per scene")
-    missed = [r for r in rows if r.verdict == "MISSED"] + ([] if found >= 9 else ["ght"])
-    return 1 if (args.check and missed) else 0
+    targets.check("GHT detection rate", found >= 9)
+    return targets.finish(args.check)
 
 
 if __name__ == "__main__":

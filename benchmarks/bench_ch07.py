@@ -20,58 +20,25 @@ on a loaded machine, stalls of 100 ms.
 """
 from __future__ import annotations
 
-import argparse
 import itertools
 import os
-import platform
-import statistics
 import sys
-import time
-from dataclasses import dataclass
 from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE.parent), str(HERE)]  # cvkit and _timing from this checkout, however started
 
 from cvkit import camera  # noqa: E402
 
-try:
-    import cv2
-except ImportError:  # OpenCV is a test-only dependency
-    cv2 = None
+from _timing import (  # noqa: E402
+    BenchmarkParser, Row, Targets, comparison_table, limit_checks, machine_line, optional_import, timeit,
+)
 
-
-def timeit(fn, repeats: int) -> float:
-    """Median wall time of ``repeats`` calls, in ms, after one warm-up call."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return 1e3 * statistics.median(times)
-
-
-@dataclass
-class Row:
-    operation: str
-    ours_ms: float
-    peer: str
-    peer_ms: float
-    target: float | None  # maximal ratio, None = informative
-
-    @property
-    def ratio(self) -> float:
-        return self.ours_ms / self.peer_ms
-
-    @property
-    def verdict(self) -> str:
-        if self.target is None:
-            return "info"
-        return "ok" if self.ratio <= self.target else "MISSED"
+cv2 = optional_import("cv2")  # OpenCV is a test-only dependency
 
 
 def cv2_distortion(k, p) -> np.ndarray:
@@ -156,55 +123,26 @@ def timing_rows(n: int, repeats: int) -> list[Row]:
     return rows
 
 
-def machine_line() -> str:
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    parts = [
-        f"CPUs {os.cpu_count()} (usable {usable})",
-        platform.processor() or platform.machine(),
-        f"Python {platform.python_version()}",
-        f"numpy {np.__version__} (OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')})",
-        f"opencv {cv2.__version__} ({cv2.getNumThreads()} threads)" if cv2 is not None else "opencv not installed",
-    ]
-    return "machine: " + ", ".join(parts)
-
-
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="3 repeats, 50 000 points")
-    parser.add_argument("--repeats", type=int, default=None, help="timing repeats (default 7, or 3 with --quick)")
+    parser = BenchmarkParser(__doc__, repeats=7, quick_repeats=3, quick_help="3 repeats, 50 000 points")
     parser.add_argument("--points", type=int, default=None, help="points per timing (default 200 000)")
-    parser.add_argument("--check", action="store_true", help="exit with status 1 if a target is missed")
     args = parser.parse_args(argv)
     if cv2 is None:
         print("OpenCV is not installed: nothing to compare with (pip install opencv-python-headless)")
         return 1 if args.check else 0
-    repeats = args.repeats or (3 if args.quick else 7)
+    repeats = args.repeats
     n = args.points or (50_000 if args.quick else 200_000)
-    print(machine_line())
+    print(machine_line(opencv=cv2))
 
-    missed = []
+    targets = Targets()
     print("\nagreement (targets of issue 6)")
-    for what, value, target in accuracy_rows():
-        verdict = "ok" if value <= target else "MISSED"
-        print(f"  {what:<82} {value:9.2e}  <= {target:g}  {verdict}")
-        if verdict != "ok":
-            missed.append(what)
+    limit_checks(accuracy_rows(), targets, fmt=".2e")
 
     print(f"\nspeed: {n} points, {repeats} repeats (median)")
-    header = f"{'operation':<18} {'cvkit ms':>9}  {'OpenCV':<36} {'ms':>9} {'ratio':>7}  {'target':<11} {'':<6}"
-    print(header)
-    print("-" * len(header))
-    for row in timing_rows(n, repeats):
-        target = "informative" if row.target is None else f"<= {row.target:g}x"
-        print(f"{row.operation:<18} {row.ours_ms:>9.2f}  {row.peer:<36} {row.peer_ms:>9.2f} {row.ratio:>6.2f}x  {target:<11} {row.verdict:<6}")
-        if row.verdict == "MISSED":
-            missed.append(row.operation)
-    if missed:
-        print(f"\n{len(missed)} target(s) missed (timings are noisy on a loaded machine: rerun to confirm)")
-    return 1 if (missed and args.check) else 0
+    rows = timing_rows(n, repeats)
+    comparison_table(rows, digits=2, peer="OpenCV", peer_ms="ms")
+    targets.check_rows(rows)
+    return targets.finish(args.check)
 
 
 if __name__ == "__main__":

@@ -26,58 +26,24 @@ matrices here are small, and BLAS threads on a loaded machine cause stalls of 10
 """
 from __future__ import annotations
 
-import argparse
 import os
-import platform
-import statistics
 import sys
-import time
-from dataclasses import dataclass
 from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE.parent), str(HERE)]  # cvkit and _timing from this checkout, however started
 
 from cvkit import calibration, data, warp  # noqa: E402
 
-try:
-    import cv2
-except ImportError:  # OpenCV is a test-only dependency
-    cv2 = None
+from _timing import (  # noqa: E402
+    BenchmarkParser, Row, Targets, comparison_table, limit_checks, machine_line, optional_import, timeit,
+)
 
-
-def timeit(fn, repeats: int) -> float:
-    """Median wall time of ``repeats`` calls, in ms, after one warm-up call."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return 1e3 * statistics.median(times)
-
-
-@dataclass
-class Row:
-    operation: str
-    ours_ms: float
-    peer: str
-    peer_ms: float | None
-    target: float | None          # maximal ratio (or, with peer_ms None, maximal ms); None = informative
-
-    @property
-    def ratio(self) -> float | None:
-        return None if self.peer_ms is None else self.ours_ms / self.peer_ms
-
-    @property
-    def verdict(self) -> str:
-        if self.target is None:
-            return "info"
-        value = self.ours_ms if self.peer_ms is None else self.ratio
-        return "ok" if value <= self.target else "MISSED"
+cv2 = optional_import("cv2")  # OpenCV is a test-only dependency
 
 
 def _order_error(found, truth) -> float:
@@ -203,66 +169,25 @@ def timing_rows(repeats: int) -> list[Row]:
     return rows
 
 
-def machine_line() -> str:
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    import skimage
-
-    parts = [
-        f"CPUs {os.cpu_count()} (usable {usable})",
-        platform.processor() or platform.machine(),
-        f"Python {platform.python_version()}",
-        f"numpy {np.__version__} (OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')})",
-        f"scikit-image {skimage.__version__}",
-        f"opencv {cv2.__version__} ({cv2.getNumThreads()} threads)" if cv2 is not None else "opencv not installed",
-    ]
-    return "machine: " + ", ".join(parts)
-
-
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="3 repeats, 6 rendered views")
-    parser.add_argument("--repeats", type=int, default=None, help="timing repeats (default 7, or 3 with --quick)")
-    parser.add_argument("--check", action="store_true", help="exit with status 1 if a target is missed")
-    args = parser.parse_args(argv)
+    args = BenchmarkParser(__doc__, repeats=7, quick_repeats=3, quick_help="3 repeats, 6 rendered views").parse_args(argv)
     if cv2 is None:
         print("OpenCV is not installed: nothing to compare with (pip install opencv-python-headless)")
         return 1 if args.check else 0
-    repeats = args.repeats or (3 if args.quick else 7)
-    print(machine_line())
+    repeats = args.repeats
+    import skimage
 
-    missed = []
+    print(machine_line(skimage, opencv=cv2))
+
+    targets = Targets()
     print("\nagreement (targets of issue 7)")
-    for what, value, target in accuracy_rows(6 if args.quick else 12):
-        if target is None:
-            print(f"  {what:<104} {value:9.3g}")
-            continue
-        verdict = "ok" if value <= target else "MISSED"
-        print(f"  {what:<104} {value:9.3g}  <= {target:g}  {verdict}")
-        if verdict != "ok":
-            missed.append(what)
+    limit_checks(accuracy_rows(6 if args.quick else 12), targets, fmt=".3g")
 
     print(f"\nspeed: {repeats} repeats (median)")
-    header = (f"{'operation':<24} {'cvkit ms':>9}  {'peer':<40} {'ms':>9} {'ratio':>7}  {'target':<12} {'':<6}")
-    print(header)
-    print("-" * len(header))
-    for row in timing_rows(repeats):
-        if row.target is None:
-            target = "informative"
-        elif row.peer_ms is None:
-            target = f"<= {row.target:g} ms"
-        else:
-            target = f"<= {row.target:g}x"
-        peer_ms = "" if row.peer_ms is None else f"{row.peer_ms:9.2f}"
-        ratio = "" if row.ratio is None else f"{row.ratio:6.2f}x"
-        print(f"{row.operation:<24} {row.ours_ms:>9.2f}  {row.peer:<40} {peer_ms:>9} {ratio:>7}  {target:<12} {row.verdict:<6}")
-        if row.verdict == "MISSED":
-            missed.append(row.operation)
-    if missed:
-        print(f"\n{len(missed)} target(s) missed (timings are noisy on a loaded machine: rerun to confirm)")
-    return 1 if (missed and args.check) else 0
+    rows = timing_rows(repeats)
+    comparison_table(rows, digits=2, peer_ms="ms")
+    targets.check_rows(rows)
+    return targets.finish(args.check)
 
 
 if __name__ == "__main__":

@@ -22,19 +22,16 @@ cvkit / peer.
 """
 from __future__ import annotations
 
-import argparse
-import os
-import platform
 import statistics
 import sys
 import time
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE.parent), str(HERE)]  # cvkit and _timing from this checkout, however started
 
 import sklearn
 from sklearn.cluster import KMeans
@@ -45,43 +42,11 @@ from sklearn.neighbors import KNeighborsClassifier
 from cvkit import data
 from cvkit.learn import kmeans, knn_predict, linear_scores, sgd_train
 
-try:
-    import cv2
-except ImportError:  # OpenCV is a test-only dependency
-    cv2 = None
+from _timing import BenchmarkParser, Row, Targets, comparison_table, machine_line, measure, optional_import, timeit
+
+cv2 = optional_import("cv2")  # OpenCV is a test-only dependency
 
 INERTIA_TOLERANCE = 0.01
-
-
-def timeit(fn, repeats: int) -> tuple[float, object]:
-    """Median wall time of ``repeats`` calls in ms (after one warm-up call), and the last result."""
-    result = fn()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        result = fn()
-        times.append(time.perf_counter() - start)
-    return 1e3 * statistics.median(times), result
-
-
-@dataclass
-class Row:
-    operation: str
-    ours_ms: float
-    peer: str
-    peer_ms: float
-    target: float | None  # maximal ratio, None = informative
-    note: str = ""
-
-    @property
-    def ratio(self) -> float:
-        return self.ours_ms / self.peer_ms
-
-    @property
-    def verdict(self) -> str:
-        if self.target is None:
-            return "info"
-        return "ok" if self.ratio <= self.target else "MISSED"
 
 
 def inertia(X, centers, labels) -> float:
@@ -99,8 +64,8 @@ def _runs(fit, count: int) -> tuple[float, list]:
     return 1e3 * statistics.median(times[1:]), results
 
 
-def kmeans_rows(repeats: int) -> tuple[list[Row], list[str]]:
-    rows, missed = [], []
+def kmeans_rows(repeats: int, targets: Targets) -> list[Row]:
+    rows = []
     datasets = {
         "k-means k=100 noise": np.random.default_rng(0).standard_normal((20000, 128)),
         "k-means k=100 blobs": make_blobs(20000, 128, centers=100, cluster_std=2.0, random_state=0)[0],
@@ -112,75 +77,49 @@ def kmeans_rows(repeats: int) -> tuple[list[Row], list[str]]:
         quality = np.mean([inertia(X, c, lab) for c, lab in ours]) / np.mean([m.inertia_ for m in models])
         note = (f"mean inertia over {count} seeds: {quality:.4f}x sklearn's; "
                 f"sklearn iterations {min(m.n_iter_ for m in models)}-{max(m.n_iter_ for m in models)}")
-        rows.append(Row(name, ours_ms, "sklearn KMeans(n_init=1)", peer_ms, 3.0, note))
-        if quality > 1 + INERTIA_TOLERANCE:
-            missed.append(f"{name}: inertia {quality:.4f}x scikit-learn's (target <= {1 + INERTIA_TOLERANCE})")
+        rows.append(Row(name, ours_ms, "sklearn KMeans(n_init=1)", peer_ms, 3.0, note=note))
+        targets.check(f"{name}: inertia {quality:.4f}x scikit-learn's (target <= {1 + INERTIA_TOLERANCE})",
+                      quality <= 1 + INERTIA_TOLERANCE)
         if cv2 is not None:
             X32 = X.astype(np.float32)
             criteria = (cv2.TERM_CRITERIA_MAX_ITER + cv2.TERM_CRITERIA_EPS, 50, 1e-4)
-            cv_ms, _ = timeit(lambda: cv2.kmeans(X32, 100, None, criteria, 1, cv2.KMEANS_PP_CENTERS), max(1, repeats // 2))
+            cv_ms = timeit(lambda: cv2.kmeans(X32, 100, None, criteria, 1, cv2.KMEANS_PP_CENTERS), max(1, repeats // 2))
             rows.append(Row(name, ours_ms, "cv2.kmeans (float32, 50 it.)", cv_ms, None))
-    return rows, missed
+    return rows
 
 
 def digits_rows(repeats: int) -> list[Row]:
     (X_train, y_train), (X_test, y_test) = data.digits()
     rows = []
-    ours_ms, pred = timeit(lambda: knn_predict(X_train, y_train, X_test, 1), repeats)
+    ours = measure(lambda: knn_predict(X_train, y_train, X_test, 1), repeats)
     knn = KNeighborsClassifier(1, algorithm="brute")
-    peer_ms, theirs = timeit(lambda: knn.fit(X_train, y_train).predict(X_test), repeats)
-    rows.append(Row("1-NN digits", ours_ms, "KNeighborsClassifier brute", peer_ms, None,
-                    f"accuracy {np.mean(pred == y_test):.3f} vs {np.mean(theirs == y_test):.3f}"))
+    peer = measure(lambda: knn.fit(X_train, y_train).predict(X_test), repeats)
+    rows.append(Row("1-NN digits", ours.ms, "KNeighborsClassifier brute", peer.ms, None,
+                    note=f"accuracy {np.mean(ours.result == y_test):.3f} vs {np.mean(peer.result == y_test):.3f}"))
 
-    ours_ms, (W, b, _) = timeit(lambda: sgd_train(X_train, y_train, 10, 0.5, 30, 32, reg=1e-4, rng=0), repeats)
+    ours = measure(lambda: sgd_train(X_train, y_train, 10, 0.5, 30, 32, reg=1e-4, rng=0), repeats)
+    W, b, _ = ours.result
     acc = np.mean(linear_scores(X_test, W, b).argmax(axis=1) == y_test)
     clf = SGDClassifier(loss="log_loss", alpha=1e-4, max_iter=30, tol=None, random_state=0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        peer_ms, model = timeit(lambda: clf.fit(X_train, y_train), repeats)
-    rows.append(Row("SGD softmax digits", ours_ms, "SGDClassifier log_loss 30 ep.", peer_ms, None,
-                    f"accuracy {acc:.3f} vs {model.score(X_test, y_test):.3f}"))
+        peer = measure(lambda: clf.fit(X_train, y_train), repeats)
+    rows.append(Row("SGD softmax digits", ours.ms, "SGDClassifier log_loss 30 ep.", peer.ms, None,
+                    note=f"accuracy {acc:.3f} vs {peer.result.score(X_test, y_test):.3f}"))
     return rows
 
 
-def machine_line() -> str:
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    parts = [
-        f"CPUs {os.cpu_count()} (usable {usable})",
-        platform.processor() or platform.machine(),
-        f"Python {platform.python_version()}",
-        f"numpy {np.__version__}",
-        f"scikit-learn {sklearn.__version__}",
-        f"opencv {cv2.__version__}" if cv2 is not None else "opencv not installed",
-    ]
-    return "machine: " + ", ".join(parts)
-
-
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="2 repeats")
-    parser.add_argument("--repeats", type=int, default=None, help="timing repeats (default 5, or 2 with --quick)")
-    parser.add_argument("--check", action="store_true", help="exit with status 1 if a target is missed")
-    args = parser.parse_args(argv)
-    repeats = args.repeats or (2 if args.quick else 5)
-    print(machine_line())
+    args = BenchmarkParser(__doc__, repeats=5, quick_repeats=2).parse_args(argv)
+    repeats = args.repeats
+    print(machine_line(sklearn, opencv=cv2))
     print(f"{repeats} repeats (median)\n")
-    rows, missed = kmeans_rows(repeats)
+    targets = Targets()
+    rows = kmeans_rows(repeats, targets)
     rows += digits_rows(repeats)
-    header = f"{'operation':<21} {'cvkit ms':>9}  {'peer':<32} {'peer ms':>9} {'ratio':>7}  {'target':<8} {'':<6} note"
-    print(header)
-    print("-" * len(header))
-    for row in rows:
-        target = f"<= {row.target:g}x" if row.target else "info"
-        print(f"{row.operation:<21} {row.ours_ms:>9.1f}  {row.peer:<32} {row.peer_ms:>9.1f} {row.ratio:>6.2f}x  "
-              f"{target:<8} {row.verdict:<6} {row.note}")
-    missed += [f"{r.operation}: {r.ratio:.2f}x (target <= {r.target:g}x)" for r in rows if r.verdict == "MISSED"]
-    if missed:
-        print("\nMISSED: " + "; ".join(missed) + " (timings are noisy on a loaded machine: rerun to confirm)")
-    return 1 if (missed and args.check) else 0
+    comparison_table(rows)
+    targets.check_rows(rows)
+    return targets.finish(args.check)
 
 
 if __name__ == "__main__":
