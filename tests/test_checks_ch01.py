@@ -3,67 +3,43 @@
 a stub scores 0."""
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
-from cvkit import registry
 from cvkit.grading import evaluate
 
 try:
     from . import alternatives_ch02 as alt
+    from . import checks_harness as harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_ch02 as alt
+    import checks_harness as harness
 
 SEEDS = (101, 202, 303)
 CH01 = ["formation.image_memory_bits", "formation.quantize"]
-MISTAKES = [(aid, m.name) for aid in CH01 for m in registry.get(aid).check.mistakes]
-
-
-def _grade_everywhere(algorithm_id, candidate, check=None):
-    reports = [evaluate(algorithm_id, candidate, check=check)]
-    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
-    return reports
+MISTAKES = harness.mistakes_of(CH01)
 
 
 @pytest.mark.parametrize("algorithm_id", CH01)
 def test_check_is_complete(algorithm_id):
-    spec = registry.get(algorithm_id).check
-    assert 1 <= len(spec.public_cases()) <= 6
-    assert len(spec.mistakes) >= 3
-    for seed in SEEDS:
-        hidden = spec.hidden_cases(np.random.default_rng(seed))
-        assert 8 <= len(hidden) <= 14 and all(c.label for c in hidden)
+    harness.assert_check_is_complete(harness.check_of(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14),
+                                     min_mistakes=3)
 
 
 @pytest.mark.parametrize("algorithm_id", CH01)
 def test_reference_and_alternative_pass(algorithm_id):
-    for candidate in (registry.get(algorithm_id).reference, alt.ALTERNATIVES[algorithm_id]):
-        for report in _grade_everywhere(algorithm_id, candidate):
-            assert report.passed, report.text()
+    for candidate in (harness.reference_of(algorithm_id), alt.ALTERNATIVES[algorithm_id]):
+        harness.assert_passes_everywhere(algorithm_id, candidate, SEEDS)
 
 
 @pytest.mark.parametrize("algorithm_id", CH01)
 def test_stub_scores_zero(algorithm_id):
-    def stub(*args, **kwargs):
-        raise NotImplementedError
-
-    for report in _grade_everywhere(algorithm_id, stub):
-        assert report.score == 0.0
+    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
 
 
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
 def test_mistake_fails_and_is_named(algorithm_id, name):
-    spec = registry.get(algorithm_id).check
-    mistake = spec.mistake(name)
-    allowing = dataclasses.replace(spec, allowed=tuple(CH01))
-    public = evaluate(algorithm_id, mistake.function, check=allowing)
-    assert not public.passed and public.mistake == name
-    for seed in SEEDS:
-        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
-        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
-        assert report.mistake == name, [(c.label, c.mistake) for c in report.cases if not c.passed]
+    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=CH01)
 
 
 def test_float_memory_is_refused():

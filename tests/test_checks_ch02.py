@@ -7,21 +7,20 @@ allow every reference building block; the guard itself is tested on the checks a
 """
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
 import cvkit.formation
 import cvkit.stereo
-from cvkit import registry
 from cvkit.grading import evaluate
 from cvkit.stereo.checks import DisparityMaps
 
 try:
     from . import alternatives_ch02 as alt
+    from . import checks_harness as harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_ch02 as alt
+    import checks_harness as harness
 
 SEEDS = (101, 202, 303)
 CH02 = [
@@ -30,23 +29,8 @@ CH02 = [
     "formation.dynamic_range_db", "formation.bayer_mosaic", "formation.demosaic_bilinear",
 ]
 ALL_IDS = CH02 + ["formation.quantize", "formation.image_memory_bits"]
-
-
-def _check(algorithm_id):
-    return registry.get(algorithm_id).check
-
-
-def _reference(algorithm_id):
-    return registry.get(algorithm_id).reference
-
-
-MISTAKES = [(aid, m.name) for aid in CH02 for m in _check(aid).mistakes]
-
-
-def _grade_everywhere(algorithm_id, candidate, check=None):
-    reports = [evaluate(algorithm_id, candidate, check=check)]
-    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
-    return reports
+_check = harness.check_of
+MISTAKES = harness.mistakes_of(CH02)
 
 
 # --------------------------------------------------------------------------------------------
@@ -54,34 +38,18 @@ def _grade_everywhere(algorithm_id, candidate, check=None):
 # --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("algorithm_id", CH02)
 def test_check_is_complete(algorithm_id):
-    spec = _check(algorithm_id)
-    public = spec.public_cases()
-    assert 1 <= len(public) <= 6
-    assert len(spec.mistakes) >= 3
-    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
-    for m in spec.mistakes:
-        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
-    for seed in SEEDS:
-        hidden = spec.hidden_cases(np.random.default_rng(seed))
-        assert 8 <= len(hidden) <= 14
-        assert all(case.label for case in public + hidden)
+    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14), min_mistakes=3)
+
+
+def _values(case):
+    """Every non-string argument of a case, as an array."""
+    return tuple(np.asarray(x) for x in list(case.args) + list(case.kwargs.values()) if not isinstance(x, str))
 
 
 @pytest.mark.parametrize("algorithm_id", CH02)
 def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
-    spec = _check(algorithm_id)
-    first = spec.hidden_cases(np.random.default_rng(7))
-    again = spec.hidden_cases(np.random.default_rng(7))
-    other = spec.hidden_cases(np.random.default_rng(8))
-
-    def arrays(cases):
-        return [np.asarray(x) for c in cases for x in list(c.args) + list(c.kwargs.values())
-                if not isinstance(x, str)]
-
-    assert [c.describe() for c in first] == [c.describe() for c in again]
-    assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(arrays(first), arrays(again)))
-    assert any(a.shape != b.shape or not np.array_equal(a, b, equal_nan=True)
-               for a, b in zip(arrays(first), arrays(other))), "the hidden cases do not depend on the seed"
+    harness.assert_hidden_cases_reproducible(_check(algorithm_id), lambda c: (c.describe(), *_values(c)),
+                                             varies=_values, equal_nan=True)
 
 
 def test_bayer_cases_use_every_pattern_and_odd_sizes():
@@ -128,47 +96,25 @@ def test_quantize_is_not_tested_on_ambiguous_half_way_values():
 # --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("algorithm_id", CH02)
 def test_reference_passes(algorithm_id):
-    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id)):
-        assert report.passed, report.text()
-        assert report.mistake is None
+    harness.assert_reference_passes(algorithm_id, SEEDS)
 
 
 @pytest.mark.parametrize("algorithm_id", CH02)
 def test_stub_scores_zero(algorithm_id):
-    def stub(*args, **kwargs):
-        raise NotImplementedError
-
-    for report in _grade_everywhere(algorithm_id, stub):
-        assert report.score == 0.0
-        assert "not implemented" in report.cases[0].message
+    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
 
 
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
 def test_mistake_fails_and_is_named(algorithm_id, name):
-    spec = _check(algorithm_id)
-    mistake = spec.mistake(name)
-    allowing = dataclasses.replace(spec, allowed=tuple(ALL_IDS))
-    public = evaluate(algorithm_id, mistake.function, check=allowing)
-    assert not public.passed, f"the public cases do not catch {name!r}"
-    assert public.mistake == name, f"public cases: named {public.mistake!r} instead of {name!r}"
-    for seed in SEEDS:
-        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
-        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
-        assert report.mistake == name, (
-            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
-            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
-        )
-        assert report.hint == mistake.hint
+    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=ALL_IDS)
 
 
 ALTERNATIVE_IDS = [(aid, f) for aid, f in alt.ALTERNATIVES.items() if aid in CH02] + list(alt.EXTRA_ALTERNATIVES.items())
 
 
-@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS,
-                         ids=[f"{a}:{f.__name__}" for a, f in ALTERNATIVE_IDS])
+@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS, ids=harness.function_ids(ALTERNATIVE_IDS))
 def test_correct_alternative_passes(algorithm_id, function):
-    for report in _grade_everywhere(algorithm_id, function):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
 
 
 def test_every_algorithm_has_an_alternative():

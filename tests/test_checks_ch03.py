@@ -16,13 +16,14 @@ import pytest
 import scipy.ndimage
 
 import cvkit.filters
-from cvkit import registry
 from cvkit.grading import evaluate
 
 try:
     from . import alternatives_ch03 as alt
+    from . import checks_harness as harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_ch03 as alt
+    import checks_harness as harness
 
 SEEDS = (101, 202, 303)
 BORDERS = {"zero", "replicate", "reflect", "reflect101"}
@@ -35,24 +36,8 @@ WITH_BORDER = [
     "filters.pad", "filters.correlate", "filters.convolve", "filters.mean", "filters.gaussian",
     "filters.median", "filters.bilateral", "filters.nl_means",
 ]
-
-
-def _check(algorithm_id):
-    return registry.get(algorithm_id).check
-
-
-def _reference(algorithm_id):
-    return registry.get(algorithm_id).reference
-
-
-MISTAKES = [(aid, m.name) for aid in CH03 for m in _check(aid).mistakes]
-
-
-def _grade_everywhere(algorithm_id, candidate, check=None):
-    """Reports on the public cases and on the hidden cases of every seed."""
-    reports = [evaluate(algorithm_id, candidate, check=check)]
-    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
-    return reports
+_check = harness.check_of
+MISTAKES = harness.mistakes_of(CH03)
 
 
 # --------------------------------------------------------------------------------------------
@@ -60,45 +45,21 @@ def _grade_everywhere(algorithm_id, candidate, check=None):
 # --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("algorithm_id", CH03)
 def test_check_is_complete(algorithm_id):
-    spec = _check(algorithm_id)
-    public = spec.public_cases()
-    assert 1 <= len(public) <= 6
     nontrivial = algorithm_id != "filters.mean_kernel"
-    assert len(spec.mistakes) >= (4 if nontrivial else 3)
-    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
-    for m in spec.mistakes:
-        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
-    for seed in SEEDS:
-        hidden = spec.hidden_cases(np.random.default_rng(seed))
-        assert 8 <= len(hidden) <= 14
-        assert all(case.label for case in public + hidden)
+    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14),
+                                     min_mistakes=4 if nontrivial else 3)
 
 
 @pytest.mark.parametrize("algorithm_id", CH03)
 def test_hidden_cases_are_reproducible(algorithm_id):
-    spec = _check(algorithm_id)
-    first = spec.hidden_cases(np.random.default_rng(7))
-    again = spec.hidden_cases(np.random.default_rng(7))
-    other = spec.hidden_cases(np.random.default_rng(8))
-    assert [c.describe() for c in first] == [c.describe() for c in again]
-    for a, b in zip(first, again):
-        for x, y in zip(a.args, b.args):
-            if isinstance(x, np.ndarray):
-                assert np.array_equal(x, y)
-    differs = [c.describe() for c in first] != [c.describe() for c in other] or any(
-        isinstance(x, np.ndarray) and (x.shape != y.shape or not np.array_equal(x, y))
-        for a, b in zip(first, other) for x, y in zip(a.args, b.args)
-    )
-    assert differs, "the hidden cases do not depend on the seed"
+    harness.assert_hidden_cases_reproducible(_check(algorithm_id), harness.describe_and_array_args)
 
 
 @pytest.mark.parametrize("algorithm_id", WITH_BORDER)
 def test_hidden_cases_use_every_border(algorithm_id):
-    for seed in SEEDS:
-        cases = _check(algorithm_id).hidden_cases(np.random.default_rng(seed))
-        used = {case.kwargs.get("border", "reflect101") for case in cases}
-        assert used == BORDERS
-        if algorithm_id in ("filters.correlate", "filters.convolve"):
+    drawn = harness.assert_hidden_cases_use_every_border(_check(algorithm_id), SEEDS, BORDERS, default="reflect101")
+    if algorithm_id in ("filters.correlate", "filters.convolve"):
+        for cases in drawn.values():
             assert {case.kwargs.get("output", "same") for case in cases} == {"same", "valid"}
             shapes = [np.shape(case.args[1]) for case in cases]
             assert any(kh % 2 == 0 or kw % 2 == 0 for kh, kw in shapes)
@@ -119,46 +80,25 @@ def test_sigma_is_never_one(algorithm_id):
 # --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("algorithm_id", CH03)
 def test_reference_passes(algorithm_id):
-    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id)):
-        assert report.passed, report.text()
-        assert report.mistake is None
+    harness.assert_reference_passes(algorithm_id, SEEDS)
 
 
 @pytest.mark.parametrize("algorithm_id", CH03)
 def test_stub_scores_zero(algorithm_id):
-    def stub(*args, **kwargs):
-        raise NotImplementedError
-
-    for report in _grade_everywhere(algorithm_id, stub):
-        assert report.score == 0.0
-        assert "not implemented" in report.cases[0].message
+    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
 
 
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
 def test_mistake_fails_and_is_named(algorithm_id, name):
-    spec = _check(algorithm_id)
-    mistake = spec.mistake(name)
-    allowing = dataclasses.replace(spec, allowed=tuple(CH03))
-    public = evaluate(algorithm_id, mistake.function, check=allowing)
-    assert not public.passed, f"the public cases do not catch {name!r}"
-    for seed in SEEDS:
-        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
-        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
-        assert report.mistake == name, (
-            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
-            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
-        )
-        assert report.hint == mistake.hint
+    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=CH03)
 
 
 ALTERNATIVE_IDS = [(aid, f) for aid, f in alt.ALTERNATIVES.items()] + list(alt.EXTRA_ALTERNATIVES.items())
 
 
-@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS,
-                         ids=[f"{a}:{f.__name__}" for a, f in ALTERNATIVE_IDS])
+@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS, ids=harness.function_ids(ALTERNATIVE_IDS))
 def test_correct_alternative_passes(algorithm_id, function):
-    for report in _grade_everywhere(algorithm_id, function):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
 
 
 def test_every_algorithm_has_an_alternative():
@@ -202,8 +142,7 @@ def test_allowed_building_blocks_may_be_called():
         rows = sum(g[k] * padded[:, k: k + w] for k in range(g.size))
         return sum(g[k] * rows[k: k + h] for k in range(g.size))
 
-    for report in _grade_everywhere("filters.gaussian", gaussian):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere("filters.gaussian", gaussian, SEEDS)
 
 
 def test_np_pad_is_caught_in_the_pad_exercise_only():

@@ -22,8 +22,10 @@ from cvkit.grading import evaluate
 
 try:
     from . import alternatives_ch04 as alt
+    from . import checks_harness as harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_ch04 as alt
+    import checks_harness as harness
 
 SEEDS = (101, 202, 303)
 BORDERS = {"zero", "replicate", "reflect", "reflect101"}
@@ -34,23 +36,8 @@ CH04 = [
 ]
 WITH_BORDER = ["edges.gradient", "edges.prewitt", "edges.sobel", "edges.laplacian", "edges.log", "edges.dog"]
 EVERY_ID = tuple(a.id for a in registry.algorithms())
-
-
-def _check(algorithm_id):
-    return registry.get(algorithm_id).check
-
-
-def _reference(algorithm_id):
-    return registry.get(algorithm_id).reference
-
-
-MISTAKES = [(aid, m.name) for aid in CH04 for m in _check(aid).mistakes]
-
-
-def _grade_everywhere(algorithm_id, candidate, check=None):
-    reports = [evaluate(algorithm_id, candidate, check=check)]
-    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
-    return reports
+_check = harness.check_of
+MISTAKES = harness.mistakes_of(CH04)
 
 
 # --------------------------------------------------------------------------------------------
@@ -62,42 +49,17 @@ def test_every_edges_algorithm_has_a_check():
 
 @pytest.mark.parametrize("algorithm_id", CH04)
 def test_check_is_complete(algorithm_id):
-    spec = _check(algorithm_id)
-    public = spec.public_cases()
-    assert 1 <= len(public) <= 6
-    assert len(spec.mistakes) >= 4
-    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
-    for m in spec.mistakes:
-        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
-    for seed in SEEDS:
-        hidden = spec.hidden_cases(np.random.default_rng(seed))
-        assert 8 <= len(hidden) <= 14
-        assert all(case.label for case in public + hidden)
+    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14), min_mistakes=4)
 
 
 @pytest.mark.parametrize("algorithm_id", CH04)
 def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
-    spec = _check(algorithm_id)
-    first = spec.hidden_cases(np.random.default_rng(7))
-    again = spec.hidden_cases(np.random.default_rng(7))
-    other = spec.hidden_cases(np.random.default_rng(8))
-    assert [c.describe() for c in first] == [c.describe() for c in again]
-    for a, b in zip(first, again):
-        for x, y in zip(a.args, b.args):
-            if isinstance(x, np.ndarray):
-                assert np.array_equal(x, y)
-    differs = [c.describe() for c in first] != [c.describe() for c in other] or any(
-        isinstance(x, np.ndarray) and (x.shape != y.shape or not np.array_equal(x, y))
-        for a, b in zip(first, other) for x, y in zip(a.args, b.args)
-    )
-    assert differs
+    harness.assert_hidden_cases_reproducible(_check(algorithm_id), harness.describe_and_array_args)
 
 
 @pytest.mark.parametrize("algorithm_id", WITH_BORDER)
 def test_hidden_cases_use_every_border(algorithm_id):
-    for seed in SEEDS:
-        cases = _check(algorithm_id).hidden_cases(np.random.default_rng(seed))
-        assert {case.kwargs.get("border", "reflect101") for case in cases} == BORDERS
+    harness.assert_hidden_cases_use_every_border(_check(algorithm_id), SEEDS, BORDERS, default="reflect101")
 
 
 def _options(cases, name, index, default):
@@ -144,44 +106,23 @@ def test_separating_inputs_are_in_the_hidden_cases():
 # --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("algorithm_id", CH04)
 def test_reference_passes(algorithm_id):
-    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id)):
-        assert report.passed, report.text()
-        assert report.mistake is None
+    harness.assert_reference_passes(algorithm_id, SEEDS)
 
 
 @pytest.mark.parametrize("algorithm_id", CH04)
 def test_stub_scores_zero(algorithm_id):
-    def stub(*args, **kwargs):
-        raise NotImplementedError
-
-    for report in _grade_everywhere(algorithm_id, stub):
-        assert report.score == 0.0
-        assert "not implemented" in report.cases[0].message
+    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
 
 
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
 def test_mistake_fails_and_is_named(algorithm_id, name):
-    spec = _check(algorithm_id)
-    mistake = spec.mistake(name)
-    allowing = dataclasses.replace(spec, allowed=EVERY_ID)
-    public = evaluate(algorithm_id, mistake.function, check=allowing)
-    assert not public.passed, f"the public cases do not catch {name!r}"
-    assert public.mistake == name, f"public: named {public.mistake!r} instead of {name!r}"
-    for seed in SEEDS:
-        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
-        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
-        assert report.mistake == name, (
-            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
-            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
-        )
-        assert report.hint == mistake.hint
+    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=EVERY_ID)
 
 
 @pytest.mark.parametrize(("algorithm_id", "function"), list(alt.ALTERNATIVES.items()),
-                         ids=[f"{a}:{f.__name__}" for a, f in alt.ALTERNATIVES.items()])
+                         ids=harness.function_ids(alt.ALTERNATIVES.items()))
 def test_correct_alternative_passes(algorithm_id, function):
-    for report in _grade_everywhere(algorithm_id, function):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
 
 
 def test_every_algorithm_has_an_alternative():
@@ -204,7 +145,7 @@ def test_a_mistake_hidden_by_natural_images_is_still_caught():
 
 def test_a_canny_built_from_the_students_own_pieces_passes():
     """What the notebook solution does: its own Gaussian, Sobel, NMS and hysteresis."""
-    for report in _grade_everywhere("edges.canny", alt.canny):
+    for report in harness.grade_everywhere("edges.canny", alt.canny, SEEDS):
         assert report.passed
 
 
@@ -297,8 +238,7 @@ def test_canny_may_call_the_allowed_building_blocks():
             low, high = low * top, high * top
         return cvkit.edges.hysteresis(cvkit.edges.non_max_suppression(strength, gx, gy), low, high)
 
-    for report in _grade_everywhere("edges.canny", canny):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere("edges.canny", canny, SEEDS)
 
     def canny_cheat(image, sigma=1.4, low=0.1, high=0.2, relative=True):
         return cvkit.edges.canny(image, sigma, low, high, relative)
@@ -310,8 +250,7 @@ def test_log_may_call_its_kernel_and_correlate():
     def log(image, sigma, border="reflect101"):
         return cvkit.filters.correlate(image, cvkit.edges.log_kernel(sigma), border)
 
-    for report in _grade_everywhere("edges.log", log):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere("edges.log", log, SEEDS)
 
 
 def test_integer_output_is_refused():

@@ -23,8 +23,10 @@ from cvkit.grading.trusted import grade_notebook
 
 try:
     from . import alternatives_ch05 as alt
+    from . import checks_harness as harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_ch05 as alt
+    import checks_harness as harness
 
 SEEDS = (101, 202, 303)
 CH05 = [
@@ -35,23 +37,8 @@ CH05 = [
 ]
 TRIVIAL = {"features.dog_pyramid"}
 EVERY_ID = tuple(a.id for a in registry.algorithms())
-
-
-def _check(algorithm_id):
-    return registry.get(algorithm_id).check
-
-
-def _reference(algorithm_id):
-    return registry.get(algorithm_id).reference
-
-
-MISTAKES = [(aid, m.name) for aid in CH05 for m in _check(aid).mistakes]
-
-
-def _grade_everywhere(algorithm_id, candidate, check=None):
-    reports = [evaluate(algorithm_id, candidate, check=check)]
-    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
-    return reports
+_check = harness.check_of
+MISTAKES = harness.mistakes_of(CH05)
 
 
 # --------------------------------------------------------------------------------------------
@@ -63,35 +50,19 @@ def test_every_features_algorithm_has_a_check():
 
 @pytest.mark.parametrize("algorithm_id", CH05)
 def test_check_is_complete(algorithm_id):
-    spec = _check(algorithm_id)
-    public = spec.public_cases()
-    assert 1 <= len(public) <= 6
-    assert len(spec.mistakes) >= (3 if algorithm_id not in TRIVIAL else 3)
-    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
-    for m in spec.mistakes:
-        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
-    for seed in SEEDS:
-        hidden = spec.hidden_cases(np.random.default_rng(seed))
-        assert 8 <= len(hidden) <= 14
-        assert all(case.label for case in public + hidden)
+    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14),
+                                     min_mistakes=3 if algorithm_id in TRIVIAL else 4)
+
+
+def _arrays(case):
+    """The array arguments of a case, positional and keyword, and those inside list arguments."""
+    return tuple(item for value in list(case.args) + list(case.kwargs.values())
+                 for item in (value if isinstance(value, list) else [value]) if isinstance(item, np.ndarray))
 
 
 @pytest.mark.parametrize("algorithm_id", CH05)
 def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
-    spec = _check(algorithm_id)
-
-    def arrays(cases):
-        out = []
-        for case in cases:
-            for value in list(case.args) + list(case.kwargs.values()):
-                for item in (value if isinstance(value, list) else [value]):
-                    if isinstance(item, np.ndarray):
-                        out.append(item)
-        return out
-
-    first, again, other = (arrays(spec.hidden_cases(np.random.default_rng(s))) for s in (7, 7, 8))
-    assert len(first) == len(again) and all(np.array_equal(a, b) for a, b in zip(first, again))
-    assert len(first) != len(other) or any(a.shape != b.shape or not np.array_equal(a, b) for a, b in zip(first, other))
+    harness.assert_hidden_cases_reproducible(_check(algorithm_id), _arrays)
 
 
 def test_hidden_cases_use_every_border_and_option():
@@ -134,42 +105,23 @@ def test_separating_inputs_are_in_the_hidden_cases():
 # --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("algorithm_id", CH05)
 def test_reference_passes(algorithm_id):
-    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id)):
-        assert report.passed, report.text()
-        assert report.mistake is None
+    harness.assert_reference_passes(algorithm_id, SEEDS)
+
+
+class _StubTree:
+    def __init__(self, points):
+        raise NotImplementedError
 
 
 @pytest.mark.parametrize("algorithm_id", CH05)
 def test_stub_scores_zero(algorithm_id):
-    def stub(*args, **kwargs):
-        raise NotImplementedError
-
-    class Stub:
-        def __init__(self, points):
-            raise NotImplementedError
-
-    candidate = Stub if algorithm_id == "features.KDTree" else stub
-    for report in _grade_everywhere(algorithm_id, candidate):
-        assert report.score == 0.0
-        assert "not implemented" in report.cases[0].message
+    stub = _StubTree if algorithm_id == "features.KDTree" else harness.raising_stub
+    harness.assert_stub_scores_zero(algorithm_id, SEEDS, stub=stub)
 
 
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
 def test_mistake_fails_and_is_named(algorithm_id, name):
-    spec = _check(algorithm_id)
-    mistake = spec.mistake(name)
-    allowing = dataclasses.replace(spec, allowed=EVERY_ID)
-    public = evaluate(algorithm_id, mistake.function, check=allowing)
-    assert not public.passed, f"the public cases do not catch {name!r}"
-    assert public.mistake == name, f"public: named {public.mistake!r} instead of {name!r}"
-    for seed in SEEDS:
-        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
-        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
-        assert report.mistake == name, (
-            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
-            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
-        )
-        assert report.hint == mistake.hint
+    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=EVERY_ID)
 
 
 EXTRA_ALTERNATIVES = [
@@ -179,11 +131,12 @@ EXTRA_ALTERNATIVES = [
 ]
 
 
-@pytest.mark.parametrize(("algorithm_id", "function"), list(alt.ALTERNATIVES.items()) + EXTRA_ALTERNATIVES,
-                         ids=[f"{a}:{f.__name__}" for a, f in list(alt.ALTERNATIVES.items()) + EXTRA_ALTERNATIVES])
+ALTERNATIVE_IDS = list(alt.ALTERNATIVES.items()) + EXTRA_ALTERNATIVES
+
+
+@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS, ids=harness.function_ids(ALTERNATIVE_IDS))
 def test_correct_alternative_passes(algorithm_id, function):
-    for report in _grade_everywhere(algorithm_id, function):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
 
 
 def test_every_algorithm_has_an_alternative():
@@ -208,7 +161,7 @@ def test_mistakes_hidden_by_natural_images_are_still_caught():
 
 def test_a_sift_built_from_the_students_own_pieces_passes():
     """What the notebook solution does: its own pyramid, extrema, refinement, orientations..."""
-    for report in _grade_everywhere("features.sift", alt.sift):
+    for report in harness.grade_everywhere("features.sift", alt.sift, SEEDS):
         assert report.passed
 
 

@@ -20,8 +20,10 @@ from cvkit.grading import evaluate
 
 try:
     from . import alternatives_ch06 as alt
+    from . import checks_harness as harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_ch06 as alt
+    import checks_harness as harness
 
 SEEDS = (101, 202, 303)
 CH06 = [
@@ -29,23 +31,8 @@ CH06 = [
     "detection.hough_lines", "detection.hough_peaks", "detection.ght_build", "detection.ght_detect",
 ]
 EVERY_ID = tuple(a.id for a in registry.algorithms())
-
-
-def _check(algorithm_id):
-    return registry.get(algorithm_id).check
-
-
-def _reference(algorithm_id):
-    return registry.get(algorithm_id).reference
-
-
-MISTAKES = [(aid, m.name) for aid in CH06 for m in _check(aid).mistakes]
-
-
-def _grade_everywhere(algorithm_id, candidate, check=None):
-    reports = [evaluate(algorithm_id, candidate, check=check)]
-    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
-    return reports
+_check = harness.check_of
+MISTAKES = harness.mistakes_of(CH06)
 
 
 def test_every_detection_algorithm_has_a_check():
@@ -54,35 +41,12 @@ def test_every_detection_algorithm_has_a_check():
 
 @pytest.mark.parametrize("algorithm_id", CH06)
 def test_check_is_complete(algorithm_id):
-    spec = _check(algorithm_id)
-    public = spec.public_cases()
-    assert 1 <= len(public) <= 6
-    assert len(spec.mistakes) >= 4
-    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
-    for m in spec.mistakes:
-        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
-    for seed in SEEDS:
-        hidden = spec.hidden_cases(np.random.default_rng(seed))
-        assert 8 <= len(hidden) <= 14
-        assert all(case.label for case in public + hidden)
+    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14), min_mistakes=4)
 
 
 @pytest.mark.parametrize("algorithm_id", CH06)
 def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
-    spec = _check(algorithm_id)
-    first = spec.hidden_cases(np.random.default_rng(7))
-    again = spec.hidden_cases(np.random.default_rng(7))
-    other = spec.hidden_cases(np.random.default_rng(8))
-    assert [c.describe() for c in first] == [c.describe() for c in again]
-    for a, b in zip(first, again):
-        for x, y in zip(a.args, b.args):
-            if isinstance(x, np.ndarray):
-                assert np.array_equal(x, y)
-    differs = [c.describe() for c in first] != [c.describe() for c in other] or any(
-        isinstance(x, np.ndarray) and (x.shape != y.shape or not np.array_equal(x, y))
-        for a, b in zip(first, other) for x, y in zip(a.args, b.args)
-    )
-    assert differs
+    harness.assert_hidden_cases_reproducible(_check(algorithm_id), harness.describe_and_array_args)
 
 
 def _option(case, name, index, default):
@@ -125,44 +89,23 @@ def test_separating_inputs_are_in_the_hidden_cases():
 
 @pytest.mark.parametrize("algorithm_id", CH06)
 def test_reference_passes(algorithm_id):
-    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id)):
-        assert report.passed, report.text()
-        assert report.mistake is None
+    harness.assert_reference_passes(algorithm_id, SEEDS)
 
 
 @pytest.mark.parametrize("algorithm_id", CH06)
 def test_stub_scores_zero(algorithm_id):
-    def stub(*args, **kwargs):
-        raise NotImplementedError
-
-    for report in _grade_everywhere(algorithm_id, stub):
-        assert report.score == 0.0
-        assert "not implemented" in report.cases[0].message
+    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
 
 
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
 def test_mistake_fails_and_is_named(algorithm_id, name):
-    spec = _check(algorithm_id)
-    mistake = spec.mistake(name)
-    allowing = dataclasses.replace(spec, allowed=EVERY_ID)
-    public = evaluate(algorithm_id, mistake.function, check=allowing)
-    assert not public.passed, f"the public cases do not catch {name!r}"
-    assert public.mistake == name, f"public: named {public.mistake!r} instead of {name!r}"
-    for seed in SEEDS:
-        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
-        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
-        assert report.mistake == name, (
-            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
-            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
-        )
-        assert report.hint == mistake.hint
+    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=EVERY_ID)
 
 
 @pytest.mark.parametrize(("algorithm_id", "function"), list(alt.ALTERNATIVES.items()),
-                         ids=[f"{a}:{f.__name__}" for a, f in alt.ALTERNATIVES.items()])
+                         ids=harness.function_ids(alt.ALTERNATIVES.items()))
 def test_correct_alternative_passes(algorithm_id, function):
-    for report in _grade_everywhere(algorithm_id, function):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
 
 
 def test_every_algorithm_has_an_alternative():

@@ -9,8 +9,6 @@ guard itself is tested separately below on the checks as registered.
 """
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
@@ -21,33 +19,16 @@ from cvkit.grading import evaluate
 
 try:
     from . import alternatives_ch07 as alt
+    from . import checks_harness as harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_ch07 as alt
+    import checks_harness as harness
 
 SEEDS = (101, 202, 303)
 CH07 = [f"camera.{name}" for name in cvkit.camera.__all__]
-
-
-def _check(algorithm_id):
-    return registry.get(algorithm_id).check
-
-
-def _reference(algorithm_id):
-    return registry.get(algorithm_id).reference
-
-
-MISTAKES = [(aid, m.name) for aid in CH07 for m in _check(aid).mistakes]
-
-
-def _grade_everywhere(algorithm_id, candidate, check=None):
-    """Reports on the public cases and on the hidden cases of every seed."""
-    reports = [evaluate(algorithm_id, candidate, check=check)]
-    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
-    return reports
-
-
-def _hidden(algorithm_id, seed):
-    return _check(algorithm_id).hidden_cases(np.random.default_rng(seed))
+_check = harness.check_of
+_hidden = harness.hidden_cases
+MISTAKES = harness.mistakes_of(CH07)
 
 
 # --------------------------------------------------------------------------------------------
@@ -67,29 +48,18 @@ def test_every_catalog_id_of_the_chapter_is_registered_with_its_section():
 
 @pytest.mark.parametrize("algorithm_id", CH07)
 def test_check_is_complete(algorithm_id):
-    spec = _check(algorithm_id)
-    public = spec.public_cases()
-    assert 1 <= len(public) <= 6
-    assert len(spec.mistakes) >= 4
-    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
-    for m in spec.mistakes:
-        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
-    for seed in SEEDS:
-        hidden = spec.hidden_cases(np.random.default_rng(seed))
-        assert 8 <= len(hidden) <= 14
-        assert all(case.label for case in public + hidden)
+    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14), min_mistakes=4)
+
+
+def _reprs(case):
+    """The values of a case's arguments as text (arrays, lists and tuples through ``tolist``)."""
+    return tuple(repr(np.asarray(v, dtype=object).tolist()) if isinstance(v, (np.ndarray, list, tuple)) else repr(v)
+                 for v in list(case.args) + list(case.kwargs.values()))
 
 
 @pytest.mark.parametrize("algorithm_id", CH07)
 def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
-    first, again, other = _hidden(algorithm_id, 7), _hidden(algorithm_id, 7), _hidden(algorithm_id, 8)
-
-    def flat(cases):
-        return [repr(np.asarray(v, dtype=object).tolist()) if isinstance(v, (np.ndarray, list, tuple)) else repr(v)
-                for c in cases for v in list(c.args) + list(c.kwargs.values())]
-
-    assert flat(first) == flat(again)
-    assert flat(first) != flat(other), "the hidden cases do not depend on the seed"
+    harness.assert_hidden_cases_reproducible(_check(algorithm_id), _reprs)
 
 
 def _arrays(case):
@@ -144,46 +114,25 @@ def test_hidden_cases_of_project_include_infinity_and_homogeneous_input():
 # --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("algorithm_id", CH07)
 def test_reference_passes(algorithm_id):
-    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id)):
-        assert report.passed, report.text()
-        assert report.mistake is None
+    harness.assert_reference_passes(algorithm_id, SEEDS)
 
 
 @pytest.mark.parametrize("algorithm_id", CH07)
 def test_stub_scores_zero(algorithm_id):
-    def stub(*args, **kwargs):
-        raise NotImplementedError
-
-    for report in _grade_everywhere(algorithm_id, stub):
-        assert report.score == 0.0
-        assert "not implemented" in report.cases[0].message
+    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
 
 
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
 def test_mistake_fails_and_is_named(algorithm_id, name):
-    spec = _check(algorithm_id)
-    mistake = spec.mistake(name)
-    allowing = dataclasses.replace(spec, allowed=tuple(CH07))
-    public = evaluate(algorithm_id, mistake.function, check=allowing)
-    assert not public.passed, f"the public cases do not catch {name!r}"
-    for seed in SEEDS:
-        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
-        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
-        assert report.mistake == name, (
-            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
-            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
-        )
-        assert report.hint == mistake.hint
+    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=CH07)
 
 
 ALTERNATIVE_IDS = list(alt.ALTERNATIVES.items()) + list(alt.EXTRA_ALTERNATIVES)
 
 
-@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS,
-                         ids=[f"{a}:{f.__name__}" for a, f in ALTERNATIVE_IDS])
+@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS, ids=harness.function_ids(ALTERNATIVE_IDS))
 def test_correct_alternative_passes(algorithm_id, function):
-    for report in _grade_everywhere(algorithm_id, function):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
 
 
 def test_every_algorithm_has_an_alternative():
@@ -261,8 +210,7 @@ def test_calling_the_reference_is_forbidden_but_building_blocks_are_allowed():
             pts = cvkit.camera.to_homogeneous(pts)
         return cvkit.camera.from_homogeneous(pts @ np.asarray(P, dtype=float).T)
 
-    for report in _grade_everywhere("camera.project", project_via_blocks):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere("camera.project", project_via_blocks, SEEDS)
 
     def project_full(points_world, A, R, t, k=(0.0, 0.0, 0.0), p=(0.0, 0.0)):
         cam = np.asarray(points_world, dtype=float) @ np.asarray(R, dtype=float).T + np.asarray(t, dtype=float).reshape(3)

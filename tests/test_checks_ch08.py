@@ -10,7 +10,6 @@ separately below on the checks as registered.
 from __future__ import annotations
 
 import copy
-import dataclasses
 import time
 
 import numpy as np
@@ -26,35 +25,19 @@ from cvkit.warp.checks import WarpClose
 
 try:
     from . import alternatives_ch08 as alt
+    from . import checks_harness as harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_ch08 as alt
+    import checks_harness as harness
 
 SEEDS = (101, 202, 303)
 CH08 = [f"calibration.{name}" for name in cvkit.calibration.__all__] + [f"warp.{name}" for name in cvkit.warp.__all__]
 BLOCKS = tuple(CH08) + tuple(f"camera.{n}" for n in ("distort", "undistort_points", "project_full", "rotation_matrix")) + (
     "filters.gaussian",)
-
-
-def _check(algorithm_id):
-    return registry.get(algorithm_id).check
-
-
-def _reference(algorithm_id):
-    return registry.get(algorithm_id).reference
-
-
-MISTAKES = [(aid, m.name) for aid in CH08 for m in _check(aid).mistakes]
-
-
-def _grade_everywhere(algorithm_id, candidate, check=None):
-    """Reports on the public cases and on the hidden cases of every seed."""
-    reports = [evaluate(algorithm_id, candidate, check=check)]
-    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
-    return reports
-
-
-def _hidden(algorithm_id, seed):
-    return _check(algorithm_id).hidden_cases(np.random.default_rng(seed))
+_check = harness.check_of
+_reference = harness.reference_of
+_hidden = harness.hidden_cases
+MISTAKES = harness.mistakes_of(CH08)
 
 
 # --------------------------------------------------------------------------------------------
@@ -79,37 +62,26 @@ def test_every_catalog_id_of_the_chapter_is_registered_with_its_section():
 
 @pytest.mark.parametrize("algorithm_id", CH08)
 def test_check_is_complete(algorithm_id):
-    spec = _check(algorithm_id)
-    public = spec.public_cases()
-    assert 1 <= len(public) <= 6
-    assert len(spec.mistakes) >= 4
-    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
-    for m in spec.mistakes:
-        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
-    for seed in SEEDS:
-        hidden = spec.hidden_cases(np.random.default_rng(seed))
-        assert 8 <= len(hidden) <= 14
-        assert all(case.label for case in public + hidden)
+    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14), min_mistakes=4)
 
 
-def _flat(cases):
+def _reprs(case):
+    """The values of a case's arguments as text (dicts sorted by key; arrays, lists and tuples
+    through ``tolist``)."""
     out = []
-    for case in cases:
-        for value in list(case.args) + list(case.kwargs.values()):
-            if isinstance(value, dict):
-                out.append(repr(sorted((k, np.asarray(v).tolist()) for k, v in value.items())))
-            elif isinstance(value, (np.ndarray, list, tuple)):
-                out.append(repr(np.asarray(value, dtype=object).tolist()))
-            else:
-                out.append(repr(value))
-    return out
+    for value in list(case.args) + list(case.kwargs.values()):
+        if isinstance(value, dict):
+            out.append(repr(sorted((k, np.asarray(v).tolist()) for k, v in value.items())))
+        elif isinstance(value, (np.ndarray, list, tuple)):
+            out.append(repr(np.asarray(value, dtype=object).tolist()))
+        else:
+            out.append(repr(value))
+    return tuple(out)
 
 
 @pytest.mark.parametrize("algorithm_id", CH08)
 def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
-    first, again, other = _hidden(algorithm_id, 7), _hidden(algorithm_id, 7), _hidden(algorithm_id, 8)
-    assert _flat(first) == _flat(again)
-    assert _flat(first) != _flat(other), "the hidden cases do not depend on the seed"
+    harness.assert_hidden_cases_reproducible(_check(algorithm_id), _reprs)
 
 
 def test_hidden_cases_are_small():
@@ -163,44 +135,24 @@ def test_reference_passes(algorithm_id):
     spec = _check(algorithm_id)
     # Through a Check.call adapter the guard sees the adapter as the candidate's code, so the
     # reference graded as a candidate counts as "calling the reference": allow it here.
-    check = dataclasses.replace(spec, allowed=spec.allowed + (algorithm_id,)) if spec.call else None
-    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id), check=check):
-        assert report.passed, report.text()
-        assert report.mistake is None
+    check = harness.allowing_itself(spec, algorithm_id) if spec.call else None
+    harness.assert_reference_passes(algorithm_id, SEEDS, check=check)
 
 
 @pytest.mark.parametrize("algorithm_id", CH08)
 def test_stub_scores_zero(algorithm_id):
-    def stub(*args, **kwargs):
-        raise NotImplementedError
-
-    for report in _grade_everywhere(algorithm_id, stub):
-        assert report.score == 0.0
-        assert "not implemented" in report.cases[0].message
+    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
 
 
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
 def test_mistake_fails_and_is_named(algorithm_id, name):
-    spec = _check(algorithm_id)
-    mistake = spec.mistake(name)
-    allowing = dataclasses.replace(spec, allowed=BLOCKS)
-    public = evaluate(algorithm_id, mistake.function, check=allowing)
-    assert not public.passed, f"the public cases do not catch {name!r}"
-    for seed in SEEDS:
-        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
-        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
-        assert report.mistake == name, (
-            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
-            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
-        )
-        assert report.hint == mistake.hint
+    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=BLOCKS)
 
 
 @pytest.mark.parametrize(("algorithm_id", "function"), list(alt.ALTERNATIVES.items()),
                          ids=list(alt.ALTERNATIVES))
 def test_correct_alternative_passes(algorithm_id, function):
-    for report in _grade_everywhere(algorithm_id, function):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
 
 
 def test_every_algorithm_has_an_alternative():
@@ -387,8 +339,7 @@ def test_calling_the_reference_is_forbidden_but_building_blocks_are_allowed():
         return cvkit.warp.bilinear_sample(image, (inv[0, 0] * x + inv[0, 1] * y + inv[0, 2]) / w,
                                           (inv[1, 0] * x + inv[1, 1] * y + inv[1, 2]) / w, fill)
 
-    for report in _grade_everywhere("warp.warp_homography", warp_homography):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere("warp.warp_homography", warp_homography, SEEDS)
 
 
 def test_modifying_the_input_fails():

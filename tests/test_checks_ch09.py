@@ -20,8 +20,10 @@ from cvkit.learn import checks
 
 try:
     from . import alternatives_ch09 as alt
+    from . import checks_harness as harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_ch09 as alt
+    import checks_harness as harness
 
 SEEDS = (101, 202, 303)
 LEARN = [
@@ -30,23 +32,9 @@ LEARN = [
     "learn.kmeans", "learn.bovw_histogram",
 ]
 TRIVIAL = {"learn.linear_scores"}
-
-
-def _check(algorithm_id):
-    return registry.get(algorithm_id).check
-
-
-def _reference(algorithm_id):
-    return registry.get(algorithm_id).reference
-
-
-MISTAKES = [(aid, m.name) for aid in LEARN for m in _check(aid).mistakes]
-
-
-def _grade_everywhere(algorithm_id, candidate, check=None, seeds=SEEDS):
-    reports = [evaluate(algorithm_id, candidate, check=check)]
-    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in seeds]
-    return reports
+_check = harness.check_of
+_reference = harness.reference_of
+MISTAKES = harness.mistakes_of(LEARN)
 
 
 # --------------------------------------------------------------------------------------------
@@ -63,36 +51,13 @@ def test_every_learn_id_is_registered_with_its_check():
 
 @pytest.mark.parametrize("algorithm_id", LEARN)
 def test_check_is_complete(algorithm_id):
-    spec = _check(algorithm_id)
-    public = spec.public_cases()
-    assert 1 <= len(public) <= 6
-    assert len(spec.mistakes) >= (3 if algorithm_id in TRIVIAL else 4)
-    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
-    for m in spec.mistakes:
-        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
-    for seed in SEEDS:
-        hidden = spec.hidden_cases(np.random.default_rng(seed))
-        assert 8 <= len(hidden) <= 14
-        assert all(case.label for case in public + hidden)
+    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14),
+                                     min_mistakes=3 if algorithm_id in TRIVIAL else 4)
 
 
 @pytest.mark.parametrize("algorithm_id", LEARN)
 def test_hidden_cases_are_reproducible(algorithm_id):
-    spec = _check(algorithm_id)
-    first = spec.hidden_cases(np.random.default_rng(7))
-    again = spec.hidden_cases(np.random.default_rng(7))
-    other = spec.hidden_cases(np.random.default_rng(8))
-
-    def arrays(case):
-        return [v for v in list(case.args) + list(case.kwargs.values()) if isinstance(v, np.ndarray)]
-
-    assert [c.describe() for c in first] == [c.describe() for c in again]
-    for a, b in zip(first, again):
-        assert all(np.array_equal(x, y) for x, y in zip(arrays(a), arrays(b)))
-    differs = [c.describe() for c in first] != [c.describe() for c in other] or any(
-        x.shape != y.shape or not np.array_equal(x, y)
-        for a, b in zip(first, other) for x, y in zip(arrays(a), arrays(b)))
-    assert differs, "the hidden cases do not depend on the seed"
+    harness.assert_hidden_cases_reproducible(_check(algorithm_id), harness.describe_and_arrays)
 
 
 def test_the_issue_s_separating_inputs_are_in_the_hidden_cases():
@@ -124,47 +89,27 @@ def test_reference_passes(algorithm_id):
     if spec.call is not None:
         # graded through the check's ``call`` adapter, the guard sees the adapter (not the
         # candidate) as the student's code, so the reference must be allowed to grade itself
-        spec = dataclasses.replace(spec, allowed=(algorithm_id,))
-    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id), check=spec):
-        assert report.passed, report.text()
-        assert report.mistake is None
+        spec = harness.allowing(spec, (algorithm_id,))
+    harness.assert_reference_passes(algorithm_id, SEEDS, check=spec)
 
 
 @pytest.mark.parametrize("algorithm_id", LEARN)
 def test_stub_scores_zero(algorithm_id):
-    def stub(*args, **kwargs):
-        raise NotImplementedError
-
-    for report in _grade_everywhere(algorithm_id, stub):
-        assert report.score == 0.0
-        assert "not implemented" in report.cases[0].message
+    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
 
 
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
 def test_mistake_fails_and_is_named(algorithm_id, name):
-    spec = _check(algorithm_id)
-    mistake = spec.mistake(name)
-    allowing = dataclasses.replace(spec, allowed=tuple(LEARN))
-    public = evaluate(algorithm_id, mistake.function, check=allowing)
-    assert not public.passed, f"the public cases do not catch {name!r}"
-    for seed in SEEDS:
-        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
-        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
-        assert report.mistake == name, (
-            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
-            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
-        )
-        assert report.hint == mistake.hint
+    # the public cases of top_k_accuracy and knn_predict do not tell every mistake apart
+    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=LEARN, named_on_public=False)
 
 
 ALTERNATIVE_IDS = list(alt.ALTERNATIVES.items()) + list(alt.EXTRA_ALTERNATIVES.items())
 
 
-@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS,
-                         ids=[f"{a}:{f.__name__}" for a, f in ALTERNATIVE_IDS])
+@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS, ids=harness.function_ids(ALTERNATIVE_IDS))
 def test_correct_alternative_passes(algorithm_id, function):
-    for report in _grade_everywhere(algorithm_id, function):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
 
 
 def test_every_algorithm_has_an_alternative():
@@ -272,8 +217,7 @@ def test_building_blocks_may_be_called_in_the_loss_and_in_sgd():
         W = np.asarray(W, dtype=float)
         return loss + reg * np.sum(W * W), g.T @ np.asarray(X, dtype=float) + 2 * reg * W, g.sum(axis=0)
 
-    for report in _grade_everywhere("learn.linear_loss_and_grad", linear_loss_and_grad):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere("learn.linear_loss_and_grad", linear_loss_and_grad, SEEDS)
 
     def sgd_train(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None):
         gen = np.random.default_rng(rng)

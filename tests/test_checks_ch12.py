@@ -17,8 +17,10 @@ from cvkit.train import checks as train_checks
 
 try:
     from . import alternatives_ch12 as alt
+    from . import checks_harness as harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_ch12 as alt
+    import checks_harness as harness
 
 SEEDS = (101, 202, 303)
 CH12 = [
@@ -29,23 +31,9 @@ CH12 = [
 RANDOM = ["train.stochastic_depth", "train.random_resized_crop", "train.cutout", "train.mixup", "train.cutmix",
           "train.random_search"]
 ARRAY_RANDOM = ["train.stochastic_depth", "train.random_resized_crop", "train.cutout"]
-
-
-def _check(algorithm_id):
-    return registry.get(algorithm_id).check
-
-
-def _reference(algorithm_id):
-    return registry.get(algorithm_id).reference
-
-
-MISTAKES = [(aid, m.name) for aid in CH12 for m in _check(aid).mistakes]
-
-
-def _grade_everywhere(algorithm_id, candidate, check=None):
-    reports = [evaluate(algorithm_id, candidate, check=check)]
-    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
-    return reports
+_check = harness.check_of
+_reference = harness.reference_of
+MISTAKES = harness.mistakes_of(CH12)
 
 
 # --------------------------------------------------------------------------------------------
@@ -63,35 +51,14 @@ def test_every_catalog_id_of_the_chapter_is_registered_with_a_check():
 @pytest.mark.parametrize("algorithm_id", CH12)
 def test_check_is_complete(algorithm_id):
     spec = _check(algorithm_id)
-    public = spec.public_cases()
-    assert 1 <= len(public) <= 6
-    assert len(spec.mistakes) >= 4
-    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
-    for m in spec.mistakes:
-        assert m.name and len(m.name) <= 70 and m.hint and callable(m.function)
-    for seed in SEEDS:
-        hidden = spec.hidden_cases(np.random.default_rng(seed))
-        assert 8 <= len(hidden) <= 14
-        assert all(case.label for case in public + hidden)
+    harness.assert_check_is_complete(spec, SEEDS, public=(1, 6), hidden=(8, 14), min_mistakes=4)
     assert spec.seeded == (algorithm_id in ARRAY_RANDOM or
                            (algorithm_id in RANDOM and train_checks._STRUCTURED_SEEDED))
 
 
 @pytest.mark.parametrize("algorithm_id", CH12)
 def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
-    spec = _check(algorithm_id)
-    first = spec.hidden_cases(np.random.default_rng(7))
-    again = spec.hidden_cases(np.random.default_rng(7))
-    other = spec.hidden_cases(np.random.default_rng(8))
-    assert [c.describe() for c in first] == [c.describe() for c in again]
-    for a, b in zip(first, again):
-        for x, y in zip(a.args, b.args):
-            if isinstance(x, np.ndarray):
-                assert np.array_equal(x, y)
-    assert [c.describe() for c in first] != [c.describe() for c in other] or any(
-        isinstance(x, np.ndarray) and (x.shape != y.shape or not np.array_equal(x, y))
-        for a, b in zip(first, other) for x, y in zip(a.args, b.args)
-    )
+    harness.assert_hidden_cases_reproducible(_check(algorithm_id), harness.describe_and_array_args)
 
 
 def test_schedule_cases_include_the_boundaries():
@@ -121,48 +88,26 @@ def test_schedule_cases_include_the_boundaries():
 # --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("algorithm_id", CH12)
 def test_reference_passes(algorithm_id):
-    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id)):
-        assert report.passed, report.text()
-        assert report.mistake is None
+    harness.assert_reference_passes(algorithm_id, SEEDS)
 
 
 @pytest.mark.parametrize("algorithm_id", CH12)
 def test_stub_scores_zero(algorithm_id):
-    def stub(*args, **kwargs):
-        raise NotImplementedError
-
-    for report in _grade_everywhere(algorithm_id, stub):
-        assert report.score == 0.0
-        assert "not implemented" in report.cases[0].message
+    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
 
 
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
 def test_mistake_fails_and_is_named(algorithm_id, name):
-    spec = _check(algorithm_id)
-    mistake = spec.mistake(name)
-    public = evaluate(algorithm_id, mistake.function, check=spec)
-    assert not public.passed, f"the public cases do not catch {name!r}"
-    assert public.mistake == name, (
-        f"public: named {public.mistake!r} instead of {name!r}; per case: "
-        + str([(c.label, c.mistake) for c in public.cases if not c.passed]))
-    for seed in SEEDS:
-        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=spec)
-        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
-        assert report.mistake == name, (
-            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
-            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
-        )
-        assert report.hint == mistake.hint
+    # graded with the check as registered: no building blocks are added to its allowed ones
+    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=None)
 
 
 ALTERNATIVE_IDS = list(alt.ALTERNATIVES.items()) + list(alt.EXTRA_ALTERNATIVES.items())
 
 
-@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS,
-                         ids=[f"{a}:{f.__name__}" for a, f in ALTERNATIVE_IDS])
+@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS, ids=harness.function_ids(ALTERNATIVE_IDS))
 def test_correct_alternative_passes(algorithm_id, function):
-    for report in _grade_everywhere(algorithm_id, function):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
 
 
 def test_every_algorithm_has_an_alternative():
@@ -197,8 +142,7 @@ def test_notebook_solutions_pass_public_and_hidden_cases():
     solutions = _notebook_solutions()
     assert set(solutions) == set(CH12)
     for algorithm_id, function in solutions.items():
-        for report in _grade_everywhere(algorithm_id, function):
-            assert report.passed, report.text()
+        harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
 
 
 @pytest.mark.parametrize("algorithm_id", RANDOM)

@@ -19,8 +19,10 @@ from cvkit.grading.wire import dumps
 
 try:
     from . import alternatives_nn as alt
+    from . import checks_harness as harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_nn as alt
+    import checks_harness as harness
 
 SEEDS = (101, 202, 303)
 NN = [
@@ -32,23 +34,9 @@ NN = [
     "nn.dropout_forward", "nn.dropout_backward", "nn.residual_block_forward", "nn.residual_block_backward",
     "nn.architecture_spec", "nn.count_parameters", "nn.count_flops",
 ]
-
-
-def _check(algorithm_id):
-    return registry.get(algorithm_id).check
-
-
-def _reference(algorithm_id):
-    return registry.get(algorithm_id).reference
-
-
-MISTAKES = [(aid, m.name) for aid in NN for m in _check(aid).mistakes]
-
-
-def _grade_everywhere(algorithm_id, candidate, check=None):
-    reports = [evaluate(algorithm_id, candidate, check=check)]
-    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in SEEDS]
-    return reports
+_check = harness.check_of
+_reference = harness.reference_of
+MISTAKES = harness.mistakes_of(NN)
 
 
 def test_every_catalog_id_is_checked():
@@ -61,86 +49,48 @@ def test_every_catalog_id_is_checked():
 # --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("algorithm_id", NN)
 def test_check_is_complete(algorithm_id):
-    spec = _check(algorithm_id)
-    public = spec.public_cases()
-    assert 1 <= len(public) <= 6
-    assert len(spec.mistakes) >= 3
-    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
-    for m in spec.mistakes:
-        assert m.name and len(m.name) <= 75 and m.hint and callable(m.function)
-    for seed in SEEDS:
-        hidden = spec.hidden_cases(np.random.default_rng(seed))
-        assert 8 <= len(hidden) <= 14, len(hidden)
-        assert all(case.label for case in public + hidden)
+    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14), min_mistakes=3,
+                                     max_name_length=75)
+
+
+def _wire_fingerprint(case):
+    """A case's arguments as sent to the isolated grading worker."""
+    return (dumps((case.args, case.kwargs)),)
 
 
 @pytest.mark.parametrize("algorithm_id", NN)
 def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
     """... and are plain data that can travel to the isolated grading worker."""
-    spec = _check(algorithm_id)
-
-    def fingerprint(seed):
-        return [dumps((c.args, c.kwargs)) for c in spec.hidden_cases(np.random.default_rng(seed))]
-
-    first, again, other = fingerprint(7), fingerprint(7), fingerprint(8)
-    assert first == again
-    assert first != other, "the hidden cases do not depend on the seed"
+    harness.assert_hidden_cases_reproducible(_check(algorithm_id), _wire_fingerprint)
 
 
 # --------------------------------------------------------------------------------------------
 # right answers pass, wrong ones fail and are named
 # --------------------------------------------------------------------------------------------
-def _grading_itself(algorithm_id):
-    """The check, allowed to call the reference it grades: with a ``call`` the guard sees the
-    call wrapper (not the candidate) as the student's code, so grading the reference itself
-    would be reported as a call into the reference."""
-    spec = _check(algorithm_id)
-    return dataclasses.replace(spec, allowed=tuple(spec.allowed) + (algorithm_id,))
-
-
 @pytest.mark.parametrize("algorithm_id", NN)
 def test_reference_passes(algorithm_id):
-    for report in _grade_everywhere(algorithm_id, _reference(algorithm_id), check=_grading_itself(algorithm_id)):
-        assert report.passed, report.text()
-        assert report.mistake is None
+    # with a ``call`` the guard sees the call wrapper (not the candidate) as the student's code,
+    # so grading the reference itself would be reported as a call into the reference
+    check = harness.allowing_itself(_check(algorithm_id), algorithm_id)
+    harness.assert_reference_passes(algorithm_id, SEEDS, check=check)
 
 
 @pytest.mark.parametrize("algorithm_id", NN)
 def test_stub_scores_zero(algorithm_id):
-    def stub(*args, **kwargs):
-        raise NotImplementedError
-
-    for report in _grade_everywhere(algorithm_id, stub):
-        assert report.score == 0.0
-        assert "not implemented" in report.cases[0].message
+    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
 
 
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=[f"{a}:{n}" for a, n in MISTAKES])
+@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
 def test_mistake_fails_and_is_named(algorithm_id, name):
-    spec = _check(algorithm_id)
-    mistake = spec.mistake(name)
-    allowing = dataclasses.replace(spec, allowed=tuple(NN))
-    public = evaluate(algorithm_id, mistake.function, check=allowing)
-    assert not public.passed, f"the public cases do not catch {name!r}"
-    assert public.mistake == name, f"public: named {public.mistake!r}"
-    for seed in SEEDS:
-        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=allowing)
-        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
-        assert report.mistake == name, (
-            f"seed {seed}: named {report.mistake!r} instead of {name!r}; per case: "
-            + str([(c.label, c.mistake) for c in report.cases if not c.passed])
-        )
-        assert report.hint == mistake.hint
+    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=NN)
 
 
 ALTERNATIVE_IDS = list(alt.ALTERNATIVES.items()) + list(alt.EXTRA_ALTERNATIVES.items())
 
 
-@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS,
-                         ids=[f"{a}:{f.__name__}" for a, f in ALTERNATIVE_IDS])
+@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS, ids=harness.function_ids(ALTERNATIVE_IDS))
 def test_correct_alternative_passes(algorithm_id, function):
-    for report in _grade_everywhere(algorithm_id, function):
-        assert report.passed, report.text()
+    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
 
 
 def test_every_algorithm_has_an_alternative():
@@ -163,7 +113,7 @@ def test_a_cache_without_the_named_entries_is_reported():
         x = np.asarray(x, dtype=float)
         return np.maximum(x, 0), {"x": x, "mask": x >= 0, "note": "extra entries are fine"}
 
-    assert all(r.passed for r in _grade_everywhere("nn.relu_forward", relu_forward_extra))
+    assert all(r.passed for r in harness.grade_everywhere("nn.relu_forward", relu_forward_extra, SEEDS))
 
 
 def test_a_float_size_is_right_in_value_but_refused():
@@ -254,7 +204,7 @@ def test_the_residual_block_may_use_the_reference_layers():
         short = bn(nnm.conv2d_forward(x, params["w_proj"], np.zeros(f), 2, 0)[0], "_proj") if s == 2 else x
         return nnm.relu_forward(h + short)[0], {"x": x, "params": params, "training": training}
 
-    for report in _grade_everywhere("nn.residual_block_forward", from_layers):
+    for report in harness.grade_everywhere("nn.residual_block_forward", from_layers, SEEDS):
         assert report.passed, report.text()
 
 

@@ -1,0 +1,199 @@
+"""Shared assertions of the ``test_checks_*`` files: is a check complete, are its hidden cases
+reproducible, do the reference and correct alternatives pass, does a stub score 0, does every
+mistake fail and get named.
+
+Every function takes what differs between chapters (seeds, thresholds, allowed building
+blocks, how to fingerprint a case) as an argument; none has a chapter's value built in.
+``tests/`` is not a package: import this module as the test files import ``alternatives_chNN``.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from cvkit import registry
+from cvkit.grading import evaluate
+
+BORDERS = frozenset({"zero", "replicate", "reflect", "reflect101"})
+
+
+# --------------------------------------------------------------------------------------------
+# looking things up
+# --------------------------------------------------------------------------------------------
+def check_of(algorithm_id):
+    """The check registered for ``algorithm_id``."""
+    return registry.get(algorithm_id).check
+
+
+def reference_of(algorithm_id):
+    """The reference implementation registered for ``algorithm_id``."""
+    return registry.get(algorithm_id).reference
+
+
+def hidden_cases(algorithm_id, seed):
+    """The hidden cases of ``algorithm_id`` drawn from ``default_rng(seed)``."""
+    return check_of(algorithm_id).hidden_cases(np.random.default_rng(seed))
+
+
+def mistakes_of(algorithm_ids):
+    """``[(algorithm id, mistake name), ...]`` over the mistake banks of ``algorithm_ids``."""
+    return [(aid, m.name) for aid in algorithm_ids for m in check_of(aid).mistakes]
+
+
+def pair_ids(pairs):
+    """Test ids ``"id:name"`` for ``(algorithm id, name)`` pairs."""
+    return [f"{a}:{n}" for a, n in pairs]
+
+
+def function_ids(pairs):
+    """Test ids ``"id:function name"`` for ``(algorithm id, function)`` pairs."""
+    return [f"{a}:{f.__name__}" for a, f in pairs]
+
+
+def allowing(spec, allowed):
+    """``spec`` with its allowed building blocks replaced by ``allowed``."""
+    return dataclasses.replace(spec, allowed=tuple(allowed))
+
+
+def allowing_itself(spec, algorithm_id):
+    """``spec`` that also allows calling ``algorithm_id`` itself: graded through a ``call``
+    adapter, the guard sees the adapter (not the candidate) as the student's code, so the
+    reference graded as a candidate would count as calling the reference."""
+    return allowing(spec, tuple(spec.allowed) + (algorithm_id,))
+
+
+# --------------------------------------------------------------------------------------------
+# grading
+# --------------------------------------------------------------------------------------------
+def grade_everywhere(algorithm_id, candidate, seeds, check=None, allowed=None):
+    """Reports of ``candidate`` on the public cases, then on the hidden cases of each seed.
+
+    ``allowed`` (if given) replaces the allowed building blocks of ``check`` (or of the
+    registered check)."""
+    if allowed is not None:
+        check = allowing(check if check is not None else check_of(algorithm_id), allowed)
+    reports = [evaluate(algorithm_id, candidate, check=check)]
+    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in seeds]
+    return reports
+
+
+def assert_passes_everywhere(algorithm_id, candidate, seeds, check=None, allowed=None):
+    """``candidate`` passes the public cases and the hidden cases of every seed."""
+    for report in grade_everywhere(algorithm_id, candidate, seeds, check=check, allowed=allowed):
+        assert report.passed, report.text()
+
+
+def assert_reference_passes(algorithm_id, seeds, check=None):
+    """The reference passes everywhere and no mistake is named."""
+    for report in grade_everywhere(algorithm_id, reference_of(algorithm_id), seeds, check=check):
+        assert report.passed, report.text()
+        assert report.mistake is None
+
+
+def raising_stub(*args, **kwargs):
+    """A released, unanswered exercise."""
+    raise NotImplementedError
+
+
+def assert_stub_scores_zero(algorithm_id, seeds, stub=raising_stub, message="not implemented"):
+    """``stub`` scores 0 everywhere; the first case says ``message`` (``None``: not checked)."""
+    for report in grade_everywhere(algorithm_id, stub, seeds):
+        assert report.score == 0.0
+        if message is not None:
+            assert message in report.cases[0].message, report.cases[0].message
+
+
+def _named_wrongly(report, name):
+    return (f"named {report.mistake!r} instead of {name!r}; per case: "
+            + str([(c.label, c.mistake) for c in report.cases if not c.passed]))
+
+
+def assert_mistake_fails_and_is_named(algorithm_id, name, seeds, allowed=None, *,
+                                      named_on_public=True, hint=True):
+    """Mistake ``name`` of ``algorithm_id``, graded as a candidate, fails the public cases and
+    the hidden cases of every seed, and the hidden reports name it.
+
+    ``allowed``: the building blocks the mistake may call (``None``: the check as registered).
+    ``named_on_public``: the public report must name it too. ``hint``: the hidden reports
+    carry the mistake's hint."""
+    spec = check_of(algorithm_id)
+    mistake = spec.mistake(name)
+    check = spec if allowed is None else allowing(spec, allowed)
+    public = evaluate(algorithm_id, mistake.function, check=check)
+    assert not public.passed, f"the public cases do not catch {name!r}"
+    if named_on_public:
+        assert public.mistake == name, "public cases: " + _named_wrongly(public, name)
+    for seed in seeds:
+        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=check)
+        assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
+        assert report.mistake == name, f"seed {seed}: " + _named_wrongly(report, name)
+        if hint:
+            assert report.hint == mistake.hint
+
+
+# --------------------------------------------------------------------------------------------
+# the shape of a check
+# --------------------------------------------------------------------------------------------
+def assert_check_is_complete(spec, seeds, *, public=(1, 6), hidden=(8, 14), min_mistakes=4,
+                             max_name_length=70):
+    """Public and hidden case counts within bounds (inclusive), every case labelled, at least
+    ``min_mistakes`` mistakes with unique names of at most ``max_name_length`` characters, a
+    hint and a function."""
+    public_cases = spec.public_cases()
+    assert public[0] <= len(public_cases) <= public[1], len(public_cases)
+    assert len(spec.mistakes) >= min_mistakes, [m.name for m in spec.mistakes]
+    assert len({m.name for m in spec.mistakes}) == len(spec.mistakes)
+    for m in spec.mistakes:
+        assert m.name and len(m.name) <= max_name_length and m.hint and callable(m.function), m.name
+    for seed in seeds:
+        hidden_cases = spec.hidden_cases(np.random.default_rng(seed))
+        assert hidden[0] <= len(hidden_cases) <= hidden[1], len(hidden_cases)
+        assert all(case.label for case in public_cases + hidden_cases)
+
+
+def _same(x, y, equal_nan):
+    if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+        x, y = np.asarray(x), np.asarray(y)
+        return x.shape == y.shape and np.array_equal(x, y, equal_nan=equal_nan)
+    if isinstance(x, (list, tuple)) and isinstance(y, (list, tuple)):
+        return len(x) == len(y) and all(_same(a, b, equal_nan) for a, b in zip(x, y))
+    return type(x) is type(y) and x == y
+
+
+def assert_hidden_cases_reproducible(spec, fingerprint, *, varies=None, seeds=(7, 8), equal_nan=False):
+    """The hidden cases drawn twice from ``seeds[0]`` have equal fingerprints (case by case),
+    and some case drawn from ``seeds[1]`` differs from the case at the same place.
+
+    ``fingerprint(case)`` is a tuple of strings, numbers and arrays (arrays compare with
+    ``np.array_equal``); ``varies(case)`` (default: ``fingerprint``) is what must change with
+    the seed."""
+    varies = fingerprint if varies is None else varies
+    first, again, other = (spec.hidden_cases(np.random.default_rng(s)) for s in (seeds[0], seeds[0], seeds[1]))
+    assert len(first) == len(again)
+    for a, b in zip(first, again):
+        assert _same(fingerprint(a), fingerprint(b), equal_nan), f"not reproducible: {a.label}"
+    assert any(not _same(varies(a), varies(b), equal_nan) for a, b in zip(first, other)), \
+        "the hidden cases do not depend on the seed"
+
+
+def describe_and_array_args(case):
+    """A case's description and its positional array arguments."""
+    return (case.describe(), *(x for x in case.args if isinstance(x, np.ndarray)))
+
+
+def describe_and_arrays(case):
+    """A case's description and its array arguments, positional and keyword."""
+    values = list(case.args) + list(case.kwargs.values())
+    return (case.describe(), *(x for x in values if isinstance(x, np.ndarray)))
+
+
+def assert_hidden_cases_use_every_border(spec, seeds, borders=BORDERS, default="reflect101"):
+    """The hidden cases of every seed use exactly ``borders`` (``default`` when no ``border=``
+    is given). Returns ``{seed: cases}`` for further checks."""
+    drawn = {}
+    for seed in seeds:
+        cases = spec.hidden_cases(np.random.default_rng(seed))
+        assert {case.kwargs.get("border", default) for case in cases} == set(borders)
+        drawn[seed] = cases
+    return drawn
