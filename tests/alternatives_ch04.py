@@ -207,7 +207,7 @@ def non_max_suppression(magnitude, ix, iy, interpolate=True):
         for y in range(w):
             value = m[x, y]
             i, j = gy[x, y], gx[x, y]
-            if value <= 0 or (i == 0 and j == 0):
+            if value <= 0 or (interpolate and i == 0 and j == 0):  # atan2(0, 0) = 0 without
                 continue
             if not interpolate:
                 ai, aj = abs(i), abs(j)

@@ -218,14 +218,14 @@ def orientations(gaussian_image, x, y, sigma, bins=36, peak_ratio=0.8):
     L = np.asarray(gaussian_image, dtype=np.float64)
     h, w = L.shape
     hist = np.zeros(bins)
-    radius = int(math.floor(4.5 * sigma + 0.5))
-    cx, cy = int(math.floor(x + 0.5)), int(math.floor(y + 0.5))
+    radius = round(4.5 * sigma)
+    cx, cy = round(x), round(y)
     for r in range(cy - radius, cy + radius + 1):
         for c in range(cx - radius, cx + radius + 1):
             if 1 <= r <= h - 2 and 1 <= c <= w - 2:
                 m, theta = _gradient(L, r, c)
                 weight = math.exp(-((c - x) ** 2 + (r - y) ** 2) / (2 * (1.5 * sigma) ** 2))
-                hist[int(math.floor(theta * bins / (2 * math.pi) + 0.5)) % bins] += m * weight
+                hist[round(theta * bins / (2 * math.pi)) % bins] += m * weight
     top = hist.max()
     found = []
     for k in range(bins):
@@ -240,8 +240,8 @@ def sift_descriptor(gaussian_image, x, y, sigma, angle):
     L = np.asarray(gaussian_image, dtype=np.float64)
     h, w = L.shape
     hist = np.zeros((4, 4, 8))
-    radius = min(int(math.floor(3 * sigma * math.sqrt(2) * 2.5 + 0.5)), int(math.ceil(math.hypot(h, w))))
-    cx, cy = int(math.floor(x + 0.5)), int(math.floor(y + 0.5))
+    radius = min(round(3 * sigma * math.sqrt(2) * 2.5), int(math.ceil(math.hypot(h, w))))
+    cx, cy = round(x), round(y)
     cos_a, sin_a = math.cos(angle), math.sin(angle)
     for r in range(max(1, cy - radius), min(h - 2, cy + radius) + 1):
         for c in range(max(1, cx - radius), min(w - 2, cx + radius) + 1):
@@ -278,7 +278,7 @@ def _window(L, x, y, radius):
     """Rows, cols, magnitudes and directions of the pixels of the square about (round x, round y)."""
     L = np.asarray(L, dtype=np.float64)
     h, w = L.shape
-    cx, cy = int(math.floor(x + 0.5)), int(math.floor(y + 0.5))
+    cx, cy = round(x), round(y)
     rr, cc = np.mgrid[max(1, cy - radius): min(h - 2, cy + radius) + 1, max(1, cx - radius): min(w - 2, cx + radius) + 1]
     rr, cc = rr.ravel(), cc.ravel()
     dx = L[rr, cc + 1] - L[rr, cc - 1]
@@ -287,10 +287,10 @@ def _window(L, x, y, radius):
 
 
 def orientations_vectorised(L, x, y, sigma, bins=36, peak_ratio=0.8):
-    rr, cc, m, theta = _window(L, x, y, int(math.floor(4.5 * sigma + 0.5)))
+    rr, cc, m, theta = _window(L, x, y, round(4.5 * sigma))
     weight = m * np.exp(-((cc - x) ** 2 + (rr - y) ** 2) / (2 * (1.5 * sigma) ** 2))
     hist = np.zeros(bins)
-    np.add.at(hist, np.floor(theta * bins / (2 * math.pi) + 0.5).astype(int) % bins, weight)
+    np.add.at(hist, np.rint(theta * bins / (2 * math.pi)).astype(int) % bins, weight)
     left, right = np.roll(hist, 1), np.roll(hist, -1)
     peaks_ = np.flatnonzero((hist > left) & (hist > right) & (hist >= peak_ratio * hist.max()) & (hist.max() > 0))
     peaks_ = peaks_[np.argsort(-hist[peaks_], kind="stable")]
@@ -300,7 +300,7 @@ def orientations_vectorised(L, x, y, sigma, bins=36, peak_ratio=0.8):
 
 def descriptor_vectorised(L, x, y, sigma, angle):
     h, w = L.shape
-    radius = min(int(math.floor(3 * sigma * math.sqrt(2) * 2.5 + 0.5)), int(math.ceil(math.hypot(h, w))))
+    radius = min(round(3 * sigma * math.sqrt(2) * 2.5), int(math.ceil(math.hypot(h, w))))
     rr, cc, m, theta = _window(L, x, y, radius)
     u = ((cc - x) * math.cos(angle) + (rr - y) * math.sin(angle)) / (3 * sigma)
     v = ((rr - y) * math.cos(angle) - (cc - x) * math.sin(angle)) / (3 * sigma)

@@ -100,8 +100,7 @@ def test_stub_scores_zero(algorithm_id):
 
 @pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
 def test_mistake_fails_and_is_named(algorithm_id, name):
-    # the public cases of top_k_accuracy and knn_predict do not tell every mistake apart
-    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=LEARN, named_on_public=False)
+    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=LEARN)
 
 
 ALTERNATIVE_IDS = list(alt.ALTERNATIVES.items()) + list(alt.EXTRA_ALTERNATIVES.items())

@@ -389,6 +389,10 @@ def test_nms_keeps_plateaus_and_drops_zero_gradients():
     mag = np.array([[1.0, 3.0, 3.0, 1.0]])
     np.testing.assert_array_equal(edges.non_max_suppression(mag, np.ones((1, 4)), np.zeros((1, 4))), [[0, 3, 3, 0]])
     np.testing.assert_array_equal(edges.non_max_suppression(mag, np.zeros((1, 4)), np.zeros((1, 4))), 0.0)
+    # without interpolation a zero gradient has the angle atan2(0, 0) = 0: left and right decide
+    zero = np.zeros((1, 3))
+    np.testing.assert_array_equal(edges.non_max_suppression([[0.0, 1.0, 0.0]], zero, zero, False), [[0, 1, 0]])
+    np.testing.assert_array_equal(edges.non_max_suppression(np.ones((3, 1)), zero.T, zero.T, False), [[1], [1], [1]])
 
 
 def _hysteresis_by_labels(mag, low, high, connectivity=2):
@@ -754,6 +758,7 @@ def test_no_warnings_on_zero_gradients():
         warnings.simplefilter("error")
         zeros = np.zeros((6, 7))
         assert not edges.non_max_suppression(np.ones((6, 7)), zeros, zeros).any()
-        assert not edges.non_max_suppression(np.ones((6, 7)), zeros, zeros, interpolate=False).any()
+        # without interpolation: atan2(0, 0) = 0, a flat plateau keeps every pixel (≥ both sides)
+        assert edges.non_max_suppression(np.ones((6, 7)), zeros, zeros, interpolate=False).all()
         assert not edges.canny(zeros).any()
         edges.direction(zeros, zeros)

@@ -30,6 +30,11 @@ from hypothesis import strategies as st
 import cvkit
 from cvkit import data, features, registry
 
+try:
+    from . import alternatives_ch05 as alt
+except ImportError:  # tests/ is not a package: pytest puts it on sys.path
+    import alternatives_ch05 as alt
+
 skimage_feature = pytest.importorskip("skimage.feature")
 
 MODES = {"zero": "constant", "replicate": "edge", "reflect": "symmetric", "reflect101": "reflect"}
@@ -318,6 +323,20 @@ def test_orientation_of_a_ramp_is_its_bin(degrees):
     ramp = np.cos(a) * x + np.sin(a) * y
     got = features.orientations(ramp, 20.2, 19.7, 2.5)
     assert got.shape == (1,) and abs(got[0] - math.radians(10 * round((degrees + 0.3) / 10) % 360)) < 1e-9
+
+
+@pytest.mark.parametrize(("x", "y", "sigma"), [(12.0, 12.0, 1.0), (12.5, 11.5, 1.6), (10.0, 13.0, 3.0),
+                                              (11.5, 12.5, 5.0 / 9.0)])
+def test_rounding_takes_halves_to_even(x, y, sigma):
+    """round(4.5σ), round(x), round(y) and the bins round as Python and OpenCV do, halves to
+    even: σ = 1 gives the radius 4, a keypoint at x = 12.5 the centre column 12."""
+    img = cvkit.filters.gaussian(np.random.default_rng(12).uniform(0, 1, (25, 27)), 1.0)
+    np.testing.assert_allclose(features.orientations(img, x, y, sigma), alt.orientations(img, x, y, sigma),
+                               rtol=0, atol=1e-9)
+    np.testing.assert_allclose(features.sift_descriptor(img, x, y, sigma, 0.4),
+                               alt.sift_descriptor(img, x, y, sigma, 0.4), rtol=0, atol=1e-9)
+    yy, xx = np.mgrid[0:21, 0:21].astype(float)       # gradient at exactly 45°: bin 4.5 -> 4 (40°)
+    assert features.orientations((xx + yy) * 0.1, 10, 10, 1.2) == pytest.approx([math.radians(40)])
 
 
 def test_orientations_rotate_with_the_image(camera):

@@ -66,8 +66,10 @@ def non_max_suppression(magnitude, ix, iy, interpolate=True):
     A pixel is kept when ``M > 0`` and ``M ≥`` both side values (a plateau two pixels wide
     keeps both); neighbours outside the image count as 0, so border pixels are not
     suppressed for lack of neighbours (scikit-image suppresses the whole image border
-    instead). A pixel with ``Ix = Iy = 0`` has no direction and is suppressed (as in
-    scikit-image, where the weight is 0/0).
+    instead). A pixel with ``Ix = Iy = 0`` (possible when ``magnitude`` does not come from
+    ``ix`` and ``iy``) is suppressed with interpolation, as in scikit-image where its weight is
+    0/0; without, its angle is atan2(0, 0) = 0 (the 0° bin, as in OpenCV's Canny), so it is
+    compared with its left and right neighbours.
 
     Examples
     --------
@@ -130,7 +132,8 @@ def _maxima(padded, mag, gx, gy, r0: int, interpolate: bool) -> np.ndarray:
     keep = mag >= plus
     keep &= mag >= minus
     keep &= mag > 0
-    keep &= (ax > 0) | (ay > 0)
+    if interpolate:  # the weight 0/0 of a zero gradient: no direction (atan2(0, 0) = 0° otherwise)
+        keep &= (ax > 0) | (ay > 0)
     return keep
 
 

@@ -30,8 +30,9 @@ _CHUNK = 1 << 16  # grid samples per batch: the temporaries stay in cache (8x fa
 
 
 def _round(value) -> np.ndarray:
-    """Round half up, ``floor(v + 0.5)`` (the cases never sit on a half)."""
-    return np.floor(np.asarray(value, dtype=np.float64) + 0.5).astype(np.int64)
+    """Round to the nearest integer, halves to even: the catalog's ``round`` read as Python's
+    ``round`` and ``np.rint`` (and OpenCV's ``cvRound``): round(4.5) = 4, round(13.5) = 14."""
+    return np.rint(np.asarray(value, dtype=np.float64)).astype(np.int64)
 
 
 def _differences(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -152,8 +153,9 @@ def orientations(gaussian_image, x, y, sigma, bins=36, peak_ratio=0.8):
     splitting between bins and no smoothing of the histogram). Every bin that is a strict
     circular maximum (above both neighbours) and ≥ peak_ratio × the highest bin gives one
     orientation, refined by the parabola through it and its neighbours:
-    ``k + ½(h[k−1] − h[k+1]) / (h[k−1] − 2h[k] + h[k+1])`` bins. Rounding is half up; the
-    checks never put a value on a half. OpenCV's ``calcOrientationHist`` centres the Gaussian
+    ``k + ½(h[k−1] − h[k+1]) / (h[k−1] − 2h[k] + h[k+1])`` bins. Every round takes halves to
+    even (Python's ``round``, ``np.rint``, OpenCV's ``cvRound``): σ = 1 gives the radius
+    round(4.5) = 4. OpenCV's ``calcOrientationHist`` centres the Gaussian
     on the rounded position and smooths the histogram; its angles are measured with y up.
 
     Examples

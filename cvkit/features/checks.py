@@ -1325,8 +1325,8 @@ def _or_variant(gaussian_image, x, y, sigma, bins=36, peak_ratio=0.8, *, magnitu
     if y_up:
         dy = -dy
     h, w = img.shape
-    cx, cy = int(math.floor(x + 0.5)), int(math.floor(y + 0.5))
-    radius = int(math.floor(4.5 * sigma + 0.5))
+    cx, cy = round(x), round(y)
+    radius = round(4.5 * sigma)
     rr, cc = np.mgrid[max(1, cy - radius): min(h - 2, cy + radius) + 1, max(1, cx - radius): min(w - 2, cx + radius) + 1]
     rr, cc = rr.ravel(), cc.ravel()
     gx, gy = dx[rr, cc], dy[rr, cc]
@@ -1336,7 +1336,7 @@ def _or_variant(gaussian_image, x, y, sigma, bins=36, peak_ratio=0.8, *, magnitu
     if not magnitude:
         vote = np.where((gx == 0) & (gy == 0), 0.0, vote)  # a flat pixel has no direction
     position = np.arctan2(gy, gx) * (bins / (2.0 * math.pi))
-    index = (np.floor(position) if floor else np.floor(position + 0.5)).astype(np.int64) % bins
+    index = (np.floor(position) if floor else np.rint(position)).astype(np.int64) % bins
     hist = np.bincount(index, weights=vote, minlength=bins)
     angles = histogram_peaks(hist[None], peak_ratio)[0]
     if not interpolate:
@@ -1452,8 +1452,8 @@ def _desc_variant(gaussian_image, x, y, sigma, angle, *, trilinear=True, clip=Tr
     img = np.asarray(gaussian_image, dtype=np.float64)
     dx, dy = _differences(img)
     h, w = img.shape
-    cx, cy = int(math.floor(x + 0.5)), int(math.floor(y + 0.5))
-    radius = min(int(math.floor(3 * sigma * math.sqrt(2) * 2.5 + 0.5)), int(math.ceil(math.hypot(h, w))))
+    cx, cy = round(x), round(y)
+    radius = min(round(3 * sigma * math.sqrt(2) * 2.5), int(math.ceil(math.hypot(h, w))))
     rr, cc = np.mgrid[max(1, cy - radius): min(h - 2, cy + radius) + 1, max(1, cx - radius): min(w - 2, cx + radius) + 1]
     rr, cc = rr.ravel(), cc.ravel()
     ox, oy = cc - x, rr - y
@@ -1478,9 +1478,9 @@ def _desc_variant(gaussian_image, x, y, sigma, angle, *, trilinear=True, clip=Tr
                     np.add.at(hist, ((r0 + 1 + a).astype(int), (c0 + 1 + b).astype(int), (o0.astype(int) % 8) + e),
                               m * wa * wb * we)
     else:
-        r0 = np.floor(rbin + 0.5).astype(int)
-        c0 = np.floor(cbin + 0.5).astype(int)
-        o0 = np.floor(obin + 0.5).astype(int) % 8
+        r0 = np.rint(rbin).astype(int)
+        c0 = np.rint(cbin).astype(int)
+        o0 = np.rint(obin).astype(int) % 8
         np.add.at(hist, (r0 + 1, c0 + 1, o0), m)
     hist[..., 0] += hist[..., 8]
     vec = hist[1:5, 1:5, :8].reshape(-1)

@@ -60,8 +60,8 @@ def sift_descriptor(gaussian_image, x, y, sigma, angle):
     """SIFT descriptor -- every sample votes whole into its nearest cell and bin (no interpolation)."""
     L = np.asarray(gaussian_image, dtype=float)
     h, w = L.shape
-    R = min(int(np.floor(3 * sigma * np.sqrt(2) * 2.5 + 0.5)), int(np.ceil(np.hypot(h, w))))
-    cx, cy = int(np.floor(x + 0.5)), int(np.floor(y + 0.5))
+    R = min(int(np.rint(3 * sigma * np.sqrt(2) * 2.5)), int(np.ceil(np.hypot(h, w))))
+    cx, cy = int(np.rint(x)), int(np.rint(y))
     rr, cc = np.mgrid[max(1, cy - R):min(h - 2, cy + R) + 1, max(1, cx - R):min(w - 2, cx + R) + 1]
     rr, cc = rr.ravel(), cc.ravel()
     u = ((cc - x) * np.cos(angle) + (rr - y) * np.sin(angle)) / (3 * sigma)
@@ -73,9 +73,9 @@ def sift_descriptor(gaussian_image, x, y, sigma, angle):
     dy = L[rr + 1, cc] - L[rr - 1, cc]
     m = np.sqrt(dx ** 2 + dy ** 2) * np.exp(-(u ** 2 + v ** 2) / 8)
     o = np.mod((np.arctan2(dy, dx) - angle) * 8 / (2 * np.pi), 8)
-    r0 = np.floor(row + 0.5).astype(int)
-    c0 = np.floor(col + 0.5).astype(int)
-    o0 = np.floor(o + 0.5).astype(int) % 8
+    r0 = np.rint(row).astype(int)
+    c0 = np.rint(col).astype(int)
+    o0 = np.rint(o).astype(int) % 8
     inside = (r0 >= 0) & (r0 < 4) & (c0 >= 0) & (c0 < 4)
     hist = np.zeros((4, 4, 8))
     np.add.at(hist, (r0[inside], c0[inside], o0[inside]), m[inside])
