@@ -47,7 +47,10 @@ from nbgrader.preprocessors import (  # noqa: E402
     AssignLatePenalties, CheckCellMetadata, Execute, GetGrades, IgnorePattern, LimitOutput, SaveAutoGrades,
 )
 
-from cvkit.grading.nbgrader_plugins import HideHiddenTests, TrustedChecks  # noqa: E402
+from cvkit.grading.nbgrader_plugins import (  # noqa: E402
+    HideHiddenTests, SafeFeedbackExporter, SanitizeStudentContent, TrustedChecks,
+)
+from cvkit.grading.safety import mathjax_post_convert_hook  # noqa: E402
 
 _salt_file = ROOT / ".grading_salt"  # made by `cvkit course grade`; kept for regrading
 c.TrustedChecks.salt = os.environ.pop("CVKIT_GRADING_SALT", "") or (
@@ -58,4 +61,10 @@ c.Autograde.autograde_preprocessors = [
     Execute, IgnorePattern, ClearMetadataPreprocessor, TrustedChecks, LimitOutput, SaveAutoGrades,
     AssignLatePenalties, CheckCellMetadata,
 ]
-c.GenerateFeedback.preprocessors = [GetGrades, HideHiddenTests, CSSHTMLHeaderPreprocessor]
+
+# Feedback pages (cvkit.grading.safety): nothing the student controls can run in them (outputs,
+# Markdown, attachments, metadata are cleaned; only the trusted grader's reports keep their
+# layout), and MathJax comes from a mathjax/ folder next to each page, never from the network.
+c.GenerateFeedback.preprocessors = [GetGrades, SanitizeStudentContent, HideHiddenTests, CSSHTMLHeaderPreprocessor]
+c.GenerateFeedback.exporter_class = SafeFeedbackExporter
+c.GenerateFeedback.post_convert_hook = mathjax_post_convert_hook(ROOT / "feedback")

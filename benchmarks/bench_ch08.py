@@ -92,7 +92,7 @@ def accuracy_rows(n_views: int) -> list[tuple[str, float, float | None]]:
     import scipy.optimize
 
     from cvkit.calibration.checks import _circle_problem, _exponential_problem, _projective_problem
-    from cvkit.calibration._problems import Residuals
+    from cvkit.grading.runtime.problems import Residuals
 
     worst = 0.0
     for seed in range(20):

@@ -57,12 +57,38 @@ def grades(course: Course) -> dict:
     return out
 
 
+def sandbox_cost(repeats: int = 10) -> float:
+    """Seconds the bubblewrap sandbox adds to one sandboxed run (the trusted worker with one
+    answer cell and one case, sandboxed minus the same run with resource limits only). A
+    notebook is graded in two sandboxed runs (its execution and its trusted checks), so the
+    cost per notebook is twice this figure."""
+    import numpy as np
+
+    from cvkit.grading import isolation, sandbox
+
+    isolation.require()
+    cells = ["def f(x):\n    return x + 1"]
+    calls = [{"function": "f", "args": (np.ones(3),), "kwargs": {}, "time_limit": 5.0}]
+    timings = {}
+    for sandboxed in (False, True, False, True):
+        start = time.perf_counter()
+        for _ in range(repeats):
+            assert sandbox.run_calls(cells, calls, sandboxed=sandboxed).outcomes[0].error is None
+        timings[sandboxed] = (time.perf_counter() - start) / repeats
+    return timings[True] - timings[False]
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--submissions", type=int, default=8)
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 2)
     parser.add_argument("--chapters", default="ch03_filtering,ch04_edges,ch07_camera_model")
+    parser.add_argument("--sandbox-cost-only", action="store_true", help="only measure the sandbox's cost")
     args = parser.parse_args()
+    cost = sandbox_cost()
+    print(f"sandbox cost: {cost:.3f} s per sandboxed run, {2 * cost:.3f} s per notebook (goal <= 0.3 s)")
+    if args.sandbox_cost_only:
+        return 0 if 2 * cost <= 0.3 else 1
     chapters = [c for c in args.chapters.split(",") if (ROOT / "lectures" / c).is_dir()]
     print(f"machine: {os.cpu_count()} CPUs; {args.submissions} submissions per chapter; chapters: {', '.join(chapters)}")
     runs = {}

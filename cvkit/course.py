@@ -67,6 +67,7 @@ class JobResult:
     attempts: int = 1
     log: str = ""
     executed: bool = True  # False: the notebook could not run, the raw submission was graded
+    not_graded: str = ""   # why it could not be graded at all (listed so, never as a zero)
 
     @property
     def ok(self) -> bool:
@@ -86,50 +87,63 @@ class ExecutedSubmission:
     ok: bool
     log: str = ""
     verified: bool = False
+    not_graded: str = ""  # why this submission cannot be graded at all (never shown as a zero)
 
 
-EXECUTION_MEMORY_MB = 6144      # address space of the executing process and its kernel
+EXECUTION_MEMORY_MB = 6144      # address space of each process of the executing sandbox
 EXECUTION_WALL_SECONDS = 900    # a whole notebook; a cell has CVKIT_CELL_TIMEOUT (180 s)
+EXECUTED_MAX_BYTES = 64 << 20   # an executed notebook larger than this is not read back
 
 
-def _execution_limits(drop: bool):
-    """``preexec_fn`` of the executing process: resource limits, then ``nobody`` if root."""
-    def limit() -> None:
-        import resource
+def collect_files(folder: Path) -> tuple[dict[str, bytes], list[str]]:
+    """The regular files of a submission folder, and what was refused: symbolic links, hard
+    links to files elsewhere, devices, sockets and pipes are never followed nor read."""
+    import stat
 
-        memory = EXECUTION_MEMORY_MB * 1024 * 1024
-        for which, value in ((resource.RLIMIT_AS, memory), (resource.RLIMIT_CORE, 0),
-                             (resource.RLIMIT_FSIZE, 256 * 1024 * 1024)):
-            resource.setrlimit(which, (value, value))
-        if drop:
-            from .grading.sandbox import _drop_privileges
-
-            _drop_privileges()
-    return limit
+    files, refused = {}, []
+    if folder.is_symlink() or not folder.is_dir():
+        return files, [f"{folder.name}: the submission folder is not a plain folder (refused)"]
+    for path in sorted(folder.rglob("*")):
+        name = str(path.relative_to(folder))
+        info = path.lstat()
+        if stat.S_ISDIR(info.st_mode) and not path.is_symlink():
+            continue
+        if stat.S_ISLNK(info.st_mode):
+            refused.append(f"{name}: a symbolic link (refused, not followed)")
+        elif not stat.S_ISREG(info.st_mode):
+            refused.append(f"{name}: not a regular file (refused)")
+        elif info.st_nlink > 1:
+            refused.append(f"{name}: a hard link to another file (refused)")
+        elif any(parent.is_symlink() for parent in path.relative_to(folder).parents if str(parent) != "."):
+            refused.append(f"{name}: inside a linked folder (refused)")
+        else:
+            files[name] = path.read_bytes()
+    return files, refused
 
 
 def execute_submission(project, student: str, assignment: str, files: dict,
                        releases: dict | None = None) -> ExecutedSubmission:
-    """Run a submission's notebooks in a scratch folder (picklable, for Dask).
+    """Run a submission's notebooks in the grading sandbox (picklable, for Dask).
 
     Each notebook is first sanitized here as nbgrader does (locked and test cells restored from
-    its release notebook in ``releases``, outputs cleared), then executed by a disposable
-    ``python -I -m cvkit.grading.execute`` process (:mod:`cvkit.grading.execute`) whose working
-    folder holds only this submission, with no grading salt and no path of the real course in
-    its environment, resource limits, and, when started as root, the unprivileged user
-    ``nobody``: the student's code cannot reach the gradebook, other submissions or cvkit's
-    own files. Grades are not decided here: checks in the kernel are no-ops.
+    its release notebook in ``releases``, outputs cleared), then executed by
+    ``python -m cvkit.grading.execute`` inside a bubblewrap sandbox
+    (:mod:`cvkit.grading.isolation`) that sees the Python environment read-only, a writable
+    copy of this one submission and a private ``/tmp`` — no course folder, ``lectures/``,
+    gradebook, salt or other submission, no network — under memory, CPU, process and
+    file-size limits, and a wall-clock limit enforced from here. Grades are not decided here:
+    checks in the kernel are no-ops; the notebook is run for the student's own figures.
     """
     import tempfile
 
+    from .grading import isolation
     from .grading.execute import prepare
-    from .grading.sandbox import NOBODY, _can_drop_privileges
 
     releases = releases or {}
-    drop = _can_drop_privileges()
+    sandboxed = not isolation.sandbox_disabled()
     with tempfile.TemporaryDirectory(prefix="cvkit-grade-") as scratch_name:
         scratch = Path(scratch_name)
-        folder = scratch / student / assignment
+        folder = scratch / "submission"
         for name, data in files.items():
             target = folder / name
             target.parent.mkdir(parents=True, exist_ok=True)
@@ -143,63 +157,100 @@ def execute_submission(project, student: str, assignment: str, files: dict,
                 return ExecutedSubmission(student, assignment, {}, False, f"{name}: not a notebook ({error})")
             (folder / name).write_text(json.dumps(prepared))
             jobs.append(name)
-        if drop:
-            for path in [scratch, *scratch.rglob("*")]:
-                os.chown(path, NOBODY, NOBODY)
-        env = {k: os.environ[k] for k in ("PATH", "LANG", "LC_ALL") if k in os.environ}
-        env.update(
-            HOME=str(scratch), TMPDIR=str(scratch), JUPYTER_RUNTIME_DIR=str(scratch / ".jupyter"),
-            IPYTHONDIR=str(scratch / ".ipython"), MPLCONFIGDIR=str(scratch / ".mpl"), MPLBACKEND="Agg",
-            OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1", PYTHONDONTWRITEBYTECODE="1",
-        )
+        folder.mkdir(exist_ok=True)
+        env = {"HOME": "/tmp", "TMPDIR": "/tmp", "JUPYTER_RUNTIME_DIR": "/tmp/.jupyter", "IPYTHONDIR": "/tmp/.ipython",
+               "MPLCONFIGDIR": "/tmp/.mpl", "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+               "MKL_NUM_THREADS": "1", "PYTHONDONTWRITEBYTECODE": "1", "LANG": "C.UTF-8",
+               "PATH": str(Path(sys.executable).parent) + ":/usr/bin:/bin"}
         if os.environ.get("CVKIT_CELL_TIMEOUT"):
             env["CVKIT_CELL_TIMEOUT"] = os.environ["CVKIT_CELL_TIMEOUT"]
-        env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
+        inside = "/submission" if sandboxed else str(folder)
+        mounts = isolation.Mounts(read_only=[(str(PACKAGE_DIR), str(PACKAGE_DIR))],
+                                  writable=[(str(folder), inside)], chdir=inside)
+        limits = isolation.Limits(memory_mb=EXECUTION_MEMORY_MB, cpu_seconds=EXECUTION_WALL_SECONDS, processes=64,
+                                  file_mb=64, tmpfs_mb=512)
         notebooks, log = {}, ""
         for name in jobs:
-            output = scratch / f"executed-{len(notebooks)}.ipynb"
-            try:
-                done = subprocess.run(
-                    [sys.executable, "-I", "-m", "cvkit.grading.execute", str(folder / name), str(output)],
-                    cwd=(folder / name).parent, env=env, capture_output=True, text=True,
-                    preexec_fn=_execution_limits(drop), start_new_session=True, timeout=EXECUTION_WALL_SECONDS,
-                )
-            except subprocess.TimeoutExpired:
+            output = f"executed-{len(notebooks)}.ipynb"
+            with tempfile.TemporaryFile() as console:
+                box = isolation.Sandbox([sys.executable, "-I", "-m", "cvkit.grading.execute", name, output],
+                                        mounts=mounts, limits=limits, env=env, sandboxed=sandboxed,
+                                        stdin=subprocess.DEVNULL, stdout=console, stderr=subprocess.STDOUT)
+                try:
+                    status = box.wait(timeout=EXECUTION_WALL_SECONDS)
+                except subprocess.TimeoutExpired:
+                    status = None
+                finally:
+                    box.close()  # every process the notebook started ends here
+                console.seek(0, 2)
+                console.seek(max(0, console.tell() - 2000))
+                log += f"{name}: " + console.read().decode("utf-8", "replace")
+            if status is None:
                 return ExecutedSubmission(student, assignment, {}, False,
-                                          log + f"{name}: execution exceeded {EXECUTION_WALL_SECONDS} s")
-            log += f"{name}: " + (done.stdout + done.stderr)[-2000:]
-            if done.returncode != 0 or not output.exists():
-                return ExecutedSubmission(student, assignment, {}, False, log)
-            notebooks[name] = output.read_text()
+                                          log + f"\n{name}: execution exceeded {EXECUTION_WALL_SECONDS} s")
+            result = folder / output
+            if status != 0 or result.is_symlink() or not result.is_file():
+                return ExecutedSubmission(student, assignment, {}, False, log + f"\n{name}: exit status {status}")
+            if result.stat().st_size > EXECUTED_MAX_BYTES:
+                return ExecutedSubmission(student, assignment, {}, False,
+                                          log + f"\n{name}: the executed notebook is larger than 64 MB (printed too much)")
+            notebooks[name] = result.read_text(errors="replace")
         return ExecutedSubmission(student, assignment, notebooks, bool(notebooks), log)
 
 
 def grade_submission(project, student: str, assignment: str, files: dict, releases: dict,
                      sources: dict, salt: str, memory_mb: int = 3072) -> ExecutedSubmission:
     """Execute a submission (:func:`execute_submission`), then decide its checks with the
-    trusted checks (:func:`cvkit.grading.nbgrader_plugins.apply_trusted_checks`), in this
-    process: the parallel phase of :meth:`Course.grade`, run by a local worker process or a
-    Dask worker. ``sources`` are the instructor's source notebooks (JSON text by file name);
-    ``salt`` is the course's grading salt, so Dask workers must be the instructor's own."""
+    trusted checks (:func:`cvkit.grading.nbgrader_plugins.apply_trusted_checks`, every line of
+    student code again in the sandbox): the parallel phase of :meth:`Course.grade`, run by a
+    local worker process or a Dask worker. ``sources`` are the instructor's source notebooks
+    (JSON text by file name); ``salt`` is the course's grading salt, so Dask workers must be
+    the instructor's own. A notebook that could not run is graded from its answers as
+    submitted (sanitized as nbgrader does); one that is not a notebook at all comes back
+    ``not_graded`` with the reason — never as a zero."""
     import nbformat
 
+    from .grading.execute import prepare
     from .grading.nbgrader_plugins import apply_trusted_checks
 
+    notebook_names = sorted(n for n in files if n.endswith(".ipynb"))
+    expected = sorted(n for n in releases if n.endswith(".ipynb"))
+    problems = []
+    for name in notebook_names:
+        try:
+            nb = json.loads(files[name])
+            if not isinstance(nb, dict) or not isinstance(nb.get("cells"), list):
+                raise ValueError("no list of cells")
+            nbformat.reads(files[name].decode("utf-8") if isinstance(files[name], bytes) else files[name], as_version=4)
+        except Exception as error:  # noqa: BLE001 - any unreadable file is a reason, never a crash
+            problems.append(f"{name} is not a valid notebook ({type(error).__name__}: {str(error)[:120]})")
+    if not any(name in expected for name in notebook_names):
+        problems.append(f"no notebook of this assignment was submitted (expected {', '.join(expected) or 'none'}, "
+                        f"got {', '.join(notebook_names) or 'none'})")
+    if problems:
+        return ExecutedSubmission(student, assignment, {}, False, "; ".join(problems), not_graded="; ".join(problems))
     executed = execute_submission(project, student, assignment, files, releases)
-    if not executed.ok:
-        return executed
+    notebooks = dict(executed.notebooks)
+    if not executed.ok:  # graded from the answers as submitted; the run's problem is reported
+        for name in notebook_names:
+            release = json.loads(releases[name]) if name in releases else None
+            notebooks[name] = json.dumps(prepare(json.loads(files[name]), release))
     verified = {}
-    for name, text in executed.notebooks.items():
+    for name, text in notebooks.items():
         try:
             nb = nbformat.reads(text, as_version=4)
             source = json.loads(sources[name]) if name in sources else None
             apply_trusted_checks(nb, student=student, salt=salt, source_notebook=source, memory_mb=memory_mb)
-        except Exception as error:  # leave the decision to the writer's own TrustedChecks
-            executed.log += f"\n{name}: trusted checks in the parallel phase failed ({error!r})"
-            return executed
+            if not executed.ok:
+                meta = dict(nb.metadata.get("cvkit", {}))
+                meta["flags"] = list(meta.get("flags", [])) + [
+                    "(notebook): the notebook could not run to the end in the sandbox; graded from its answers"]
+                nb.metadata["cvkit"] = meta
+        except Exception as error:  # noqa: BLE001 - the grader's own failure: not graded, with the reason
+            reason = f"{name}: the grader failed on this notebook ({type(error).__name__}: {str(error)[:200]})"
+            return ExecutedSubmission(student, assignment, {}, False, executed.log + "\n" + reason, not_graded=reason)
         verified[name] = nbformat.writes(nb)
-    executed.notebooks, executed.verified = verified, True
-    return executed
+    return ExecutedSubmission(student, assignment, verified, True, executed.log, verified=True)
 
 
 def feedback_submissions(root, db_url, project, pairs) -> None:
@@ -363,10 +414,14 @@ class Course:
         return folder
 
     def submissions(self, assignments: Iterable[str] | None = None) -> list[tuple[str, str]]:
+        """(student, assignment) of every submission folder holding a notebook (or what claims
+        to be one: a link or an empty file is listed, and refused when it is graded)."""
         wanted = set(assignments) if assignments else None
         found = []
         for folder in sorted((self.root / "submitted").glob("*/*")):
-            if folder.is_dir() and any(folder.glob("*.ipynb")) and (wanted is None or folder.name in wanted):
+            if folder.parent.is_symlink() or folder.is_symlink() or not folder.is_dir():
+                continue
+            if any(folder.glob("*.ipynb")) and (wanted is None or folder.name in wanted):
                 found.append((folder.parent.name, folder.name))
         return found
 
@@ -408,11 +463,12 @@ class Course:
 
     def _submission_hash(self, student: str, assignment: str) -> str:
         digest = hashlib.sha256()
-        folder = self.root / "submitted" / student / assignment
-        for path in sorted(folder.rglob("*")):
-            if path.is_file():
-                digest.update(str(path.relative_to(folder)).encode())
-                digest.update(path.read_bytes())
+        files, refused = collect_files(self.root / "submitted" / student / assignment)
+        for name, data in sorted(files.items()):
+            digest.update(name.encode())
+            digest.update(data)
+        for note in refused:
+            digest.update(note.encode())
         return digest.hexdigest()
 
     def is_graded(self, student: str, assignment: str) -> bool:
@@ -434,8 +490,12 @@ class Course:
                 texts(self.root / "release" / assignment), texts(self.source_dir / assignment), self.salt())
 
     def _submission_files(self, student: str, assignment: str) -> dict[str, bytes]:
-        folder = self.root / "submitted" / student / assignment
-        return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+        """The submission's regular files (links, devices and the like are refused, see
+        :func:`collect_files`, and flagged when the submission is recorded)."""
+        return collect_files(self.root / "submitted" / student / assignment)[0]
+
+    def _refused_files(self, student: str, assignment: str) -> list[str]:
+        return collect_files(self.root / "submitted" / student / assignment)[1]
 
     def record(self, executed: "ExecutedSubmission") -> JobResult:
         """Record one executed submission (see :meth:`record_many`)."""
@@ -478,11 +538,25 @@ class Course:
         """The single writer: nbgrader's own autograde, without execution, on executed
         notebooks (one nbgrader run per assignment for the whole batch); only this process
         writes the gradebook. Notebooks whose checks were decided in the parallel phase are
-        recorded as they are; for any other (execution failed: graded from its raw files, so
-        a grade is never lost; or a repaired copy) nbgrader's TrustedChecks decides here."""
+        recorded as they are; a repaired copy (graded cells tampered with) is verified here by
+        nbgrader's TrustedChecks (sandboxed too). Never raises for a submission: what cannot be
+        recorded is listed as not graded, with the reason."""
+        try:
+            return self._record_many(batch, repair)
+        except Exception as error:  # noqa: BLE001 - isolate the submission that breaks the writer
+            if len(batch) > 1:
+                return [r for e in batch for r in self.record_many([e], repair=repair)]
+            executed = batch[0]
+            return [self._record_not_graded(executed.student, executed.assignment,
+                                            f"the grader could not record it ({type(error).__name__}: {str(error)[:200]})")]
+
+    def _record_many(self, batch: list, repair: bool = False) -> list[JobResult]:
         results = []
         groups = {}
         for executed in batch:  # one nbgrader run per assignment and kind of verification
+            if executed.not_graded:
+                results.append(self._record_not_graded(executed.student, executed.assignment, executed.not_graded))
+                continue
             key = (executed.assignment, bool(executed.verified and executed.ok))
             groups.setdefault(key, []).append(executed)
         for (assignment, _), group in sorted(groups.items()):
@@ -498,6 +572,7 @@ class Course:
                     if repair and name.endswith(".ipynb"):
                         data = json.dumps(self.repaired(executed.student, assignment, name, json.loads(data))).encode()
                     target.write_bytes(files[name].encode() if name in files else data)
+
             students = [] if len(group) > 1 else ["--student", group[0].student]
             # notebooks verified in the parallel phase carry their verdicts; any other
             # (execution failed, repaired copy) is verified here by nbgrader's TrustedChecks
@@ -505,7 +580,11 @@ class Course:
             api = self.nbgrader_api(**{
                 "CourseDirectory.submitted_directory": str(staging), "Execute.enabled": False,
                 "ClearOutput.enabled": False, "TrustedChecks.enabled": not verified})
-            outcome = api.autograde(assignment, group[0].student if len(group) == 1 else "*", force=True, create=True)
+            try:
+                outcome = api.autograde(assignment, group[0].student if len(group) == 1 else "*", force=True,
+                                        create=True)
+            except Exception as error:  # noqa: BLE001 - nbgrader's failure on one notebook must not stop the run
+                outcome = {"success": False, "error": f"{type(error).__name__}: {error}"}
             done = subprocess.CompletedProcess(["nbgrader", "autograde", assignment, *students],
                                                0 if outcome.get("success") else 1,
                                                outcome.get("log", ""), outcome.get("error", ""))
@@ -518,11 +597,19 @@ class Course:
                 # grade the student's answers in a repaired copy of the release instead
                 results += self.record_many(group, repair=True)
                 continue
+            if done.returncode != 0:  # not even a repaired copy: not graded, with nbgrader's reason
+                reason = (done.stderr or done.stdout or "nbgrader could not record it").strip().splitlines()[-1][:300]
+                results += [self._record_not_graded(e.student, assignment, f"nbgrader refused it: {reason}")
+                            for e in group]
+                continue
             journal = self._journal()
             for executed in group:
                 log = (executed.log[-1500:] + "\n" + done.stdout + done.stderr)[-4000:]
                 if done.returncode == 0:
                     journal[f"{executed.student}/{assignment}"] = self._submission_hash(executed.student, assignment)
+                    self._set_not_graded(executed.student, assignment, None)
+                    for note in self._refused_files(executed.student, assignment):
+                        self._add_flag(executed.student, assignment, f"(notebook): {note}")
                 if repair and done.returncode == 0:
                     log += "\ngraded from a repaired copy: the submission's graded cells had been tampered with"
                     self._add_flag(executed.student, assignment,
@@ -531,6 +618,58 @@ class Course:
             self._journal_path().parent.mkdir(parents=True, exist_ok=True)
             self._journal_path().write_text(json.dumps(journal, indent=1))
         return results
+
+    # ------------------------------------------------------------------ not graded
+    def _not_graded_path(self) -> Path:
+        return self.root / ".cvkit" / "not_graded.json"
+
+    def not_graded(self) -> dict[str, str]:
+        """``"student/assignment"`` → why it could not be graded (never a zero)."""
+        try:
+            data = json.loads(self._not_graded_path().read_text())
+            return {str(k): str(v) for k, v in data.items()} if isinstance(data, dict) else {}
+        except (OSError, ValueError):
+            return {}
+
+    def _set_not_graded(self, student: str, assignment: str, reason: str | None) -> None:
+        data = self.not_graded()
+        key = f"{student}/{assignment}"
+        if reason is None and key not in data:
+            return
+        if reason is None:
+            data.pop(key, None)
+        else:
+            data[key] = reason
+        self._not_graded_path().parent.mkdir(parents=True, exist_ok=True)
+        self._not_graded_path().write_text(json.dumps(data, indent=1))
+
+    def _record_not_graded(self, student: str, assignment: str, reason: str) -> JobResult:
+        """Keep a submission that cannot be graded visible as such: its reason in the journal
+        of not-graded submissions (table, exports), and for the formgrader an entry in the
+        gradebook with its notebooks flagged. No score is recorded for it."""
+        refused = self._refused_files(student, assignment)
+        if refused:
+            reason += " (refused files: " + "; ".join(refused)[:300] + ")"
+        self._set_not_graded(student, assignment, reason)
+        journal = self._journal()
+        journal[f"{student}/{assignment}"] = self._submission_hash(student, assignment)
+        self._journal_path().parent.mkdir(parents=True, exist_ok=True)
+        self._journal_path().write_text(json.dumps(journal, indent=1))
+        try:
+            from nbgrader.api import Gradebook, MissingEntry
+
+            with Gradebook(self.db_url) as gb:
+                gb.update_or_create_student(student)
+                try:
+                    submission = gb.find_submission(assignment, student)
+                except MissingEntry:
+                    submission = gb.add_submission(assignment, student)
+                for notebook in submission.notebooks:
+                    notebook.flagged = True
+                gb.db.commit()
+        except Exception:  # noqa: BLE001 - the table and the exports still say it
+            pass
+        return JobResult(student, assignment, 0, 1, f"not graded: {reason}", executed=False, not_graded=reason)
 
     def _add_flag(self, student: str, assignment: str, flag: str) -> None:
         """Append a flag to the metadata of a student's autograded notebooks."""
@@ -548,8 +687,16 @@ class Course:
         progress: bool = False,
         regrade: bool = False,
         batch: int | None = None,
+        sandbox: bool = True,
     ) -> list[JobResult]:
         """Autograde every submission, then write feedback and the CSV exports.
+
+        Every line of student code runs in the operating-system sandbox
+        (:mod:`cvkit.grading.isolation`); when it cannot be made, this raises
+        :class:`~cvkit.grading.isolation.SandboxUnavailable` before grading anything, with how
+        to install it. ``sandbox=False`` (``--no-sandbox``, one trusted machine only) grades
+        with resource limits alone and marks every such grade in the table, the exports and
+        the feedback.
 
         The parallel phase (:func:`grade_submission`: execution in isolation, then the trusted
         checks) runs in ``workers`` local processes, or on the workers of the Dask distributed
@@ -558,6 +705,13 @@ class Course:
         (default ``3 * workers``: nbgrader's start-up is paid once per batch). Submissions
         graded before from the same files are skipped unless ``regrade``.
         """
+        from .grading import isolation
+
+        if sandbox:
+            isolation.require()
+            os.environ.pop("CVKIT_NO_SANDBOX", None)
+        else:
+            os.environ["CVKIT_NO_SANDBOX"] = "1"  # inherited by the grading workers
         jobs = self.submissions(assignments)
         todo = [(s, a) for s, a in jobs if regrade or not self.is_graded(s, a)]
         payloads = [self._payload(s, a) for s, a in todo]
@@ -628,7 +782,9 @@ class Course:
         missing = self.audit(jobs)
         results += [JobResult(s, a, 1, 0, "no grade recorded after autograding") for s, a in missing]
         retried = [(r.student, r.assignment) for r in results if r.ok and (r.student, r.assignment) in missing_before]
-        self.feedback(retried + [(s, a) for s, a in jobs if not (self.root / "feedback" / s / a).is_dir()])
+        not_graded = self.not_graded()
+        self.feedback([pair for pair in retried + [(s, a) for s, a in jobs if not (self.root / "feedback" / s / a).is_dir()]
+                       if f"{pair[0]}/{pair[1]}" not in not_graded])
         self.export()
         return sorted(results, key=lambda r: (r.assignment, r.student))
 
@@ -639,18 +795,39 @@ class Course:
         if not pairs:
             return
         api = self.nbgrader_api()
+        failed = []
         for student, assignment in pairs:
-            outcome = api.generate_feedback(assignment, student_id=student, force=True)
+            try:
+                outcome = api.generate_feedback(assignment, student_id=student, force=True)
+            except Exception as error:  # noqa: BLE001 - one page must not stop the others
+                outcome = {"success": False, "error": repr(error)}
             if not outcome.get("success"):
-                raise RuntimeError(f"feedback for {student}/{assignment} failed:\n{outcome.get('error', '')[-2000:]}")
+                failed.append(f"{student}/{assignment}: {outcome.get('error', '')[-500:]}")
+                continue
+            self._secure_feedback(student, assignment)
+        if failed:
+            log = self.root / ".cvkit" / "feedback_errors.log"
+            log.parent.mkdir(parents=True, exist_ok=True)
+            log.write_text("\n".join(failed))
+
+    def _secure_feedback(self, student: str, assignment: str) -> None:
+        """MathJax next to the feedback pages, so they render offline (see :mod:`.grading.safety`)."""
+        try:
+            from .grading.safety import install_offline_mathjax
+        except ImportError:  # pragma: no cover
+            return
+        install_offline_mathjax(self.root / "feedback")
 
     def audit(self, jobs: Iterable[tuple[str, str]]) -> list[tuple[str, str]]:
         """Submissions with no autograded notebook or no grade in the gradebook."""
         from nbgrader.api import Gradebook, MissingEntry
 
         missing = []
+        not_graded = self.not_graded()
         with Gradebook(self.db_url) as gb:
             for student, assignment in jobs:
+                if f"{student}/{assignment}" in not_graded:
+                    continue  # accounted for: listed as not graded, with its reason
                 graded = list((self.root / "autograded" / student / assignment).glob("*.ipynb"))
                 try:
                     submission = gb.find_submission(assignment, student)
@@ -667,6 +844,8 @@ class Course:
         recognised, the problems, and the tampering flags for the instructor)."""
         import csv
 
+        from .grading.safety import csv_safe
+
         target = self.root / "exports" / "grades.csv"
         target.parent.mkdir(exist_ok=True)
         from nbgrader.api import Gradebook
@@ -674,15 +853,62 @@ class Course:
 
         with Gradebook(self.db_url) as gradebook:
             CsvExportPlugin(to=str(target)).export(gradebook)
+        not_graded = self.not_graded()
+        unsandboxed = self._unsandboxed()
+        with target.open(newline="") as handle:
+            rows = list(csv.reader(handle))
+        if rows:
+            header = rows[0]
+            column = {name: i for i, name in enumerate(header)}
+            out = [header + ["status"]]
+            for row in rows[1:]:
+                key = f"{row[column['student_id']]}/{row[column['assignment']]}" if "student_id" in column else ""
+                status = "graded"
+                if key in not_graded:
+                    status = f"not graded: {not_graded[key]}"
+                    for name in ("raw_score", "score", "late_submission_penalty"):
+                        if name in column:
+                            row[column[name]] = ""
+                elif key in unsandboxed:
+                    status = "graded WITHOUT SANDBOX (--no-sandbox)"
+                out.append([csv_safe(cell) for cell in row] + [csv_safe(status)])
+            with target.open("w", newline="") as handle:
+                csv.writer(handle).writerows(out)
         with (self.root / "exports" / "exercises.csv").open("w", newline="") as handle:
             writer = csv.writer(handle)
             writer.writerow(["assignment", "student", "exercise", "score", "max_score", "mistakes", "problems", "flags"])
             for assignment in sorted({a for _, a in self.submissions()}):
                 for student, exercises in self.scores(assignment).items():
                     for e in exercises:
-                        writer.writerow([assignment, student, e.name, f"{e.score:g}", f"{e.max_score:g}",
-                                         "; ".join(e.mistakes), "; ".join(e.problems), "; ".join(e.flags)])
+                        writer.writerow([csv_safe(x) for x in (
+                            assignment, student, e.name, f"{e.score:g}", f"{e.max_score:g}",
+                            "; ".join(e.mistakes), "; ".join(e.problems), "; ".join(e.flags))])
+                for key, reason in sorted(not_graded.items()):
+                    student, _, a = key.partition("/")
+                    if a == assignment:
+                        writer.writerow([csv_safe(x) for x in (assignment, student, "(submission)", "", "", "", 
+                                                                f"not graded: {reason}", "not graded")])
         return target
+
+    def _unsandboxed(self) -> set[str]:
+        """``student/assignment`` of submissions graded with ``--no-sandbox``."""
+        found = set()
+        for folder in sorted((self.root / "autograded").glob("*/*")):
+            for path in folder.glob("*.ipynb"):
+                try:
+                    meta = json.loads(path.read_text()).get("metadata", {}).get("cvkit", {})
+                except (OSError, ValueError):
+                    continue
+                if meta.get("sandboxed") is False:
+                    found.add(f"{folder.parent.name}/{folder.name}")
+        return found
+
+    def table(self, assignment: str) -> str:
+        """The grade table of one assignment, not-graded submissions and unsandboxed grading
+        included (see :func:`format_table`)."""
+        not_graded = {k.partition("/")[0]: v for k, v in self.not_graded().items() if k.endswith(f"/{assignment}")}
+        unsandboxed = sorted(k.partition("/")[0] for k in self._unsandboxed() if k.endswith(f"/{assignment}"))
+        return format_table(self.scores(assignment), not_graded=not_graded, unsandboxed=unsandboxed)
 
     # ------------------------------------------------------------------ results
     def scores(self, assignment: str) -> dict[str, list[ExerciseScore]]:
@@ -690,8 +916,11 @@ class Course:
         from nbgrader.api import Gradebook, MissingEntry
 
         table: dict[str, list[ExerciseScore]] = {}
+        not_graded = self.not_graded()
         with Gradebook(self.db_url) as gb:
             for student, a in self.submissions([assignment]):
+                if f"{student}/{assignment}" in not_graded:
+                    continue  # no score: listed as not graded (Course.table, the exports)
                 try:
                     submission = gb.find_submission(assignment, student)
                 except MissingEntry:
@@ -744,6 +973,8 @@ def _flags(folder: Path) -> list[str]:
     for path in sorted(folder.glob("*.ipynb")):
         meta = json.loads(path.read_text()).get("metadata", {}).get("cvkit", {})
         flags += [str(f) for f in meta.get("flags", [])]
+        if meta.get("sandboxed") is False:
+            flags.append("(notebook): GRADED WITHOUT THE SANDBOX (--no-sandbox)")
         if meta.get("worker_problem"):
             flags.append(f"(notebook): {meta['worker_problem']}")
     return flags
@@ -822,11 +1053,23 @@ def _progress(iterable, desc: str, enabled: bool, total: int | None = None):
     return tqdm(iterable, desc=desc, total=total, unit="job", file=sys.stderr)
 
 
-def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str] | None = None) -> str:
-    """A plain-text table: one row per exercise, one column per student, totals, mistakes."""
+def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str] | None = None,
+                 not_graded: dict[str, str] | None = None, unsandboxed: Iterable[str] = ()) -> str:
+    """A plain-text table: one row per exercise, one column per student, totals, mistakes;
+    then the submissions that could not be graded (``not_graded``: student → reason, never
+    shown as zeros) and a loud warning for those graded without the sandbox."""
+    not_graded = dict(not_graded or {})
+    unsandboxed = sorted(unsandboxed)
+    tail = []
+    if unsandboxed:
+        tail.append("\n!! GRADED WITHOUT THE SANDBOX (--no-sandbox): student code ran with the grader's rights for "
+                    + ", ".join(unsandboxed))
+    if not_graded:
+        tail.append("\nNot graded (no score recorded; fix the cause and grade again):")
+        tail += [f"  {s}: not graded: {reason}" for s, reason in sorted(not_graded.items())]
     students = [s for s in (students or scores) if s in scores]
     if not students:
-        return "(no graded submissions)"
+        return "(no graded submissions)" + "\n".join(tail)
     exercises = []
     for s in students:
         for e in scores[s]:
@@ -869,7 +1112,7 @@ def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str]
     if flagged:
         lines.append("\nFlags for the instructor (code that tries to get around the grader):")
         lines += flagged
-    return "\n".join(lines)
+    return "\n".join(lines + tail)
 
 
 def _cell_source(cell: dict) -> str:

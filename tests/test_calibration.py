@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 
 import cvkit
 from cvkit import calibration, camera, data, registry
-from cvkit.calibration._problems import Jacobian, Residuals
+from cvkit.grading.runtime.problems import Jacobian, Residuals
 from cvkit.calibration.checks import _arctan_problem, _circle_problem, _exponential_problem, _projective_problem
 
 cv2 = pytest.importorskip("cv2")

@@ -18,7 +18,7 @@ import pytest
 import cvkit.calibration
 import cvkit.warp
 from cvkit import registry
-from cvkit.calibration._problems import Jacobian, Residuals, rebuild
+from cvkit.grading.runtime.problems import Jacobian, Residuals, rebuild
 from cvkit.calibration.checks import CalibrationClose, CornersClose, HomographyClose, MinimumClose
 from cvkit.grading import Case, evaluate
 from cvkit.warp.checks import WarpClose
@@ -264,7 +264,7 @@ def test_warp_close_ignores_only_sources_on_the_border():
 def test_optimiser_cases_cross_the_wire_as_plain_data():
     """The trusted grader sends cases to its worker as JSON: the residual functions go as plain
     dicts and the check's adapter rebuilds them there."""
-    from cvkit.calibration._problems import least_squares_call
+    from cvkit.grading.runtime.problems import least_squares_call
     from cvkit.grading import wire
 
     spec = _check("calibration.levenberg_marquardt")

@@ -15,7 +15,7 @@ import pytest
 import cvkit.nn
 from cvkit import registry
 from cvkit.grading import evaluate
-from cvkit.grading.wire import dumps
+from cvkit.grading.runtime.wire import dumps
 
 try:
     from . import alternatives_nn as alt

@@ -349,7 +349,7 @@ def test_numpy_functions_reexported_by_forbidden_modules_are_fine():
 
 
 def test_nan_arguments_are_not_reported_as_modified():
-    from cvkit.grading.guard import run_guarded
+    from cvkit.grading.runtime.guard import run_guarded
 
     outcome = run_guarded(lambda image, fill=0.0: image, (np.ones(2),), {"fill": float("nan")})
     assert outcome.modified == [] and outcome.error is None

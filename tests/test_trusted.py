@@ -196,10 +196,11 @@ def test_exiting_costs_only_that_exercise(exit_call):
     assert any("exit" in f for f in result.flags)
 
 
-def test_exit_at_cell_level_is_reported():
-    scores, result = grade(notebook(extra_cells=["import os\nos._exit(3)"]))
-    assert sum(scores.values()) == 0
-    assert result.worker_problem and "ended early" in result.worker_problem
+def test_exit_at_cell_level_costs_only_that_cell():
+    # no import needed: NumPy's ctypes door reaches libc's _exit
+    scores, result = grade(notebook(extra_cells=["np.ctypeslib.ctypes.CDLL(None)._exit(3)"]))
+    assert scores == {"mean_kernel_visible": 1, "mean_kernel_hidden": 2, "median_visible": 1, "median_hidden": 2}
+    assert any("cell 2" in e and "ended early" in e for e in result.cell_errors)
 
 
 def test_fake_output_and_warnings_change_nothing():
@@ -215,7 +216,6 @@ def test_fake_output_and_warnings_change_nothing():
     assert scores == silent and exercise(scores, "median") < 1
 
 
-@pytest.mark.skipif(not sandbox._can_drop_privileges(), reason="needs root to run the worker as nobody")
 def test_worker_cannot_touch_course_files(tmp_path):
     course = tmp_path / "course"
     course.mkdir(mode=0o700)
@@ -225,15 +225,15 @@ def test_worker_cannot_touch_course_files(tmp_path):
     other.write_text("their work")
     cheat = HONEST_MEDIAN.replace(
         "image = np.asarray(image, dtype=float)",
-        "import os\n"
+        "libc = np.ctypeslib.ctypes.CDLL(None)\n"
         f"    for path in ({str(victim)!r}, {str(other)!r}):\n"
-        "        try:\n            os.remove(path)\n        except OSError:\n            pass\n"
+        "        libc.unlink(path.encode())\n"
         f"    try:\n        open({str(victim)!r}, 'w').write('pwned')\n    except OSError:\n        pass\n"
         "    image = np.asarray(image, dtype=float)")
     scores, result = grade(notebook(median_answer=cheat))
     assert victim.read_text() == "precious" and other.read_text() == "their work"
     assert exercise(scores, "median") == 3  # the honest computation still counts ...
-    assert any("deletes files" in f for f in result.flags)  # ... and the attempt is flagged
+    assert any("opens files" in f for f in result.flags)  # ... and the attempt is flagged
 
 
 def test_student_added_helper_cells_are_used():

@@ -6,12 +6,17 @@
   :class:`Report`.
 - :func:`check`: what notebook test cells call (shows the report, asserts or returns partial
   credit for nbgrader).
-- :mod:`.guard`: copies of the inputs, time limit, captured output, forbidden calls.
+- :mod:`.runtime`: what runs inside the grading sandbox next to student code (NumPy only):
+  the guard (copies of the inputs, time limit, captured output, forbidden calls), the JSON
+  wire format, the sandbox worker and the adapters of :attr:`Check.call`.
+- :mod:`.isolation` and :mod:`.sandbox`: the operating-system sandbox (bubblewrap) and the
+  trusted side of a sandboxed run.
 """
 from .checks import FORBIDDEN_LIBRARIES, Case, Check, Mistake, instance_call
 from .compare import Close, Comparator, Mismatch, Statistics, close
 from .engine import check, evaluate, hidden_seed
 from .report import MIME_TYPE, CaseResult, Report
+from .runtime import guard, wire  # noqa: F401  (cvkit.grading.wire, cvkit.grading.guard)
 
 __all__ = [
     "Case", "Check", "Mistake", "FORBIDDEN_LIBRARIES", "instance_call",

@@ -7,6 +7,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from .compare import Comparator
+from .runtime.adapters import bind_call, instance_call  # noqa: F401  (re-exported)
 
 #: libraries that would do a Chapter's exercise for the student (module-name prefixes)
 FORBIDDEN_LIBRARIES = (
@@ -94,8 +95,9 @@ class Check:
         How a case calls the candidate when it is not a plain function: the output of a case is
         ``call(candidate, *case.args, **case.kwargs)`` instead of
         ``candidate(*case.args, **case.kwargs)``, for the candidate, the reference and every
-        mistake alike. It must be a module-level function (the trusted grader hands it to the
-        isolated worker by its import path) that only passes plain data in and out, e.g.
+        mistake alike. It must be a function of :mod:`cvkit.grading.runtime.adapters` (it runs in
+        the grading sandbox, which holds NumPy and that package only; the trusted grader sends
+        its name) that only passes plain data in and out, e.g.
         :func:`instance_call` to grade a class by building it and calling one of its methods.
     """
 
@@ -129,35 +131,12 @@ class Check:
         return tuple(p for p in FORBIDDEN_LIBRARIES if p not in self.allowed_libraries)
 
 
-def instance_call(cls, arg, method, *args, **kwargs):
-    """``cls(arg).<method>(*args, **kwargs)``: a :attr:`Check.call` for classes.
-
-    With ``Check(call=instance_call)``, a case ``Case((points, "query", q), {"k": 2})`` grades a
-    class by building ``cls(points)`` and returning ``.query(q, k=2)``.
-    """
-    return getattr(cls(arg), method)(*args, **kwargs)
-
-
-def bind_call(call: Callable | None, candidate: Callable) -> Callable:
-    """The callable a case runs: ``candidate`` itself, or ``call`` bound to it (it keeps the
-    candidate's ``__module__``, which the guard uses to recognise the candidate's own code)."""
-    if call is None:
-        return candidate
-
-    def run_case(*args, **kwargs):
-        return call(candidate, *args, **kwargs)
-
-    run_case.__module__ = getattr(candidate, "__module__", None) or run_case.__module__
-    run_case.__wrapped__ = candidate
-    run_case.__qualname__ = f"{getattr(call, '__name__', 'call')}({getattr(candidate, '__qualname__', 'candidate')})"
-    return run_case
-
-
 def call_target(call: Callable | None) -> str | None:
     """``"module:qualname"`` of a :attr:`Check.call` (how the worker imports it), or None."""
     if call is None:
         return None
     module, name = getattr(call, "__module__", None), getattr(call, "__qualname__", "")
-    if not module or not name or "<" in name:
-        raise ValueError(f"Check.call must be a module-level function, got {call!r}")
+    if not module or not name or "<" in name or not module.startswith("cvkit.grading.runtime."):
+        raise ValueError(f"Check.call must be a function of cvkit.grading.runtime (it runs in the grading "
+                         f"sandbox, where only NumPy and that package exist), got {call!r}")
     return f"{module}:{name}"

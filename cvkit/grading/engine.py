@@ -16,7 +16,7 @@ import numpy as np
 
 from .. import registry
 from .checks import Check, Mistake, bind_call
-from .guard import Outcome, run_guarded
+from .runtime.guard import Outcome, run_guarded
 from .report import MIME_TYPE, CaseResult, Report
 
 SALT_VARIABLE = "CVKIT_GRADING_SALT"
@@ -94,6 +94,31 @@ def evaluate(
     Report
         ``.passed``, ``.score`` (fraction of cases passed), per-case results and the mistake
         of the bank the candidate's output matches, if any.
+
+    Notes
+    -----
+    **Cases the reference cannot compute are dropped, never scored.** When the reference
+    implementation raises on a case (a bug of the check or of the reference, not of the
+    candidate), that case is left out: it counts neither as passed nor as failed
+    (``score = passed / counted cases``), it is not shown as a failure, and it is recorded in
+    ``report.dropped`` (``"case N (label): reference raised ValueError: ..."``) for the
+    instructor; the student sees one line, "N hidden case(s) dropped: the reference could not
+    compute them (reported to the instructor)".
+
+    When *every* case is dropped there is nothing left to compare with, and neither a free
+    1.0 (a blank answer would earn the points) nor a silent 0 (a correct answer would lose
+    them) is fair:
+
+    - hidden cases, candidate run here (no ``runner``): the candidate is graded on the
+      **visible** cases instead, which the reference computes; the score is their fraction
+      passed, so the hidden points follow what can still be verified (1.0 only for a
+      candidate that passes the visible cases, 0 for a blank one). ``report.fallback`` says
+      so and ``report.dropped`` still lists the hidden cases.
+    - otherwise (visible cases, or an external ``runner`` whose outcomes exist only for the
+      hidden cases, or visible cases that cannot be computed either): the report is **not
+      graded** — ``report.gradable`` is False, ``report.problem`` says why, ``score`` is 0
+      and ``passed`` False — so that the instructor, who sees ``report.dropped``, fixes the
+      check and regrades; nothing is awarded that was not checked.
     """
     record = registry.get(algorithm_id)
     spec = check if check is not None else record.check
@@ -112,6 +137,8 @@ def evaluate(
 
     names = _arg_names(record.reference, spec)
     mistake_votes: dict[str, int] = {}
+    matching: list[list[Mistake]] = []  # per counted case, the known mistakes that reproduce its output
+    runs_here = runner is None  # the candidate is called in this process (it can run other cases)
     if runner is None:
         graded = bind_call(spec.call, candidate)
 
@@ -127,14 +154,20 @@ def evaluate(
             )
 
     for index, case in enumerate(cases):
+        found: list[Mistake] = []
         outcome = runner(index, case, 0)
         if outcome is None:  # e.g. the isolated worker died before this case
             outcome = Outcome(error="no result: the grading worker stopped before this case (exit, crash or memory)")
+        label = case.label or f"case {index + 1}"
         # computed only after the candidate ran: it cannot be read from the grader's frames
-        expected = _reference_output(record.reference, case, spec.call)
+        try:
+            expected = _reference_output(record.reference, case, spec.call)
+        except Exception as error:  # the check's fault, not the candidate's: drop the case
+            report.dropped.append(_dropped_entry(index, label, error))
+            continue
         result = CaseResult(
             index=index,
-            label=case.label or f"case {index + 1}",
+            label=label,
             description=case.describe(names),
             passed=False,
             elapsed=outcome.elapsed,
@@ -177,6 +210,8 @@ def evaluate(
                 result.message = mismatch.message
                 result.worst = mismatch.worst
         if not result.passed and result.got is not None:
+            # every known mistake that reproduces this wrong output gets this case's vote (one
+            # case may not tell two mistakes apart; the other cases then decide)
             for mistake in spec.mistakes:
                 produced, wrong = _mistake_output(mistake, case, spec.call)
                 if not produced:
@@ -185,14 +220,50 @@ def evaluate(
                     if spec.compare(wrong, expected, case) is None:
                         continue  # this case does not tell the mistake from the right answer
                     if spec.compare(outcome.value, wrong, case) is None:
-                        result.mistake, result.hint = mistake.name, mistake.hint
+                        found.append(mistake)
                         mistake_votes[mistake.name] = mistake_votes.get(mistake.name, 0) + 1
-                        break
         report.cases.append(result)
+        matching.append(found)
+    if report.dropped and not report.cases:
+        return _nothing_counted(report, algorithm_id, candidate, spec, runs_here)
     if mistake_votes:
+        # the mistake consistent with the most failing cases; ties go to the bank's order
         best = max(mistake_votes, key=mistake_votes.get)
         report.mistake = best
         report.hint = spec.mistake(best).hint
+    for result, found in zip(report.cases, matching):
+        if found:  # each case names the overall mistake when it fits, else its first match
+            chosen = next((m for m in found if m.name == report.mistake), found[0])
+            result.mistake, result.hint = chosen.name, chosen.hint
+    return report
+
+
+def _dropped_entry(index: int, label: str, error: BaseException, limit: int = 300) -> str:
+    """``"case N (label): reference raised ValueError: <first line>"`` for ``report.dropped``."""
+    message = str(error).strip().splitlines()[0] if str(error).strip() else ""
+    if len(message) > limit:
+        message = message[: limit - 1] + "…"
+    return f"case {index + 1} ({label}): reference raised {type(error).__name__}" + (f": {message}" if message else "")
+
+
+def _nothing_counted(report: Report, algorithm_id: str, candidate: Callable, spec: Check, runs_here: bool) -> Report:
+    """The reference raised on every case (see :func:`evaluate`, Notes): grade on the visible
+    cases instead when possible, else mark the report as not graded."""
+    n = len(report.dropped)
+    kind = "hidden" if report.hidden else "visible"
+    what = f"the reference could not compute any of the {n} {kind} case{'s' if n != 1 else ''}"
+    if report.hidden and runs_here:
+        visible = evaluate(algorithm_id, candidate, hidden=False, check=spec)
+        if visible.cases:
+            report.cases = visible.cases
+            report.mistake, report.hint = visible.mistake, visible.hint
+            report.dropped += [f"visible {entry}" for entry in visible.dropped]
+            report.fallback = (f"{what} (reported to the instructor): you were graded on the visible "
+                               "cases instead")
+            return report
+        report.dropped += [f"visible {entry}" for entry in visible.dropped]
+        what += " nor any visible case"
+    report.problem = f"not graded: {what} (reported to the instructor, who will regrade)"
     return report
 
 

@@ -86,16 +86,51 @@ def execute(notebook: dict, folder: str, timeout: int | None = None) -> dict:
     return json.loads(nbformat.writes(nb))
 
 
+MAX_TEXT = 100_000        # characters of one text output kept for the feedback
+MAX_OUTPUTS_BYTES = 16 << 20   # all outputs of a notebook
+
+
+def bounded(notebook: dict) -> dict:
+    """The executed notebook with floods cut: long text outputs keep their start and end, and
+    outputs beyond the notebook's budget are replaced by a note (a 1.5 GB print must not
+    reach the grader)."""
+    budget = MAX_OUTPUTS_BYTES
+    for cell in notebook.get("cells", []):
+        kept = []
+        for output in cell.get("outputs", []) or []:
+            text = output.get("text")
+            if isinstance(text, list):
+                text = "".join(text)
+            if isinstance(text, str) and len(text) > MAX_TEXT:
+                output["text"] = (text[: MAX_TEXT // 2] + f"\n... [{len(text) - MAX_TEXT} characters cut by the grader] ...\n"
+                                  + text[-MAX_TEXT // 2:])
+            size = len(json.dumps(output))
+            if size > budget:
+                kept.append({"output_type": "stream", "name": "stdout",
+                             "text": "[output removed by the grader: the notebook's outputs exceed 16 MB]\n"})
+                continue
+            budget -= size
+            kept.append(output)
+        if "outputs" in cell:
+            cell["outputs"] = kept
+    return notebook
+
+
 def main(argv: list[str] | None = None) -> int:  # pragma: no cover - runs in the disposable process
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 2:
         print("usage: python -m cvkit.grading.execute IN.ipynb OUT.ipynb", file=sys.stderr)
         return 2
     source, target = argv
+    processes = int(os.environ.get("CVKIT_SANDBOX_NPROC", "0") or 0)
+    if processes:  # inside the sandbox's user namespace: counts this sandbox's processes only
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_NPROC, (processes, processes))
     os.environ["CVKIT_TRUSTED_GRADING"] = "1"  # the kernel's check() calls are no-ops
     with open(source, encoding="utf-8") as handle:
         notebook = json.load(handle)
-    executed = execute(notebook, os.path.dirname(os.path.abspath(source)))
+    executed = bounded(execute(notebook, os.path.dirname(os.path.abspath(source))))
     with open(target, "w", encoding="utf-8") as handle:
         json.dump(executed, handle, indent=1)
     return 0

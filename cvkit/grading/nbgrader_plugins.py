@@ -7,6 +7,9 @@
   (``metadata.cvkit.flags``) for the grade export.
 - :class:`HideHiddenTests` — a feedback preprocessor: students see the results of the hidden
   tests, never their source.
+- :class:`SanitizeStudentContent` and :class:`SafeFeedbackExporter` (from
+  :mod:`cvkit.grading.safety`) — feedback pages without anything executable from the student,
+  with MathJax served from the pages' folder.
 """
 from __future__ import annotations
 
@@ -19,6 +22,7 @@ from nbgrader.preprocessors import NbGraderPreprocessor
 from traitlets import Bool, Int, Unicode
 
 from .report import MIME_TYPE
+from .safety import SafeFeedbackExporter, SanitizeStudentContent  # noqa: F401  (re-exported for the config)
 from .trusted import grade_notebook, hide_hidden_tests
 
 TRUSTED_VARIABLE = "CVKIT_TRUSTED_GRADING"
@@ -94,9 +98,16 @@ def apply_trusted_checks(nb, *, student: str, salt: str, source_notebook=None, m
             outputs.append(new_output("error", ename="AssertionError", evalue=message,
                                       traceback=[f"AssertionError: {message}"]))
         cell.outputs = outputs
+    if not grade.sandboxed and not nb.metadata.get("cvkit", {}).get("unsandboxed_note"):
+        from nbformat.v4 import new_markdown_cell
+
+        nb.cells.insert(0, new_markdown_cell(
+            "**⚠ Graded without the sandbox** (`cvkit course grade --no-sandbox`): your code ran with the "
+            "grader's rights on the grading machine. Ask your instructor if this is unexpected."))
     cvkit_meta = dict(nb.metadata.get("cvkit", {}))
     cvkit_meta.update(trusted=True, flags=grade.flags, worker_problem=grade.worker_problem,
-                      cell_errors=grade.cell_errors[:20])
+                      cell_errors=grade.cell_errors[:20], sandboxed=grade.sandboxed,
+                      unsandboxed_note=not grade.sandboxed)
     nb.metadata["cvkit"] = cvkit_meta
     return list(grade.flags)
 

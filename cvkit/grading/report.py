@@ -46,7 +46,14 @@ class CaseResult:
 
 @dataclass
 class Report:
-    """The result of grading one candidate on one algorithm's public or hidden cases."""
+    """The result of grading one candidate on one algorithm's public or hidden cases.
+
+    ``cases`` holds the *counted* cases only. A case on which the reference implementation
+    itself raised is not in it: it is listed in ``dropped`` (``"case N (label): reference
+    raised ValueError: ..."``, for the instructor) and counts neither as passed nor as failed.
+    ``fallback`` is set when no hidden case could be computed and the candidate was graded on
+    the visible cases instead (see :func:`cvkit.grading.engine.evaluate`).
+    """
 
     algorithm: str
     section: str
@@ -55,7 +62,9 @@ class Report:
     cases: list
     mistake: str | None = None
     hint: str | None = None
-    problem: str | None = None  # a failure before any case ran (e.g. not a function)
+    problem: str | None = None  # a failure before any case ran (e.g. not a function), or "not graded"
+    dropped: list = field(default_factory=list)  # cases the reference could not compute (instructor's bug)
+    fallback: str | None = None  # why the cases graded are the visible ones although hidden=True
 
     @property
     def passed(self) -> bool:
@@ -63,10 +72,25 @@ class Report:
 
     @property
     def score(self) -> float:
-        """Fraction of cases passed, 0..1."""
+        """Fraction of the counted cases passed, 0..1 (dropped cases are not counted)."""
         if self.problem is not None or not self.cases:
             return 0.0
         return sum(c.passed for c in self.cases) / len(self.cases)
+
+    @property
+    def gradable(self) -> bool:
+        """False when the reference could not compute a single case, so there was nothing to
+        grade the candidate on (the report then has ``problem`` set and scores 0)."""
+        return bool(self.cases) or not self.dropped
+
+    def dropped_note(self) -> str:
+        """The line students see about dropped cases ("" when none was dropped)."""
+        if not self.dropped:
+            return ""
+        kind = "hidden" if self.hidden else "visible"
+        n = len(self.dropped)
+        return (f"{n} {kind} case{'s' if n != 1 else ''} dropped: the reference could not compute "
+                f"{'them' if n != 1 else 'it'} (reported to the instructor)")
 
     @property
     def failures(self) -> list:
@@ -78,7 +102,15 @@ class Report:
             return f"{self.algorithm}: {self.problem}"
         n = sum(c.passed for c in self.cases)
         verdict = "passed" if self.passed else "FAILED"
-        text = f"{self.algorithm} (§{self.section}), {kind} tests: {n}/{len(self.cases)} cases passed — {verdict}"
+        if self.fallback:
+            kind = "visible tests (instead of the hidden ones)"
+        else:
+            kind += " tests"
+        text = f"{self.algorithm} (§{self.section}), {kind}: {n}/{len(self.cases)} cases passed — {verdict}"
+        if self.fallback:
+            text += f"\n{self.fallback}"
+        elif self.dropped:
+            text += f"\n{self.dropped_note()}"
         if self.mistake:
             text += f"\nYour output matches a known mistake: {self.mistake}. {self.hint}"
         return text
@@ -131,6 +163,8 @@ class Report:
             "hint": self.hint,
             "problem": self.problem,
             "cases": [c.to_dict() for c in self.cases],
+            "dropped": [str(d) for d in self.dropped],
+            "fallback": self.fallback,
         }
 
     # ---------------------------------------------------------------- HTML for JupyterLab
@@ -153,6 +187,8 @@ class Report:
             f"<p class='cvkit-summary' style='margin:2px 0;font-weight:bold;color:{_TEXT}'>"
             f"<span aria-hidden='true' style='color:{accent}'>{'✓' if self.passed else '✗'} </span>{title}</p>",
         ]
+        for note in filter(None, (self.fallback, self.dropped_note() if not self.fallback else "")):
+            parts.append(f"<p class='cvkit-dropped' style='color:{_MUTED}'>{html.escape(note)}</p>")
         if self.mistake:
             parts.append(
                 f"<p class='cvkit-mistake'>Your output matches a known mistake: <b>{html.escape(self.mistake)}</b>. "

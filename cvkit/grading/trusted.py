@@ -41,6 +41,7 @@ class NotebookGrade:
     flags: list = field(default_factory=list)
     worker_problem: str | None = None
     cell_errors: list = field(default_factory=list)
+    sandboxed: bool = True
 
     def credit(self, grade_id: str, points: float) -> tuple[float, list[str]]:
         """Points of a test cell and the reasons it lost points."""
@@ -187,11 +188,6 @@ def scan(source: str, where: str = "") -> list[str]:
 
 
 # ---------------------------------------------------------------------------- grading
-def _reference_target(algorithm_id: str) -> str:
-    function = registry.get(algorithm_id).reference
-    return f"{function.__module__}:{function.__qualname__}"
-
-
 def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
                    memory_mb: int = 3072) -> NotebookGrade:
     """Decide every check of ``notebook`` in an isolated worker; see the module docstring."""
@@ -217,9 +213,8 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
 
     plans = []          # per check call: (spec, cases, seed, first request index per (case, attempt))
     requests = []
-    allowed: dict[str, str] = {}
-    allowed_libraries: set = set()
-    for call in calls:
+    blocks: set = set()
+    for call in _building_blocks_first(calls):
         record = registry.get(call.algorithm_id)
         spec = record.check
         seed = hidden_seed(call.algorithm_id, student=student, salt=salt) if call.hidden else None
@@ -235,17 +230,16 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
                     "time_limit": spec.time_limit, "allowed": list(spec.allowed), "arg_names": names,
                     "forbidden_libraries": list(spec.forbidden_libraries) if attempt == 0 else [],
                     "forbidden_functions": list(spec.forbidden) if attempt == 0 else [],
-                    "call": call_target(spec.call),
+                    "call": (call_target(spec.call) or "").rpartition(":")[2] or None,
                 })
-        for algorithm_id in spec.allowed:
-            allowed[algorithm_id] = _reference_target(algorithm_id)
-        allowed_libraries.update(spec.allowed_libraries)
+        blocks.update(spec.allowed)
         plans.append((call, spec, seed, positions))
-    blocked = tuple(p for p in FORBIDDEN_LIBRARIES if p not in allowed_libraries)
-    outcome = run_calls(worker_cells(notebook, source_notebook), requests, allowed=allowed,
-                        blocked=blocked, memory_mb=memory_mb)
+    outcome = run_calls(worker_cells(notebook, source_notebook), requests, blocks=tuple(sorted(blocks)),
+                        memory_mb=memory_mb)
     result.worker_problem = outcome.crashed
     result.cell_errors = outcome.cell_errors
+    result.sandboxed = outcome.sandboxed
+    result.flags += [f"(notebook): {refused}" for refused in outcome.refused]
 
     def stand_in(*args, **kwargs):  # the candidate lives in the worker
         raise RuntimeError("trusted grading evaluates outcomes computed by the worker")
@@ -259,17 +253,48 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
     return result
 
 
+def _building_blocks_first(calls: list[CheckCall]) -> list[CheckCall]:
+    """The check calls in notebook order, except that an exercise another one may use as a
+    building block is graded first: by the time the sandbox serves ``filters.pad`` to the
+    correlation exercise, the padding exercise's own cases are all decided."""
+    ordered: list[CheckCall] = []
+    remaining = list(calls)
+    while remaining:
+        for call in remaining:
+            allowed = registry.get(call.algorithm_id).check.allowed
+            if not any(o.algorithm_id != call.algorithm_id and o.algorithm_id in allowed for o in remaining):
+                ordered.append(call)
+                remaining.remove(call)
+                break
+        else:  # a cycle (no check allows its own users): keep the notebook's order
+            ordered += remaining
+            break
+    return ordered
+
+
+def _trivial(case) -> bool:
+    """A case whose expected output is constant (all zeros, say): answering it proves nothing."""
+    expected = case.expected
+    if isinstance(expected, np.ndarray) and expected.size > 1 and expected.dtype.kind in "biuf":
+        with np.errstate(invalid="ignore"):
+            return bool(np.all(expected == expected.flat[0]))
+    return False
+
+
 def _hard_coding_rule(result: NotebookGrade) -> None:
-    """A function that passes the public cases but not a single hidden case has most likely
-    memorised the public answers: its visible test gets no credit either, and it is flagged."""
-    hidden_scores = {}
+    """A function that passes the public cases but none of the hidden cases that tell anything
+    (a constant expected output tells nothing) has most likely memorised the public answers:
+    its visible test gets no credit either, and it is flagged."""
+    memorised = set()
     for entries in result.reports.values():
         for call, report in entries:
             if call.hidden:
-                hidden_scores[call.algorithm_id] = report.score
+                telling = [case for case in report.cases if not _trivial(case)]
+                if telling and not any(case.passed for case in telling):
+                    memorised.add(call.algorithm_id)
     for entries in result.reports.values():
         for call, report in entries:
-            if not call.hidden and report.passed and hidden_scores.get(call.algorithm_id) == 0.0:
+            if not call.hidden and report.passed and call.algorithm_id in memorised:
                 for case in report.cases:
                     case.passed = False
                     case.message = ("passes the shown cases but none of the hidden ones: the answers of the "

@@ -45,6 +45,7 @@ import numpy as np
 
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
 from ..grading.compare import Close
+from ..grading.runtime.adapters import TEST_FUNCTIONS, TestFunction, call_with_test_function
 from ._clustering import _assign, _update
 from ._clustering import kmeans as _kmeans
 from ._common import exact_l1_distances, exact_squared_distances
@@ -466,57 +467,6 @@ linear_loss_and_grad = Check(
 # --------------------------------------------------------------------------------------------
 # learn.numerical_gradient (§9.8.1)
 # --------------------------------------------------------------------------------------------
-#: the scalar test functions of the numerical-gradient cases; their coefficients are stacked
-#: into one array (``table``) so that a case is plain data the grading wire can carry
-TEST_FUNCTIONS = {
-    "cubic": "Σ a·x³ + c·x² + d·x (table: a, c, d)",
-    "exp": "Σ w·exp(s·x) (table: w, s)",
-    "quadratic": "½ xᵀAx + bᵀx (table: the rows of A, then b)",
-    "linear": "Σ w·x (table: w)",
-    "softmax_loss": "mean cross-entropy of the scores X·xᵀ (table: X with the labels y as last column)",
-}
-
-
-class TestFunction:
-    """``f(x) -> float`` of one of the :data:`TEST_FUNCTIONS` with its coefficient table."""
-
-    __test__ = False  # not a pytest test class
-
-    def __init__(self, kind: str, table):
-        if kind not in TEST_FUNCTIONS:
-            raise ValueError(f"unknown test function {kind!r}; known: {', '.join(TEST_FUNCTIONS)}")
-        self.kind = kind
-        self.table = np.asarray(table, dtype=np.float64)
-
-    def __call__(self, x):
-        x = np.asarray(x, dtype=np.float64)
-        t = self.table
-        if self.kind == "cubic":
-            a, c, d = t
-            return float(np.sum(a * x ** 3 + c * x ** 2 + d * x))
-        if self.kind == "exp":
-            w, s = t
-            return float(np.sum(w * np.exp(s * x)))
-        if self.kind == "quadratic":
-            v = x.ravel()
-            return float(0.5 * v @ t[:-1] @ v + t[-1] @ v)
-        if self.kind == "linear":
-            return float(np.sum(t[0] * x))
-        X, y = t[:, :-1], t[:, -1].astype(np.int64)  # softmax_loss, x plays W (C, D)
-        s = X @ x.T
-        s = s - s.max(axis=1, keepdims=True)
-        return float(np.mean(np.log(np.exp(s).sum(axis=1)) - s[np.arange(s.shape[0]), y]))
-
-    def __repr__(self):
-        return f"f(x) = {TEST_FUNCTIONS[self.kind].split(' (')[0]}"
-
-
-def call_with_test_function(candidate, function, table, x, *args, **kwargs):
-    """The ``call`` of the numerical-gradient check: a case ``(function, table, x)`` of plain
-    data runs ``candidate(TestFunction(function, table), x, ...)``."""
-    return candidate(TestFunction(function, table), x, *args, **kwargs)
-
-
 def _cubic(rng, shape):
     a = _round(rng.uniform(0.5, 2.0, shape)) * rng.choice([-1, 1], shape)
     return "cubic", np.stack([a, _round(rng.normal(0, 2, shape)), _round(rng.normal(0, 1, shape))])
@@ -932,6 +882,9 @@ top_k_accuracy = Check(
               np.array([2, 0, 0, 1, 1, 3])), {"k": 2}, "6 samples, 4 classes, k = 2"),
         Case((np.array([[3.0, 2.0, 2.0, 1.0], [1.0, 3.0, 3.0, 2.0], [2.0, 2.0, 2.0, 2.0], [0.0, 1.0, 2.0, 3.0]]),
               np.array([2, 2, 3, 3])), {"k": 2}, "ties at the second score, k = 2"),
+        Case((np.array([[0.5, 0.3, 0.3, 0.1, 0.1], [0.0, 0.0, 0.0, 0.1, 0.4], [0.3, 0.5, 0.3, 0.3, 0.5],
+                        [0.4, 0.3, 0.3, 0.3, 0.5], [0.1, 0.4, 0.4, 0.0, 0.2]]),
+              np.array([4, 2, 0, 3, 3])), {"k": 3}, "5 samples, 5 classes, k = 3"),
     ],
     hidden=_topk_hidden,
     compare=close(rtol=0.0, atol=1e-12),
@@ -1108,7 +1061,8 @@ knn_predict = Check(
              {"k": 1, "metric": "l1"}, "5 points, 4 queries, k = 1, L1 (nearest by L1 ≠ nearest by L2)"),
         Case((np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [4.0, 4.0], [5.0, 4.0], [9.0, 9.0]]),
               np.array([1, 1, 0, 0, 2, 2]),
-              np.array([[0.2, 0.3], [4.4, 4.0], [1.0, 1.0]])), {"k": 3, "metric": "l2"}, "k = 3"),
+              np.array([[0.2, 0.3], [4.4, 4.0], [1.0, 1.0], [0.0, 0.8]])), {"k": 3, "metric": "l2"},
+             "k = 3 (the majority is not the nearest sample's label)"),
     ],
     hidden=_knn_hidden,
     compare=close(rtol=0.0, atol=0.0, kind="iu"),

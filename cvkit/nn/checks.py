@@ -39,6 +39,11 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
+from ..grading.runtime.adapters import (  # noqa: F401  (CACHE_KEYS is part of this module's API)
+    CACHE_KEYS, call_batchnorm2d_forward, call_conv2d_forward, call_dropout_forward, call_global_avg_pool_forward,
+    call_leaky_relu_forward, call_linear_forward, call_maxpool2d_forward, call_relu_forward,
+    call_residual_block_forward, call_sigmoid_forward,
+)
 from . import _architectures as _arch
 from ._activations import leaky_relu_forward as _leaky_forward
 from ._activations import relu_forward as _relu_forward
@@ -66,18 +71,6 @@ __all__ = [
 ]
 
 #: the cache entries each forward must hold (its arguments and what the layer adds)
-CACHE_KEYS = {
-    "relu": ("x",),
-    "sigmoid": ("x", "out"),
-    "leaky_relu": ("x", "alpha"),
-    "linear": ("x", "W", "b"),
-    "conv2d": ("x", "w", "b", "stride", "padding"),
-    "maxpool2d": ("x", "size", "stride"),
-    "global_avg_pool": ("x",),
-    "batchnorm2d": ("x", "gamma", "beta", "running_mean", "running_var", "training", "momentum", "eps"),
-    "dropout": ("x", "p_keep", "training", "mask"),
-    "residual_block": ("x", "params", "training"),
-}
 
 _LAYERS = (
     "nn.conv2d_forward", "nn.conv2d_backward", "nn.batchnorm2d_forward", "nn.batchnorm2d_backward",
@@ -179,54 +172,6 @@ _SUMS = close(rtol=1e-7, atol=1e-9, scaled=True)
 # --------------------------------------------------------------------------------------------
 # how cases call forward passes: (out, the named cache entries)
 # --------------------------------------------------------------------------------------------
-def _select(result, layer: str):
-    if isinstance(result, tuple) and len(result) == 2 and isinstance(result[1], dict):
-        out, cache = result
-        return (out, {k: cache[k] for k in CACHE_KEYS[layer] if k in cache})
-    return result
-
-
-def call_relu_forward(candidate, *args, **kwargs):
-    """``(out, cache with the named entries)`` of a ReLU forward (a :attr:`Check.call`)."""
-    return _select(candidate(*args, **kwargs), "relu")
-
-
-def call_sigmoid_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "sigmoid")
-
-
-def call_leaky_relu_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "leaky_relu")
-
-
-def call_linear_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "linear")
-
-
-def call_conv2d_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "conv2d")
-
-
-def call_maxpool2d_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "maxpool2d")
-
-
-def call_global_avg_pool_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "global_avg_pool")
-
-
-def call_batchnorm2d_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "batchnorm2d")
-
-
-def call_dropout_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "dropout")
-
-
-def call_residual_block_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "residual_block")
-
-
 def _forward_compare(leaf):
     return Nested(leaf, names=("out", "cache"))
 

@@ -1,4 +1,4 @@
-"""Run a candidate function safely: copies of its inputs, a time limit, captured output, and a
+"""Run a candidate function under watch: copies of its inputs, a time limit, captured output, and a
 watch on calls into libraries (or cvkit's own reference) that would do the exercise for it.
 
 Nothing here writes to stderr: nbgrader gives zero to a test cell with any stderr output, so
@@ -20,8 +20,6 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
-
-from .. import registry
 
 
 class CandidateTimeout(BaseException):
@@ -191,6 +189,16 @@ def _time_limit(seconds: float | None):
         signal.signal(signal.SIGALRM, previous)
 
 
+def _reference_functions() -> dict:
+    """cvkit's reference functions (code → id), or none where cvkit is absent (the sandbox)."""
+    try:
+        import importlib
+
+        return importlib.import_module("cvkit.registry").reference_functions()
+    except ImportError:
+        return {}
+
+
 def _copy_inputs(value):
     return copy.deepcopy(value)
 
@@ -248,7 +256,7 @@ def run_guarded(
     watcher = None
     if forbidden_libraries or forbidden_functions or watch_reference or reference_codes:
         if reference_codes is None:
-            reference_codes = registry.reference_functions() if watch_reference else {}
+            reference_codes = _reference_functions() if watch_reference else {}
         watcher = _CallWatcher(forbidden_libraries, forbidden_functions, reference_codes, allowed_ids)
         # the candidate's own code; through a Check.call adapter, the wrapped candidate's
         inner = getattr(function, "__wrapped__", function)

@@ -1,0 +1,330 @@
+"""The operating-system sandbox in which every line of student code runs at grading time.
+
+Built on bubblewrap (``bwrap``, Debian package ``bubblewrap``): each sandbox gets new user,
+PID, network, IPC, UTS and mount namespaces, an unprivileged uid (65534), ``--die-with-parent``
+and ``--new-session``. Its file system holds only what the caller binds read-only (the Python
+runtime and the packages it needs), an optional writable copy of one submission, and a private
+tmpfs for ``/tmp`` (``/dev/shm`` is private too); no course folder, no ``lectures/``, no
+gradebook, no grading salt, no other submission, no network.
+
+Limits: address space, CPU time, file size and open files are resource limits set before
+bubblewrap starts (inherited by everything inside); the number of processes is limited inside
+the sandbox's own user namespace (``CVKIT_SANDBOX_NPROC``, applied by the sandboxed program)
+and, when the grader may create control groups (root), by a ``pids`` control group that also
+caps the sandbox's total memory. Wall-clock limits are the caller's: it kills the sandbox from
+outside (:meth:`Sandbox.kill`), and because the sandbox is a PID namespace, every process it
+started ends with it — a daemon cannot outlive its submission.
+
+Grading refuses to start when the sandbox cannot be made (:func:`require`); the explicit
+``--no-sandbox`` mode of ``cvkit course grade`` (one trusted machine, e.g. a laptop without
+user namespaces) runs the same programs with the resource limits only, and says so loudly.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+
+SANDBOX_UID = 65534
+INSTALL_HINT = (
+    "cvkit grades student code inside a bubblewrap sandbox. Install it with "
+    "`sudo apt-get install bubblewrap` (Debian/Ubuntu; `dnf install bubblewrap` on Fedora) and make sure "
+    "unprivileged user namespaces are enabled (`sysctl kernel.unprivileged_userns_clone=1`, and on Ubuntu ≥ 23.10 "
+    "an AppArmor profile for bwrap). On a single trusted machine you may grade without it: "
+    "`cvkit course grade --no-sandbox` (every grade is then marked as graded without a sandbox)."
+)
+
+
+class SandboxUnavailable(RuntimeError):
+    """The sandbox cannot be made on this machine (the message says how to fix it)."""
+
+
+@dataclass
+class Limits:
+    """Resource limits of one sandbox."""
+
+    memory_mb: int = 3072        # address space of each process
+    cpu_seconds: int = 600       # CPU time of each process
+    processes: int = 64          # processes and threads inside the sandbox
+    file_mb: int = 64            # largest file a process may write
+    tmpfs_mb: int = 256          # the private /tmp
+    open_files: int = 256
+    total_memory_mb: int = 6144  # whole sandbox, where a memory control group is available
+
+
+@dataclass
+class Mounts:
+    """What the sandbox sees: read-only binds (host path → path inside), writable binds."""
+
+    read_only: list = field(default_factory=list)
+    writable: list = field(default_factory=list)
+    chdir: str = "/tmp"
+    with_environment: bool = True   # the grader's Python environment (a venv: its packages)
+    masked: list = field(default_factory=list)  # folders hidden behind an empty tmpfs
+
+
+def bwrap_path() -> str | None:
+    return shutil.which("bwrap")
+
+
+_probe: dict = {}
+
+
+def system_mounts(with_environment: bool = True) -> list[tuple[str, str]]:
+    """The read-only base every sandbox needs: /usr (and /lib… where they are not links into
+    /usr), and the Python installation when it lives elsewhere (pyenv, conda); with
+    ``with_environment``, also the grader's virtual environment (its packages)."""
+    mounts: list[tuple[str, str]] = [("/usr", "/usr")]
+    for name in ("/lib", "/lib64", "/lib32", "/bin", "/sbin"):
+        if os.path.isdir(name) and not os.path.islink(name):
+            mounts.append((name, name))
+    for name in ("/etc/ld.so.cache", "/etc/localtime"):
+        if os.path.exists(name):
+            mounts.append((os.path.realpath(name), name))
+    prefixes = {os.path.realpath(sys.base_prefix)}
+    if with_environment:
+        prefixes.add(os.path.realpath(sys.prefix))
+    for prefix in sorted(prefixes):
+        if not prefix.startswith("/usr/"):
+            mounts.append((prefix, prefix))
+    return mounts
+
+
+def site_packages_of_the_system() -> list[str]:
+    """Package folders of the base Python and the distribution (hidden where only NumPy may be)."""
+    version = f"python{sys.version_info.major}.{sys.version_info.minor}"
+    candidates = [os.path.join(os.path.realpath(sys.base_prefix), "lib", version, "site-packages"),
+                  "/usr/lib/python3/dist-packages", f"/usr/lib/{version}/site-packages",
+                  f"/usr/local/lib/{version}/dist-packages", f"/usr/local/lib/{version}/site-packages"]
+    return [path for path in candidates if os.path.isdir(path)]
+
+
+def _symlinks() -> list[str]:
+    args = []
+    for name in ("/lib", "/lib64", "/lib32", "/bin", "/sbin"):
+        if os.path.islink(name):
+            args += ["--symlink", os.readlink(name), name]
+    return args
+
+
+def command(argv: list[str], mounts: Mounts, limits: Limits, env: dict[str, str]) -> list[str]:
+    """The ``bwrap`` command line that runs ``argv`` in a fresh sandbox."""
+    bwrap = bwrap_path()
+    if bwrap is None:
+        raise SandboxUnavailable("bubblewrap (bwrap) is not installed. " + INSTALL_HINT)
+    args = [bwrap, "--unshare-user", "--unshare-pid", "--unshare-net", "--unshare-ipc", "--unshare-uts",
+            "--unshare-cgroup-try", "--disable-userns", "--uid", str(SANDBOX_UID), "--gid", str(SANDBOX_UID),
+            "--hostname", "sandbox", "--die-with-parent", "--new-session", "--cap-drop", "ALL"]
+    seen = set()
+    for source, target in system_mounts(mounts.with_environment) + list(mounts.read_only):
+        if target in seen:
+            continue
+        seen.add(target)
+        args += ["--ro-bind", str(source), str(target)]
+    args += _symlinks()
+    for path in mounts.masked:
+        args += ["--tmpfs", str(path)]
+    args += ["--proc", "/proc", "--dev", "/dev",
+             "--size", str(limits.tmpfs_mb * 1024 * 1024), "--tmpfs", "/tmp",
+             "--size", str(64 * 1024 * 1024), "--tmpfs", "/dev/shm"]
+    for source, target in mounts.writable:
+        args += ["--bind", str(source), str(target)]
+    args += ["--chdir", mounts.chdir, "--clearenv"]
+    for key, value in sorted(env.items()):
+        args += ["--setenv", key, value]
+    return args + ["--", *argv]
+
+
+class _ControlGroup:
+    """A ``pids`` (and ``memory``) control group for one sandbox, where the grader may make one
+    (root on cgroup v1, or a v2 hierarchy whose own group delegates ``pids``)."""
+
+    def __init__(self, limits: Limits):
+        self.paths: list[Path] = []
+        if not hasattr(os, "geteuid") or os.geteuid() != 0:
+            return
+        name = f"cvkit-{uuid.uuid4().hex[:12]}"
+        try:
+            own = {}
+            for line in Path("/proc/self/cgroup").read_text().splitlines():
+                _, controllers, path = line.split(":", 2)
+                for controller in controllers.split(",") if controllers else ["unified"]:
+                    own[controller] = path
+            root = Path("/sys/fs/cgroup")
+            if (root / "pids" / "cgroup.procs").exists() or (root / "pids").is_dir():  # v1
+                for controller, files in (("pids", {"pids.max": str(limits.processes)}),
+                                          ("memory", {"memory.limit_in_bytes": str(limits.total_memory_mb << 20)})):
+                    base = root / controller / own.get(controller, "/").lstrip("/")
+                    if not base.is_dir():
+                        continue
+                    path = base / name
+                    path.mkdir()
+                    self.paths.append(path)
+                    for key, value in files.items():
+                        (path / key).write_text(value)
+            elif "pids" in (root / own.get("unified", "/").lstrip("/") / "cgroup.subtree_control").read_text():
+                path = root / own.get("unified", "/").lstrip("/") / name
+                path.mkdir()
+                self.paths.append(path)
+                (path / "pids.max").write_text(str(limits.processes))
+                if (path / "memory.max").exists():
+                    (path / "memory.max").write_text(str(limits.total_memory_mb << 20))
+        except (OSError, ValueError):
+            self.remove()
+            self.paths = []
+
+    @property
+    def active(self) -> bool:
+        return bool(self.paths)
+
+    def join(self) -> None:  # in the child, between fork and exec
+        for path in self.paths:
+            (path / "cgroup.procs").write_text("0")
+
+    def remove(self) -> None:
+        for path in self.paths:
+            for _ in range(50):
+                try:
+                    pids = (path / "cgroup.procs").read_text().split()
+                except OSError:
+                    break
+                for pid in pids:
+                    try:
+                        os.kill(int(pid), signal.SIGKILL)
+                    except (ProcessLookupError, ValueError, PermissionError):
+                        pass
+                try:
+                    path.rmdir()
+                    break
+                except OSError:
+                    import time
+
+                    time.sleep(0.02)
+
+
+def _preexec(limits: Limits, group: _ControlGroup):
+    def limit() -> None:
+        import resource
+
+        os.setpgrp()
+        group.join()
+        for which, value in ((resource.RLIMIT_AS, limits.memory_mb << 20), (resource.RLIMIT_CPU, limits.cpu_seconds),
+                             (resource.RLIMIT_FSIZE, limits.file_mb << 20), (resource.RLIMIT_CORE, 0),
+                             (resource.RLIMIT_NOFILE, limits.open_files)):
+            resource.setrlimit(which, (value, value))
+    return limit
+
+
+class Sandbox:
+    """One running sandbox (a :class:`subprocess.Popen` with its control group)."""
+
+    def __init__(self, argv: list[str], *, mounts: Mounts | None = None, limits: Limits | None = None,
+                 env: dict[str, str] | None = None, sandboxed: bool = True, **popen):
+        self.limits = limits or Limits()
+        self.mounts = mounts or Mounts()
+        env = dict(env or {})
+        env.setdefault("PATH", "/usr/bin:/bin")
+        env.setdefault("HOME", "/tmp")
+        env.setdefault("TMPDIR", "/tmp")
+        env["CVKIT_SANDBOX_NPROC"] = str(self.limits.processes)
+        self.sandboxed = sandboxed
+        self.group = _ControlGroup(self.limits) if sandboxed else _ControlGroup.__new__(_ControlGroup)
+        if not sandboxed:
+            self.group.paths = []
+            self._scratch = tempfile.mkdtemp(prefix="cvkit-nosandbox-")
+            for source, target in self.mounts.writable:
+                if target == self.mounts.chdir:
+                    self._scratch_cwd = source
+            cwd = getattr(self, "_scratch_cwd", self._scratch)
+            env.update(HOME=self._scratch, TMPDIR=self._scratch)
+            full = argv
+        else:
+            self._scratch = None
+            cwd = "/"
+            full = command(argv, self.mounts, self.limits, env)
+        try:
+            self.process = subprocess.Popen(full, cwd=cwd, env=env if not sandboxed else {"PATH": "/usr/bin:/bin"},
+                                            preexec_fn=_preexec(self.limits, self.group), **popen)
+        except BaseException:
+            self.group.remove()
+            raise
+
+    @property
+    def pid(self) -> int:
+        return self.process.pid
+
+    def kill(self) -> None:
+        """Stop the sandbox and everything in it (the PID namespace ends with its init)."""
+        try:
+            os.killpg(self.process.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        try:
+            self.process.kill()
+        except ProcessLookupError:
+            pass
+
+    def wait(self, timeout: float | None = None) -> int:
+        return self.process.wait(timeout)
+
+    def close(self) -> None:
+        """Kill what is left, reap, remove the control group and the scratch folder."""
+        if self.process.poll() is None:
+            self.kill()
+        try:
+            self.process.wait(timeout=30)
+        except subprocess.TimeoutExpired:  # pragma: no cover
+            pass
+        self.group.remove()
+        if self._scratch:
+            shutil.rmtree(self._scratch, ignore_errors=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+def probe(force: bool = False) -> str | None:
+    """None when a sandbox can be made here, else the reason (cached per process)."""
+    if "result" in _probe and not force:
+        return _probe["result"]
+    reason = None
+    if sys.platform != "linux":
+        reason = f"the grading sandbox needs Linux (this is {sys.platform}). " + INSTALL_HINT
+    elif bwrap_path() is None:
+        reason = "bubblewrap (bwrap) is not installed. " + INSTALL_HINT
+    else:
+        python = os.path.realpath(sys.executable)
+        try:
+            with Sandbox([python, "-I", "-S", "-c", "import os; print(os.getuid())"], limits=Limits(),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE) as box:
+                out, err = box.process.communicate(timeout=60)
+            if box.process.returncode != 0 or out.decode().strip() != str(SANDBOX_UID):
+                reason = ("bubblewrap cannot create a sandbox here: "
+                          + (err.decode(errors="replace").strip()[-300:] or f"exit status {box.process.returncode}")
+                          + ". " + INSTALL_HINT)
+        except (OSError, subprocess.SubprocessError) as exc:
+            reason = f"bubblewrap cannot create a sandbox here ({exc}). " + INSTALL_HINT
+    _probe["result"] = reason
+    return reason
+
+
+def require() -> None:
+    """Raise :class:`SandboxUnavailable` (with how to fix it) unless a sandbox can be made."""
+    reason = probe()
+    if reason:
+        raise SandboxUnavailable(reason)
+
+
+def sandbox_disabled() -> bool:
+    """The instructor chose ``--no-sandbox`` (inherited by grading workers as an environment variable)."""
+    return os.environ.get("CVKIT_NO_SANDBOX") == "1"

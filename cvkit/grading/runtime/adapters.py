@@ -1,0 +1,156 @@
+"""How a check calls a candidate that is not a plain function (:attr:`cvkit.grading.Check.call`).
+
+These adapters run inside the grading sandbox next to the student's code, so they use only
+NumPy and the standard library and never touch cvkit's reference implementations. A check
+names one of them as its ``call``; the trusted grader sends its name, never code.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from typing import Callable
+
+from .problems import least_squares_call
+
+__all__ = ["bind_call", "instance_call", "least_squares_call", "call_with_test_function", "TestFunction", "TEST_FUNCTIONS",
+           "CACHE_KEYS", 'call_relu_forward', 'call_sigmoid_forward', 'call_leaky_relu_forward', 'call_linear_forward', 'call_conv2d_forward', 'call_maxpool2d_forward', 'call_global_avg_pool_forward', 'call_batchnorm2d_forward', 'call_dropout_forward', 'call_residual_block_forward']
+
+
+def bind_call(call: Callable | None, candidate: Callable) -> Callable:
+    """The callable a case runs: ``candidate`` itself, or ``call`` bound to it (it keeps the
+    candidate's ``__module__``, which the guard uses to recognise the candidate's own code)."""
+    if call is None:
+        return candidate
+
+    def run_case(*args, **kwargs):
+        return call(candidate, *args, **kwargs)
+
+    run_case.__module__ = getattr(candidate, "__module__", None) or run_case.__module__
+    run_case.__wrapped__ = candidate
+    run_case.__qualname__ = f"{getattr(call, '__name__', 'call')}({getattr(candidate, '__qualname__', 'candidate')})"
+    return run_case
+
+
+def instance_call(cls, arg, method, *args, **kwargs):
+    """``cls(arg).<method>(*args, **kwargs)``: a :attr:`Check.call` for classes.
+
+    With ``Check(call=instance_call)``, a case ``Case((points, "query", q), {"k": 2})`` grades a
+    class by building ``cls(points)`` and returning ``.query(q, k=2)``.
+    """
+    return getattr(cls(arg), method)(*args, **kwargs)
+
+
+# ---------------------------------------------------------------------------- learn
+#: the scalar test functions of the numerical-gradient cases; their coefficients are stacked
+#: into one array (``table``) so that a case is plain data the grading wire can carry
+TEST_FUNCTIONS = {
+    "cubic": "Σ a·x³ + c·x² + d·x (table: a, c, d)",
+    "exp": "Σ w·exp(s·x) (table: w, s)",
+    "quadratic": "½ xᵀAx + bᵀx (table: the rows of A, then b)",
+    "linear": "Σ w·x (table: w)",
+    "softmax_loss": "mean cross-entropy of the scores X·xᵀ (table: X with the labels y as last column)",
+}
+
+
+class TestFunction:
+    """``f(x) -> float`` of one of the :data:`TEST_FUNCTIONS` with its coefficient table."""
+
+    __test__ = False  # not a pytest test class
+
+    def __init__(self, kind: str, table):
+        if kind not in TEST_FUNCTIONS:
+            raise ValueError(f"unknown test function {kind!r}; known: {', '.join(TEST_FUNCTIONS)}")
+        self.kind = kind
+        self.table = np.asarray(table, dtype=np.float64)
+
+    def __call__(self, x):
+        x = np.asarray(x, dtype=np.float64)
+        t = self.table
+        if self.kind == "cubic":
+            a, c, d = t
+            return float(np.sum(a * x ** 3 + c * x ** 2 + d * x))
+        if self.kind == "exp":
+            w, s = t
+            return float(np.sum(w * np.exp(s * x)))
+        if self.kind == "quadratic":
+            v = x.ravel()
+            return float(0.5 * v @ t[:-1] @ v + t[-1] @ v)
+        if self.kind == "linear":
+            return float(np.sum(t[0] * x))
+        X, y = t[:, :-1], t[:, -1].astype(np.int64)  # softmax_loss, x plays W (C, D)
+        s = X @ x.T
+        s = s - s.max(axis=1, keepdims=True)
+        return float(np.mean(np.log(np.exp(s).sum(axis=1)) - s[np.arange(s.shape[0]), y]))
+
+    def __repr__(self):
+        return f"f(x) = {TEST_FUNCTIONS[self.kind].split(' (')[0]}"
+
+
+def call_with_test_function(candidate, function, table, x, *args, **kwargs):
+    """The ``call`` of the numerical-gradient check: a case ``(function, table, x)`` of plain
+    data runs ``candidate(TestFunction(function, table), x, ...)``."""
+    return candidate(TestFunction(function, table), x, *args, **kwargs)
+
+
+# ---------------------------------------------------------------------------- nn
+#: the cache entries each layer's forward must return (the rest of its cache is its own business)
+CACHE_KEYS = {
+    "relu": ("x",),
+    "sigmoid": ("x", "out"),
+    "leaky_relu": ("x", "alpha"),
+    "linear": ("x", "W", "b"),
+    "conv2d": ("x", "w", "b", "stride", "padding"),
+    "maxpool2d": ("x", "size", "stride"),
+    "global_avg_pool": ("x",),
+    "batchnorm2d": ("x", "gamma", "beta", "running_mean", "running_var", "training", "momentum", "eps"),
+    "dropout": ("x", "p_keep", "training", "mask"),
+    "residual_block": ("x", "params", "training"),
+}
+
+
+def _select(result, layer: str):
+    if isinstance(result, tuple) and len(result) == 2 and isinstance(result[1], dict):
+        out, cache = result
+        return (out, {k: cache[k] for k in CACHE_KEYS[layer] if k in cache})
+    return result
+
+
+def call_relu_forward(candidate, *args, **kwargs):
+    """``(out, cache with the named entries)`` of a ReLU forward (a :attr:`Check.call`)."""
+    return _select(candidate(*args, **kwargs), "relu")
+
+
+def call_sigmoid_forward(candidate, *args, **kwargs):
+    return _select(candidate(*args, **kwargs), "sigmoid")
+
+
+def call_leaky_relu_forward(candidate, *args, **kwargs):
+    return _select(candidate(*args, **kwargs), "leaky_relu")
+
+
+def call_linear_forward(candidate, *args, **kwargs):
+    return _select(candidate(*args, **kwargs), "linear")
+
+
+def call_conv2d_forward(candidate, *args, **kwargs):
+    return _select(candidate(*args, **kwargs), "conv2d")
+
+
+def call_maxpool2d_forward(candidate, *args, **kwargs):
+    return _select(candidate(*args, **kwargs), "maxpool2d")
+
+
+def call_global_avg_pool_forward(candidate, *args, **kwargs):
+    return _select(candidate(*args, **kwargs), "global_avg_pool")
+
+
+def call_batchnorm2d_forward(candidate, *args, **kwargs):
+    return _select(candidate(*args, **kwargs), "batchnorm2d")
+
+
+def call_dropout_forward(candidate, *args, **kwargs):
+    return _select(candidate(*args, **kwargs), "dropout")
+
+
+def call_residual_block_forward(candidate, *args, **kwargs):
+    return _select(candidate(*args, **kwargs), "residual_block")

@@ -1,0 +1,264 @@
+"""The main program of the grading sandbox: the student's answer cells, then one case at a time.
+
+It runs inside bubblewrap (:mod:`cvkit.grading.isolation`) with NumPy, the standard library
+and this package only. The conversation with the trusted side is JSON lines: requests on
+stdin, messages on file descriptor 3 (the student's prints go to stdout/stderr, which the
+trusted side drains and bounds):
+
+====================================  =====================================================
+trusted side → worker                 worker → trusted side
+====================================  =====================================================
+``{"cells": [...], "blocks": [...]}``  ``{"cell": i}`` before and ``{"cell_done": i, "error":
+                                      ...}`` after each cell, then ``{"ready": ...}``
+``{"call": {...}}``                   any number of ``{"rpc": id, "args", "kwargs"}`` (the
+                                      trusted side answers each with ``{"value"}`` or
+                                      ``{"error"}``), then ``{"outcome": {...}}``
+``{"end": true}``                     (exits)
+====================================  =====================================================
+
+Building blocks an exercise may use (``filters.pad`` in the correlation exercise) and the
+data loaders (``cvkit.data``) are *proxies*: the trusted side computes them with the reference
+and sends back the value, for the ids the current case allows. The reference code itself is
+not in the sandbox.
+
+Every answer-cell ``import`` goes through an allow-list (:data:`ALLOWED_MODULES`); anything
+else is refused with a message that names it. The libraries themselves are not in the
+sandbox either: the allow-list only makes the refusal explicit.
+"""
+from __future__ import annotations
+
+import builtins
+import json
+import os
+import sys
+import threading
+import types
+from typing import Any
+
+from . import wire
+from . import adapters
+from .adapters import bind_call
+from .guard import run_guarded
+
+#: modules (top-level names) an answer cell may import
+ALLOWED_MODULES = frozenset({
+    "numpy", "math", "cmath", "functools", "itertools", "collections", "dataclasses", "typing", "heapq",
+    "bisect", "operator", "statistics", "fractions", "decimal", "numbers", "random", "copy", "enum", "abc",
+    "re", "string", "time", "warnings", "contextlib", "types", "__future__", "textwrap", "array",
+})
+#: modules of the notebooks' setup cell that are replaced by harmless stand-ins
+_SETUP_STAND_INS = ("matplotlib", "matplotlib.pyplot", "IPython", "IPython.display")
+_TOPICS = ("formation", "stereo", "filters", "noise", "edges", "features", "detection", "camera",
+           "calibration", "warp", "learn", "nn", "train", "data")
+PROTOCOL_FD = int(os.environ.get("CVKIT_PROTOCOL_FD", "3"))
+
+
+class _Channel:
+    """JSON lines in (stdin) and out (fd 3); one conversation at a time."""
+
+    def __init__(self):
+        self.lock = threading.RLock()
+        self.incoming = os.fdopen(0, "rb", buffering=1 << 16, closefd=False)
+
+    def send(self, item: dict) -> None:
+        data = (json.dumps(item) + "\n").encode()
+        view = memoryview(data)
+        with self.lock:
+            while view:
+                view = view[os.write(PROTOCOL_FD, view):]
+
+    def receive(self) -> dict:
+        line = self.incoming.readline()
+        if not line:
+            os._exit(0)  # the trusted side has gone: nothing left to do
+        return json.loads(line)
+
+    def ask(self, item: dict) -> dict:
+        with self.lock:
+            self.send(item)
+            return self.receive()
+
+
+class _Nothing:
+    """A stand-in that accepts any attribute access or call and does nothing (plots)."""
+
+    def __getattr__(self, name):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return self
+
+    def __call__(self, *args, **kwargs):
+        return self
+
+    def __iter__(self):
+        return iter((self, self))
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+
+def _stand_in(name: str, attributes: dict, explain: bool) -> types.ModuleType:
+    class StandIn(types.ModuleType):
+        def __getattr__(self, attr):
+            if attr.startswith("__"):
+                raise AttributeError(attr)
+            if not explain:
+                return _Nothing()
+            raise AttributeError(f"{name}.{attr} is not available while your code is graded "
+                                 "(cvkit's reference implementations are off limits in exercises)")
+
+    module = StandIn(name, f"grading stand-in for {name}")
+    module.__dict__.update(attributes)
+    return module
+
+
+def _proxy(channel: _Channel, algorithm_id: str):
+    def building_block(*args, **kwargs):
+        try:
+            request = {"rpc": algorithm_id, "args": wire.encode(args), "kwargs": wire.encode(kwargs)}
+        except wire.WireError as exc:
+            raise TypeError(f"cvkit.{algorithm_id}: {exc}") from None
+        answer = channel.ask(request)
+        if "error" in answer:
+            raise RuntimeError(f"cvkit.{algorithm_id}: {answer['error']}")
+        return wire.decode(answer["value"])
+
+    module, _, name = algorithm_id.partition(".")
+    building_block.__name__ = building_block.__qualname__ = name
+    building_block.__module__ = f"cvkit.{module}"
+    building_block.__doc__ = f"cvkit.{algorithm_id}, computed by the grader (a building block this exercise allows)"
+    return building_block
+
+
+def _install_stand_ins(channel: _Channel, blocks: list[str], data_names: list[str]) -> None:
+    def student(algorithm_id=None):
+        return lambda function: function
+
+    def check(*args, **kwargs):
+        return None
+
+    topics: dict[str, dict] = {}
+    for algorithm_id in list(blocks) + [f"data.{name}" for name in data_names]:
+        module, _, name = algorithm_id.partition(".")
+        topics.setdefault(module, {})[name] = _proxy(channel, algorithm_id)
+    modules = {
+        "cvkit": _stand_in("cvkit", {"student": student}, True),
+        "cvkit.registry": _stand_in("cvkit.registry", {"student": student}, True),
+        "cvkit.grading": _stand_in("cvkit.grading", {"check": check}, True),
+    }
+    modules["cvkit"].registry = modules["cvkit.registry"]
+    modules["cvkit"].grading = modules["cvkit.grading"]
+    for topic in _TOPICS:
+        modules[f"cvkit.{topic}"] = _stand_in(f"cvkit.{topic}", topics.get(topic, {}), True)
+        setattr(modules["cvkit"], topic, modules[f"cvkit.{topic}"])
+    for name in _SETUP_STAND_INS:
+        modules[name] = _stand_in(name, {}, False)
+    modules["matplotlib"].pyplot = modules["matplotlib.pyplot"]
+    modules["IPython"].display = modules["IPython.display"]
+    sys.modules.update(modules)
+
+
+class _ImportGate:
+    """``__import__`` for the student's namespace: the allow-list, with refusals recorded."""
+
+    def __init__(self):
+        self.real = builtins.__import__
+        self.refused: list[str] = []
+
+    def __call__(self, name, globals=None, locals=None, fromlist=(), level=0):
+        top = name.partition(".")[0]
+        if level == 0 and top not in ALLOWED_MODULES and top not in ("cvkit",) + _SETUP_STAND_INS:
+            if name not in self.refused:
+                self.refused.append(name)
+            raise ImportError(f"{name} is not allowed in graded code: write the exercise with NumPy "
+                              f"(allowed: {', '.join(sorted(ALLOWED_MODULES))})", name=name)
+        return self.real(name, globals, locals, fromlist, level)
+
+
+def _strip_magics(source: str) -> str:
+    return "\n".join("pass  # magic" if line.lstrip().startswith(("%", "!")) else line
+                     for line in source.splitlines())
+
+
+def _outcome_item(outcome, refused: list[str]) -> dict:
+    item = {
+        "error": outcome.error, "traceback": outcome.traceback, "exception": outcome.exception,
+        "elapsed": outcome.elapsed, "timed_out": outcome.timed_out, "modified": outcome.modified,
+        "forbidden_calls": outcome.forbidden_calls + [f"import {name} (not allowed in graded code)" for name in refused],
+        "warnings": outcome.warnings[:20], "stdout": outcome.stdout[-2000:], "stderr": outcome.stderr[-2000:],
+    }
+    if outcome.error is None:
+        try:
+            item["value"] = wire.encode(outcome.value)
+        except wire.WireError as exc:
+            item["error"] = f"returned something that cannot be graded: {exc}"
+    return item
+
+
+def main() -> None:  # pragma: no cover - runs inside the sandbox
+    import resource
+
+    processes = int(os.environ.get("CVKIT_SANDBOX_NPROC", "0") or 0)
+    if processes:  # counted per sandbox: the limit is set inside the sandbox's user namespace
+        resource.setrlimit(resource.RLIMIT_NPROC, (processes, processes))
+    import numpy  # noqa: F401  (loaded before the student's code)
+
+    channel = _Channel()
+    request = channel.receive()
+    _install_stand_ins(channel, list(request.get("blocks", [])), list(request.get("data", [])))
+    gate = _ImportGate()
+    safe_builtins = dict(vars(builtins))
+    safe_builtins["__import__"] = gate
+    namespace: dict = {"__name__": "__main__", "__builtins__": safe_builtins}
+    cell_errors = []
+    for index, source in enumerate(request["cells"]):
+        channel.send({"cell": index})
+        error = None
+        try:
+            exec(compile(_strip_magics(source), f"<cell {index}>", "exec"), namespace)
+        except SystemExit:
+            error = f"cell {index}: called exit()"
+        except BaseException as exc:  # noqa: BLE001 - a broken cell is reported, not fatal
+            error = f"cell {index}: {type(exc).__name__}: {str(exc)[:300]}"
+        if error:
+            cell_errors.append(error)
+        channel.send({"cell_done": index, "error": error})
+    channel.send({"ready": True, "cell_errors": cell_errors,
+                  "refused": [f"import {name} (not allowed in graded code)" for name in gate.refused]})
+    while True:
+        message = channel.receive()
+        if "call" not in message:
+            break
+        call = message["call"]
+        before = len(gate.refused)
+        function = namespace.get(call["function"])
+        if not callable(function):
+            why = "; ".join(e for e in cell_errors if "not allowed" in e or "Error" in e)[:400]
+            channel.send({"outcome": {
+                "error": f"no function called {call['function']!r} is defined"
+                         + (f" (its cell stopped: {why})" if why else " (did its cell run?)"),
+                "exception": "NameError"}})
+            continue
+        try:
+            args, kwargs = wire.decode(call["args"]), wire.decode(call["kwargs"])
+        except wire.WireError as exc:
+            channel.send({"outcome": {"error": f"grader error decoding the case: {exc}"}})
+            continue
+        adapter = getattr(adapters, call["call"]) if call.get("call") else None
+        outcome = run_guarded(
+            bind_call(adapter, function), args, kwargs,
+            arg_names=tuple(call.get("arg_names", ())), time_limit=float(call.get("time_limit", 20.0)),
+            forbidden_libraries=tuple(call.get("forbidden_libraries", ())),
+            forbidden_functions=tuple(call.get("forbidden_functions", ())),
+            watch_reference=False, reference_codes={},
+        )
+        channel.send({"outcome": _outcome_item(outcome, gate.refused[before:])})
+    sys.stdout.flush()
+    os._exit(0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()
