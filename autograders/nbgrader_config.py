@@ -44,11 +44,11 @@ c.Autograde.create_student = True
 # elsewhere (CVKIT_TRUSTED_GRADING=1) and skips its own evaluation.
 from nbconvert.preprocessors import ClearMetadataPreprocessor, CSSHTMLHeaderPreprocessor  # noqa: E402
 from nbgrader.preprocessors import (  # noqa: E402
-    AssignLatePenalties, CheckCellMetadata, Execute, GetGrades, IgnorePattern, LimitOutput, SaveAutoGrades,
+    AssignLatePenalties, CheckCellMetadata, GetGrades, IgnorePattern, LimitOutput, SaveAutoGrades,
 )
 
 from cvkit.grading.nbgrader_plugins import (  # noqa: E402
-    HideHiddenTests, SafeFeedbackExporter, SanitizeStudentContent, TrustedChecks,
+    HideHiddenTests, SafeFeedbackExporter, SandboxedExecute, SanitizeStudentContent, TrustedChecks,
 )
 from cvkit.grading.safety import mathjax_post_convert_hook  # noqa: E402
 
@@ -57,8 +57,10 @@ c.TrustedChecks.salt = os.environ.pop("CVKIT_GRADING_SALT", "") or (
     _salt_file.read_text().strip() if _salt_file.exists() else "")
 c.TrustedChecks.source_directory = c.CourseDirectory.source_directory
 os.environ["CVKIT_TRUSTED_GRADING"] = "1"
+# nbgrader's own Execute would run the student's notebook with the grader's rights: a plain
+# `nbgrader autograde` uses cvkit's SandboxedExecute instead (the same step, in the sandbox)
 c.Autograde.autograde_preprocessors = [
-    Execute, IgnorePattern, ClearMetadataPreprocessor, TrustedChecks, LimitOutput, SaveAutoGrades,
+    SandboxedExecute, IgnorePattern, ClearMetadataPreprocessor, TrustedChecks, LimitOutput, SaveAutoGrades,
     AssignLatePenalties, CheckCellMetadata,
 ]
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable
 
+from .grading.isolation import collect_files
 from .grading.report import MIME_TYPE
 
 try:  # Python ≥ 3.11
@@ -90,37 +91,6 @@ class ExecutedSubmission:
     not_graded: str = ""  # why this submission cannot be graded at all (never shown as a zero)
 
 
-EXECUTION_MEMORY_MB = 6144      # address space of each process of the executing sandbox
-EXECUTION_WALL_SECONDS = 900    # a whole notebook; a cell has CVKIT_CELL_TIMEOUT (180 s)
-EXECUTED_MAX_BYTES = 64 << 20   # an executed notebook larger than this is not read back
-
-
-def collect_files(folder: Path) -> tuple[dict[str, bytes], list[str]]:
-    """The regular files of a submission folder, and what was refused: symbolic links, hard
-    links to files elsewhere, devices, sockets and pipes are never followed nor read."""
-    import stat
-
-    files, refused = {}, []
-    if folder.is_symlink() or not folder.is_dir():
-        return files, [f"{folder.name}: the submission folder is not a plain folder (refused)"]
-    for path in sorted(folder.rglob("*")):
-        name = str(path.relative_to(folder))
-        info = path.lstat()
-        if stat.S_ISDIR(info.st_mode) and not path.is_symlink():
-            continue
-        if stat.S_ISLNK(info.st_mode):
-            refused.append(f"{name}: a symbolic link (refused, not followed)")
-        elif not stat.S_ISREG(info.st_mode):
-            refused.append(f"{name}: not a regular file (refused)")
-        elif info.st_nlink > 1:
-            refused.append(f"{name}: a hard link to another file (refused)")
-        elif any(parent.is_symlink() for parent in path.relative_to(folder).parents if str(parent) != "."):
-            refused.append(f"{name}: inside a linked folder (refused)")
-        else:
-            files[name] = path.read_bytes()
-    return files, refused
-
-
 def execute_submission(project, student: str, assignment: str, files: dict,
                        releases: dict | None = None) -> ExecutedSubmission:
     """Run a submission's notebooks in the grading sandbox (picklable, for Dask).
@@ -134,68 +104,26 @@ def execute_submission(project, student: str, assignment: str, files: dict,
     file-size limits, and a wall-clock limit enforced from here. Grades are not decided here:
     checks in the kernel are no-ops; the notebook is run for the student's own figures.
     """
-    import tempfile
-
-    from .grading import isolation
-    from .grading.execute import prepare
+    from .grading.execute import execute_in_sandbox, prepare
 
     releases = releases or {}
-    sandboxed = not isolation.sandbox_disabled()
-    with tempfile.TemporaryDirectory(prefix="cvkit-grade-") as scratch_name:
-        scratch = Path(scratch_name)
-        folder = scratch / "submission"
-        for name, data in files.items():
-            target = folder / name
-            target.parent.mkdir(parents=True, exist_ok=True)
-            target.write_bytes(data)
-        jobs = []
-        for name in sorted(n for n in files if n.endswith(".ipynb")):
-            try:
-                release = json.loads(releases[name]) if name in releases else None
-                prepared = prepare(json.loads(files[name]), release)
-            except (ValueError, TypeError, AttributeError, KeyError) as error:
-                return ExecutedSubmission(student, assignment, {}, False, f"{name}: not a notebook ({error})")
-            (folder / name).write_text(json.dumps(prepared))
-            jobs.append(name)
-        folder.mkdir(exist_ok=True)
-        env = {"HOME": "/tmp", "TMPDIR": "/tmp", "JUPYTER_RUNTIME_DIR": "/tmp/.jupyter", "IPYTHONDIR": "/tmp/.ipython",
-               "MPLCONFIGDIR": "/tmp/.mpl", "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
-               "MKL_NUM_THREADS": "1", "PYTHONDONTWRITEBYTECODE": "1", "LANG": "C.UTF-8",
-               "PATH": str(Path(sys.executable).parent) + ":/usr/bin:/bin"}
-        if os.environ.get("CVKIT_CELL_TIMEOUT"):
-            env["CVKIT_CELL_TIMEOUT"] = os.environ["CVKIT_CELL_TIMEOUT"]
-        inside = "/submission" if sandboxed else str(folder)
-        mounts = isolation.Mounts(read_only=[(str(PACKAGE_DIR), str(PACKAGE_DIR))],
-                                  writable=[(str(folder), inside)], chdir=inside)
-        limits = isolation.Limits(memory_mb=EXECUTION_MEMORY_MB, cpu_seconds=EXECUTION_WALL_SECONDS, processes=64,
-                                  file_mb=64, tmpfs_mb=512)
-        notebooks, log = {}, ""
-        for name in jobs:
-            output = f"executed-{len(notebooks)}.ipynb"
-            with tempfile.TemporaryFile() as console:
-                box = isolation.Sandbox([sys.executable, "-I", "-m", "cvkit.grading.execute", name, output],
-                                        mounts=mounts, limits=limits, env=env, sandboxed=sandboxed,
-                                        stdin=subprocess.DEVNULL, stdout=console, stderr=subprocess.STDOUT)
-                try:
-                    status = box.wait(timeout=EXECUTION_WALL_SECONDS)
-                except subprocess.TimeoutExpired:
-                    status = None
-                finally:
-                    box.close()  # every process the notebook started ends here
-                console.seek(0, 2)
-                console.seek(max(0, console.tell() - 2000))
-                log += f"{name}: " + console.read().decode("utf-8", "replace")
-            if status is None:
-                return ExecutedSubmission(student, assignment, {}, False,
-                                          log + f"\n{name}: execution exceeded {EXECUTION_WALL_SECONDS} s")
-            result = folder / output
-            if status != 0 or result.is_symlink() or not result.is_file():
-                return ExecutedSubmission(student, assignment, {}, False, log + f"\n{name}: exit status {status}")
-            if result.stat().st_size > EXECUTED_MAX_BYTES:
-                return ExecutedSubmission(student, assignment, {}, False,
-                                          log + f"\n{name}: the executed notebook is larger than 64 MB (printed too much)")
-            notebooks[name] = result.read_text(errors="replace")
-        return ExecutedSubmission(student, assignment, notebooks, bool(notebooks), log)
+    prepared_files = dict(files)
+    jobs = []
+    for name in sorted(n for n in files if n.endswith(".ipynb")):
+        try:
+            release = json.loads(releases[name]) if name in releases else None
+            prepared_files[name] = json.dumps(prepare(json.loads(files[name]), release)).encode()
+        except (ValueError, TypeError, AttributeError, KeyError) as error:
+            return ExecutedSubmission(student, assignment, {}, False, f"{name}: not a notebook ({error})")
+        jobs.append(name)
+    notebooks, log = {}, ""
+    for name in jobs:
+        executed, note = execute_in_sandbox(prepared_files, name)
+        log += f"{name}: {note}\n"
+        if executed is None:
+            return ExecutedSubmission(student, assignment, {}, False, log)
+        notebooks[name] = executed
+    return ExecutedSubmission(student, assignment, notebooks, bool(notebooks), log)
 
 
 def grade_submission(project, student: str, assignment: str, files: dict, releases: dict,
@@ -357,7 +285,7 @@ class Course:
     def nbgrader_api(self, **settings):
         """nbgrader's own API in this process, configured by the course's ``nbgrader_config.py``
         (read once, with the course's environment) and ``settings`` such as
-        ``{"Execute.enabled": False}``. In-process steps skip nbgrader's start-up (≈3 s a run)."""
+        ``{"SandboxedExecute.enabled": False}``. In-process steps skip nbgrader's start-up (≈3 s a run)."""
         import copy
 
         from nbgrader.apps import NbGraderAPI
@@ -578,7 +506,7 @@ class Course:
             # (execution failed, repaired copy) is verified here by nbgrader's TrustedChecks
             verified = all(e.verified and e.ok for e in group) and not repair
             api = self.nbgrader_api(**{
-                "CourseDirectory.submitted_directory": str(staging), "Execute.enabled": False,
+                "CourseDirectory.submitted_directory": str(staging), "SandboxedExecute.enabled": False,
                 "ClearOutput.enabled": False, "TrustedChecks.enabled": not verified})
             try:
                 outcome = api.autograde(assignment, group[0].student if len(group) == 1 else "*", force=True,

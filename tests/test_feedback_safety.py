@@ -232,6 +232,19 @@ def test_sanitize_html_removes_everything_active(payload, trusted_report):
         assert "style=" not in cleaned and "class=" not in cleaned
 
 
+@pytest.mark.parametrize("html", [
+    '<a href="java&#09;script:alert(1)">a</a>', '<a href=" JAVASCRIPT:alert(1)">a</a>', '<a href="vbscript:x">a</a>',
+    '<a href="&#0;javascript:alert(1)">a</a>', '<a href="data:text/html,<script>alert(1)</script>">a</a>',
+    '<img src="java&#09;script:alert(1)">', '<img src="ht&#09;tps://evil.example/x.png">',
+    '<img src=" //evil.example/x.png">', '<img src="/\\evil.example/x.png">', '<img src="&#10;//evil.example/x">',
+    '<img src="https://evil.example/x.png">', '<img src="data:image/svg+xml;base64,PHN2Zy8+">',
+    '<img src="data:text/html;base64,PHN2Zy8+">',
+])
+def test_urls_that_browsers_would_resolve_to_scripts_or_remote_loads_are_removed(html):
+    cleaned = sanitize_html(html)
+    assert "href=" not in cleaned and "src=" not in cleaned, cleaned
+
+
 def test_strict_policy_keeps_ordinary_content():
     html = ("<h2 id='Result'>Result</h2><p>mean <b>3.2</b>, <i>σ</i> = 0.1 <a href='https://example.org/x'>docs</a> "
             "<a href='#Result'>up</a></p><table><tr><th>a</th><td>1</td></tr></table><pre>x &lt; y</pre>"
@@ -315,6 +328,12 @@ def test_preprocessor_cleans_every_student_output_and_keeps_the_trusted_report(r
     assert_fragment_inert(nb.cells[7].source)
     assert "Score: 10 / 10" in nb.cells[7].source and "style=" not in nb.cells[7].source  # text only
     assert "widgets" not in nb.metadata and "<script" not in nb.metadata["title"]
+
+
+def test_cleaning_twice_changes_nothing(report):
+    once = sanitize_notebook(evil_notebook(report), {"nbgrader": {"notebook": "x"}})
+    twice = sanitize_notebook(copy.deepcopy(once))
+    assert twice == once
 
 
 def test_untrusted_notebook_or_cell_gets_the_strict_policy(report):
@@ -438,7 +457,14 @@ def test_offline_mathjax_is_installed_next_to_every_page(tmp_path):
     before = (pages[1].parent / "mathjax" / "MathJax.js").stat().st_ino
     install_offline_mathjax(tmp_path)  # again: nothing to do
     assert (pages[1].parent / "mathjax" / "MathJax.js").stat().st_ino == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["alice", "bob", master.name])  # no leftovers
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["alice", "bob", master.name, ".mathjax-work"])
+    assert not list((tmp_path / ".mathjax-work").iterdir())  # no leftovers
+    assert sorted(p.name for p in pages[0].parent.iterdir()) == ["ch01.html", "mathjax"]
+    # an older or broken copy is replaced; a folder that vanished meanwhile is skipped
+    (pages[0].parent / "mathjax" / ".cvkit-mathjax").write_text("MathJax 2.0\n")
+    assert install_offline_mathjax(tmp_path, [pages[0].parent, tmp_path / "gone" / "ch01"]) == [pages[0].parent]
+    assert (pages[0].parent / "mathjax" / "MathJax.js").is_file()
+    assert not list((tmp_path / ".mathjax-work").iterdir())
 
 
 # ---------------------------------------------------------------------------- nbgrader end to end

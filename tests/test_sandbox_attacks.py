@@ -84,6 +84,13 @@ ATTACKS = {
     "flood": ('print("x" * (300 << 20))\n' + kernel("return np.full((size, size), 1.0 / (size * size))"), FULL),
     "memory_bomb": (kernel("a = np.ones(100 * 2**30 // 8)\nreturn np.full((size, size), 1.0 / (size * size))"),
                     KERNEL_ZERO),
+    # a cell that never ends: stopped from outside, what it defines is missing
+    "sleeper": ("import time\ntime.sleep(10**6)\n" + kernel("return np.full((size, size), 1.0 / (size * size))"),
+                KERNEL_ZERO),
+    # SIGALRM ignored inside the function: the case's limit (20 s) is kept outside
+    "alarm_ignorer": (kernel(REAL_IMPORT + 'signal = __imp("signal"); time = __imp("time")\n'
+                             "signal.signal(signal.SIGALRM, signal.SIG_IGN)\ntime.sleep(21)\n"
+                             "return np.full((size, size), 1.0 / (size * size))"), KERNEL_ZERO),
 }
 
 # cells added after the setup cell (they run in the notebook and, as student code, in the
@@ -172,7 +179,7 @@ def graded(bubblewrap, tmp_path_factory):
             os.remove(f"{leftover}/{MARKER}")
     victim = course.root / "submitted" / "ada" / ASSIGNMENT / name
     before = {"victim": victim.read_bytes(), "salt": (course.root / ".grading_salt").read_text()}
-    env = {"CVKIT_CELL_TIMEOUT": "60", "CVKIT_ANSWER_CELL_TIMEOUT": "20"}
+    env = {"CVKIT_CELL_TIMEOUT": "30", "CVKIT_ANSWER_CELL_TIMEOUT": "20"}
     saved = {k: os.environ.get(k) for k in env}
     os.environ.update(env)
     try:
@@ -289,9 +296,52 @@ def test_ignoring_sigalrm_does_not_beat_the_limit(bubblewrap):
     assert result.outcomes[0].timed_out and result.outcomes[0].value is None
 
 
+def test_timeouts_are_named(graded):
+    course, _, _ = graded
+    problems = [p for e in course.scores(ASSIGNMENT)["alarm_ignorer"] for p in e.problems]
+    assert any("stopped after" in p or "vectorize" in p for p in problems), problems
+
+
+def test_plain_nbgrader_autograde_runs_the_notebook_in_the_sandbox(graded):
+    """An instructor who runs `nbgrader autograde` by hand gets cvkit's SandboxedExecute, never
+    nbgrader's Execute with the grader's rights."""
+    course, _, _ = graded
+    spy = _answers()
+    spy["cells"].insert(2, _cell(f"import os\nprint('uid', os.getuid(), 'sees-course', os.path.exists({str(course.root)!r}))"))
+    course.submit("spy", ASSIGNMENT, {f"{ASSIGNMENT}.ipynb": spy})
+    done = course.nbgrader("autograde", ASSIGNMENT, "--student", "spy", "--force")
+    assert done.returncode == 0, done.stderr[-2000:]
+    nb = json.loads((course.root / "autograded" / "spy" / ASSIGNMENT / f"{ASSIGNMENT}.ipynb").read_text())
+    printed = "".join("".join(o.get("text", "")) for c in nb["cells"] for o in c.get("outputs", []))
+    assert "uid 65534 sees-course False" in printed
+
+
 def test_no_sandbox_stops_grading_with_a_clear_message(monkeypatch, tmp_path):
     monkeypatch.setattr(isolation, "bwrap_path", lambda: None)
     monkeypatch.setattr(isolation, "_probe", {})
     course = Course(tmp_path / "course", project=ROOT)
     with pytest.raises(isolation.SandboxUnavailable, match="apt-get install bubblewrap"):
         course.grade(workers=1)
+
+
+def test_no_sandbox_mode_is_marked_everywhere(bubblewrap, tmp_path):
+    from test_course_scaling import make_course, source_notebook
+
+    project = tmp_path / "project"
+    (project / "autograders").mkdir(parents=True)
+    shutil.copy(ROOT / "autograders" / "nbgrader_config.py", project / "autograders" / "nbgrader_config.py")
+    (project / "autograders" / "plan.toml").write_text(f'[[assignment]]\nid = "{ASSIGNMENT}"\n')
+    (project / "lectures" / ASSIGNMENT).mkdir(parents=True)
+    (project / "lectures" / ASSIGNMENT / f"{ASSIGNMENT}.ipynb").write_text(json.dumps(source_notebook()))
+    course = make_course(project, tmp_path / "course", students={"ada": _answers()})
+    try:
+        results = course.grade(workers=1, sandbox=False)
+    finally:
+        os.environ.pop("CVKIT_NO_SANDBOX", None)
+    assert all(r.ok for r in results)
+    assert cell_grades(course)["ada"] == pytest.approx(FULL)  # same grades, but marked
+    assert "GRADED WITHOUT THE SANDBOX" in course.table(ASSIGNMENT)
+    assert "WITHOUT SANDBOX" in (course.root / "exports" / "grades.csv").read_text()
+    assert "WITHOUT THE SANDBOX" in (course.root / "exports" / "exercises.csv").read_text()
+    pages = "".join(p.read_text() for p in (course.root / "feedback" / "ada").rglob("*.html"))
+    assert "Graded without the sandbox" in pages

@@ -146,7 +146,11 @@ def test_monkeypatching_the_grader_changes_nothing():
     assert "imports cvkit.grading" in flags
 
 
-def test_hard_coded_public_outputs_score_zero_and_are_flagged():
+@pytest.mark.parametrize("fallback", ["np.zeros(np.shape(image)).tolist()", "np.asarray(image, dtype=float).tolist()"],
+                         ids=["zeros", "identity"])
+def test_hard_coded_public_outputs_score_zero_and_are_flagged(fallback):
+    """Memorising the shown answers gains nothing, even when the fallback answers the hidden
+    cases whose output is trivial (all zeros, or the input itself)."""
     check = registry.get("filters.median").check
     table = {}
     for case in check.public_cases():
@@ -160,8 +164,8 @@ def test_hard_coded_public_outputs_score_zero_and_are_flagged():
         @student("filters.median")
         def median(image, size, border="reflect101"):
             key = f"{{np.asarray(image, dtype=float).tobytes().hex()}}|{{size}}|{{border}}"
-            return np.array(ANSWERS.get(key, np.zeros(np.shape(image)).tolist()))
-        """)
+            return np.array(ANSWERS.get(key, FALLBACK))
+        """).replace("FALLBACK", fallback)
     scores, result = grade(notebook(median_answer=cheat))
     assert exercise(scores, "median") == 0 and exercise(scores, "mean_kernel") == 3
     assert any("passes only the public cases" in f for f in result.flags)
@@ -278,3 +282,52 @@ def test_scan_flags_and_hidden_test_source_is_hidden():
     assert scan(HONEST_MEDIAN) == []
     shown = hide_hidden_tests('x = 1\n### BEGIN HIDDEN TESTS\ncheck("a.b", f, hidden=True)\n### END HIDDEN TESTS\n')
     assert "check(" not in shown and "hidden tests" in shown
+
+
+CORRELATE_WITH_PAD = textwrap.dedent("""\
+    @student("filters.correlate")
+    def correlate(image, kernel, border="reflect101", output="same"):
+        image = np.asarray(image, dtype=float)
+        kernel = np.asarray(kernel, dtype=float)
+        ry, rx = kernel.shape[0] // 2, kernel.shape[1] // 2
+        padded = filters.pad(image, (ry, rx), border) if output == "same" else image
+        windows = np.lib.stride_tricks.sliding_window_view(padded, kernel.shape, axis=(0, 1))
+        if image.ndim == 3:
+            return np.einsum("hwcij,ij->hwc", windows, kernel)
+        return np.einsum("hwij,ij->hw", windows, kernel)
+    """)
+
+
+def _correlate_notebook(answer):
+    setup = SETUP
+    cells = [_code(setup, "setup"), _code(answer, "correlate_answer", solution=True),
+             _code('check("filters.correlate", correlate)', "correlate_visible", grade=True, points=1)]
+    return {"cells": cells, "metadata": {}, "nbformat": 4, "nbformat_minor": 5}
+
+
+def test_an_allowed_building_block_is_served_and_others_are_refused():
+    """filters.pad is allowed in the correlation exercise: the sandbox has no reference code,
+    its stand-in gets the value from the trusted side. filters.correlate itself is refused."""
+    nb = _correlate_notebook(CORRELATE_WITH_PAD)
+    graded = grade_notebook(nb, student="sam", salt="s", source_notebook=_correlate_notebook("pass"))
+    (call, report), = graded.reports["correlate_visible"]
+    # (this quick correlate mishandles even kernels; the odd-kernel cases need pad served)
+    assert report.cases[0].passed and report.cases[3].passed, report.summary()
+    cheat = '@student("filters.correlate")\ndef correlate(image, kernel, border="reflect101", output="same"):\n' \
+            '    return filters.correlate(image, kernel, border, output)'
+    graded = grade_notebook(_correlate_notebook(cheat), student="sam", salt="s",
+                            source_notebook=_correlate_notebook("pass"))
+    (call, report), = graded.reports["correlate_visible"]
+    assert not report.passed and report.score == 0
+    assert any("not available" in (c.message or "") or "not allowed" in (c.message or "") for c in report.cases)
+
+
+def test_building_blocks_are_graded_before_the_exercises_that_use_them():
+    from cvkit.grading.trusted import CheckCall, _building_blocks_first
+
+    calls = [CheckCall("c", "filters.correlate", "correlate", False, None),
+             CheckCall("p", "filters.pad", "pad", False, None),
+             CheckCall("m", "filters.median", "median", True, 2)]
+    order = [c.algorithm_id for c in _building_blocks_first(calls)]
+    assert order.index("filters.pad") < order.index("filters.correlate")
+    assert order.index("filters.pad") < order.index("filters.median")

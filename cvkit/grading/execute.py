@@ -10,9 +10,8 @@ The steps mirror nbgrader's autograde, with nbgrader's own settings:
 1. :func:`prepare` (trusted side) — nbgrader's *sanitizing* steps: the source of every locked
    or test cell is put back from the release notebook (matched by grade id, as nbgrader's
    ``OverwriteCells`` does), outputs are cleared and the kernel is the release's.
-2. ``python -I -m cvkit.grading.execute IN OUT`` (the caller starts it as ``nobody`` when it
-   runs as root, in a scratch folder, with a scrubbed environment and resource limits) — the
-   notebook is executed with :mod:`nbclient` as nbgrader's ``Execute`` preprocessor does:
+2. ``python -I -m cvkit.grading.execute IN OUT``, started by :func:`execute_in_sandbox` inside
+   the grading sandbox (:mod:`cvkit.grading.isolation`) — the notebook is executed with :mod:`nbclient` as nbgrader's ``Execute`` preprocessor does:
    errors are recorded and execution goes on, a cell that exceeds its time limit is
    interrupted and gets a ``CellTimeoutError``.
 
@@ -34,6 +33,69 @@ TIMEOUT_ERROR = {
     "evalue": "",
     "traceback": ["\x1b[0;31mCellTimeoutError\x1b[0m: No reply from kernel before timeout"],
 }
+
+
+EXECUTION_MEMORY_MB = 6144      # address space of each process of the executing sandbox
+EXECUTION_WALL_SECONDS = 900    # a whole notebook, kept outside; a cell has CVKIT_CELL_TIMEOUT (180 s)
+EXECUTED_MAX_BYTES = 64 << 20   # an executed notebook larger than this is not read back
+
+
+def execute_in_sandbox(files: dict, name: str, wall_seconds: float = EXECUTION_WALL_SECONDS) -> tuple[str | None, str]:
+    """Execute the notebook ``files[name]`` (already :func:`prepare`\ d) in the grading sandbox
+    (:mod:`cvkit.grading.isolation`): a writable copy of ``files`` (this one submission), the
+    Python environment and cvkit read-only, a private ``/tmp``, no network, limits on memory,
+    CPU, processes and file size, and ``wall_seconds`` for the whole notebook, kept from here.
+    Returns the executed notebook's JSON text (``None`` if it could not run to the end) and a
+    short log. The run gives the student's own outputs; no grade depends on it."""
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    from . import isolation
+
+    sandboxed = not isolation.sandbox_disabled()
+    package = str(Path(__file__).resolve().parent.parent)
+    with tempfile.TemporaryDirectory(prefix="cvkit-execute-") as scratch:
+        folder = Path(scratch) / "submission"
+        folder.mkdir()
+        for relative, data in files.items():
+            target = folder / relative
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_bytes(data if isinstance(data, bytes) else str(data).encode())
+        env = {"HOME": "/tmp", "TMPDIR": "/tmp", "JUPYTER_RUNTIME_DIR": "/tmp/.jupyter", "IPYTHONDIR": "/tmp/.ipython",
+               "MPLCONFIGDIR": "/tmp/.mpl", "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+               "MKL_NUM_THREADS": "1", "PYTHONDONTWRITEBYTECODE": "1", "LANG": "C.UTF-8",
+               "PATH": str(Path(sys.executable).parent) + ":/usr/bin:/bin"}
+        if os.environ.get(CELL_TIMEOUT_VARIABLE):
+            env[CELL_TIMEOUT_VARIABLE] = os.environ[CELL_TIMEOUT_VARIABLE]
+        inside = "/submission" if sandboxed else str(folder)
+        mounts = isolation.Mounts(read_only=[(package, package)], writable=[(str(folder), inside)], chdir=inside)
+        limits = isolation.Limits(memory_mb=EXECUTION_MEMORY_MB, cpu_seconds=int(wall_seconds), processes=64,
+                                  file_mb=64, tmpfs_mb=512)
+        output = "executed.cvkit-output.ipynb"
+        with tempfile.TemporaryFile() as console:
+            box = isolation.Sandbox([sys.executable, "-I", "-m", "cvkit.grading.execute", name, output],
+                                    mounts=mounts, limits=limits, env=env, sandboxed=sandboxed,
+                                    stdin=subprocess.DEVNULL, stdout=console, stderr=subprocess.STDOUT)
+            try:
+                status = box.wait(timeout=wall_seconds)
+            except subprocess.TimeoutExpired:
+                status = None
+            finally:
+                box.close()  # every process the notebook started ends here
+            console.seek(0, 2)
+            console.seek(max(0, console.tell() - 2000))
+            log = console.read().decode("utf-8", "replace")
+        if status is None:
+            return None, log + f"\nexecution exceeded {wall_seconds:g} s and was stopped"
+        result = folder / output
+        # everything in the sandbox is dead now: no race between this check and the read
+        if status != 0 or result.is_symlink() or not result.is_file():
+            return None, log + f"\nthe notebook could not run to the end (exit status {status})"
+        if result.stat().st_size > EXECUTED_MAX_BYTES:
+            return None, log + "\nthe executed notebook is larger than 64 MB (printed too much)"
+        return result.read_text(errors="replace"), log
 
 
 def _nbgrader_meta(cell: dict) -> dict:

@@ -69,6 +69,32 @@ class Mounts:
     masked: list = field(default_factory=list)  # folders hidden behind an empty tmpfs
 
 
+def collect_files(folder: Path) -> tuple[dict[str, bytes], list[str]]:
+    """The regular files of a submission folder, and what was refused: symbolic links, hard
+    links to files elsewhere, devices, sockets and pipes are never followed nor read."""
+    import stat
+
+    files, refused = {}, []
+    if folder.is_symlink() or not folder.is_dir():
+        return files, [f"{folder.name}: the submission folder is not a plain folder (refused)"]
+    for path in sorted(folder.rglob("*")):
+        name = str(path.relative_to(folder))
+        info = path.lstat()
+        if stat.S_ISDIR(info.st_mode) and not path.is_symlink():
+            continue
+        if stat.S_ISLNK(info.st_mode):
+            refused.append(f"{name}: a symbolic link (refused, not followed)")
+        elif not stat.S_ISREG(info.st_mode):
+            refused.append(f"{name}: not a regular file (refused)")
+        elif info.st_nlink > 1:
+            refused.append(f"{name}: a hard link to another file (refused)")
+        elif any(parent.is_symlink() for parent in path.relative_to(folder).parents if str(parent) != "."):
+            refused.append(f"{name}: inside a linked folder (refused)")
+        else:
+            files[name] = path.read_bytes()
+    return files, refused
+
+
 def bwrap_path() -> str | None:
     return shutil.which("bwrap")
 

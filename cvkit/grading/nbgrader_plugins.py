@@ -63,6 +63,42 @@ class TrustedChecks(NbGraderPreprocessor):
         return cell, resources
 
 
+class SandboxedExecute(NbGraderPreprocessor):
+    """nbgrader's *Execute* step, in the grading sandbox (:func:`cvkit.grading.execute.execute_in_sandbox`).
+
+    Replaces nbgrader's ``Execute`` in ``Autograde.autograde_preprocessors`` so that even a
+    plain ``nbgrader autograde`` never runs a student's notebook with the grader's rights. The
+    notebook runs with the regular files of its folder (never links), and a notebook that
+    cannot run to the end is left as submitted (outputs cleared): :class:`TrustedChecks`, which
+    comes later, decides its grades in the sandbox either way.
+    """
+
+    enabled = Bool(True).tag(config=True)
+    timeout = Int(900, help="wall-clock seconds for the whole notebook, enforced from outside").tag(config=True)
+
+    def preprocess(self, nb, resources):
+        import nbformat
+
+        from .execute import execute_in_sandbox
+        from .isolation import collect_files
+
+        name = f"{resources.get('unique_key') or 'notebook'}.ipynb"
+        folder = (resources.get("metadata") or {}).get("path")
+        files = {}
+        if folder:
+            files, refused = collect_files(Path(folder))
+            files = {k: v for k, v in files.items() if not k.endswith(".ipynb")}
+        files[name] = nbformat.writes(nb).encode()
+        text, log = execute_in_sandbox(files, name, wall_seconds=self.timeout)
+        if text is None:
+            self.log.warning("cvkit: %s could not run to the end in the sandbox: %s", name, log[-500:])
+            return nb, resources
+        return nbformat.reads(text, as_version=nbformat.NO_CONVERT), resources
+
+    def preprocess_cell(self, cell, resources, index):  # pragma: no cover - whole-notebook preprocessor
+        return cell, resources
+
+
 class HideHiddenTests(NbGraderPreprocessor):
     """In feedback, show the hidden tests' results but not their source."""
 

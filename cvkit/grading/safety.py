@@ -34,20 +34,25 @@ Feedback (nbgrader ``generate_feedback``, configured in ``autograders/nbgrader_c
   ``on*`` attributes, remote images; ``id`` gets a ``md-`` prefix so that it cannot clobber the
   page's or MathJax's elements.
 - :class:`SafeFeedbackExporter` — the ``HTMLExporter`` of ``generate_feedback``
-  (``c.GenerateFeedback.exporter_class``). It cleans whatever its templates render through
-  ``markdown2html`` (a second line of defence for Markdown cells and comments; a Markdown
-  error such as a missing attachment shows the source as text instead of failing the
-  page), always embeds SVG as a base64 ``<img>``, runs :class:`SanitizeStudentContent` itself
-  if the configuration forgot it, and loads MathJax from the page's folder (below).
+  (``c.GenerateFeedback.exporter_class``). It cleans the notebook before the configured
+  preprocessors (a notebook made invalid on purpose would otherwise stop nbconvert) and
+  again after them if the configuration forgot :class:`SanitizeStudentContent`; it cleans
+  whatever its templates render through ``markdown2html`` (a second line of defence for
+  Markdown cells and comments; a Markdown error shows the source as text instead of failing
+  the page); it always embeds SVG as a base64 ``<img>``; it loads MathJax from the page's
+  folder (below).
   nbconvert's own ``HTMLExporter.sanitize_html`` stays off: its ``clean_html`` escapes the
   report's ``<section>`` and drops its images, and nbgrader's ``feedback`` template ignores
   it for Markdown cells anyway.
 
 MathJax without network
 -----------------------
-nbgrader's feedback template loads MathJax 2.7 from a CDN. cvkit ships the MathJax 2.7.9
-files of ``jupyter_server_mathjax`` (the Jupyter project's package of MathJax for the
-classic notebook server; a pip dependency) instead: every page loads
+nbgrader's feedback template loads MathJax 2.7 from a CDN. cvkit uses the MathJax 2.7.9
+files of ``jupyter_server_mathjax`` instead: the Jupyter project's own pip package of MathJax
+(made for the classic notebook server, a small wheel with no build step), and MathJax 2 like
+the page's configuration script (``MathJax.Hub``), so the templates need no other change (a
+MathJax 3 package would need a new configuration and offers nothing the pages use). Every
+page loads
 ``mathjax/MathJax.js?config=TeX-AMS-MML_HTMLorMML-full,Safe`` (relative, with MathJax's
 ``Safe`` extension, so ``\\href{javascript:...}`` and ``\\style`` are inert) and is configured
 for the web fonts that package has (STIX-Web, HTML-CSS output). :func:`install_offline_mathjax`
@@ -55,10 +60,12 @@ puts a ``mathjax/`` folder next to every page below a feedback root: one copy of
 subset (2.8 MB: no SVG output, no accessibility explorer, no translations) in
 ``<feedback root>/.mathjax-<version>/`` — hidden, so nbgrader's ``*`` globs never take it for a
 student — hard-linked into each page folder (copied where links are impossible), so each
-``feedback/<student>/<assignment>/`` folder is complete on its own (zip it, mail it) at no
-disk cost. ``autograders/nbgrader_config.py`` runs it after every ``generate_feedback``
-through nbgrader's ``post_convert_hook`` (:func:`mathjax_post_convert_hook`); calling it again
-is cheap and harmless. nbgrader's exchange (``release_feedback``) copies only the ``.html``
+``feedback/<student>/<assignment>/`` folder is complete on its own (zip it, mail it) for the
+cost of its directory entries. Each copy is built in ``<feedback root>/.mathjax-work/`` and
+moved in place with one rename, so parallel feedback workers can install at once.
+``autograders/nbgrader_config.py`` runs it after every ``generate_feedback`` through
+nbgrader's ``post_convert_hook`` (:func:`mathjax_post_convert_hook`); calling it again is
+cheap and harmless. nbgrader's exchange (``release_feedback``) copies only the ``.html``
 files: pages fetched that way show formulas as TeX source — they never reach for the network.
 
 Grade exports (CSV injection)
@@ -70,7 +77,6 @@ CSV file (nbgrader's ``grades.csv``) with every cell passed through it.
 """
 from __future__ import annotations
 
-import base64
 import copy
 import csv
 import html
@@ -102,22 +108,34 @@ _DROP_WITH_CONTENT = {"script", "style", "noscript", "iframe", "frame", "framese
                       "plaintext", "svg", "math", "canvas", "audio", "video", "head", "button"}
 
 
-def _relative_url(value: str) -> bool:
+_LINK_SCHEMES = ("http", "https", "mailto")
+
+
+def _url(value: str) -> str:
+    """A URL as browsers read it: without tabs and newlines, without leading/trailing controls
+    and spaces (WHATWG URL parsing), so that ``ht<tab>tps://`` cannot pass for a relative path."""
+    return re.sub(r"[\t\n\r]", "", value).strip("".join(map(chr, range(0x21))))
+
+
+def _relative_url(url: str) -> bool:
     """A URL that stays next to the page: no scheme, not protocol-relative."""
-    stripped = value.strip()
-    return not _SCHEME.match(stripped) and not stripped.startswith(("//", "\\\\", "/\\", "\\/"))
+    return not _SCHEME.match(url) and not url.startswith(("//", "\\\\", "/\\", "\\/"))
 
 
 def _strict_attribute(tag: str, attribute: str, value: str) -> str | None:
     try:
         if attribute == "src":  # images: embedded rasters or files next to the page, never remote
-            return value if _DATA_IMAGE.match(value.strip()) or _relative_url(value) else None
+            url = _url(value)
+            return url if _DATA_IMAGE.match(url) or _relative_url(url) else None
         if attribute == "href":
-            stripped = value.strip()
-            if stripped.startswith("#"):  # in-page links follow the prefixed ids
-                fragment = stripped[1:]
+            url = _url(value)
+            if url.startswith("#"):  # in-page links follow the prefixed ids
+                fragment = url[1:]
                 return "#" + (fragment if fragment.startswith(ID_PREFIX) else ID_PREFIX + fragment) if fragment else None
-            return None if stripped.lower().startswith("data:") else value
+            scheme = _SCHEME.match(url)
+            if scheme and scheme.group(0)[:-1].lower() not in _LINK_SCHEMES or "script:" in url.lower():
+                return None
+            return url
         if attribute == "id":  # idempotent, so that cleaning twice keeps links and targets together
             return value if value.startswith(ID_PREFIX) else ID_PREFIX + value
         if attribute in ("width", "height"):
@@ -133,7 +151,8 @@ def _strict_attribute(tag: str, attribute: str, value: str) -> str | None:
 def _report_attribute(tag: str, attribute: str, value: str) -> str | None:
     try:
         if attribute == "src":
-            return value if _DATA_IMAGE.match(value.strip()) else None
+            url = _url(value)
+            return url if _DATA_IMAGE.match(url) else None
         if attribute in ("width", "height"):
             return value if _DIMENSION.match(value.strip()) else None
         return value
@@ -191,7 +210,7 @@ def _cleaner(policy: str):
         clean_content_tags=_DROP_WITH_CONTENT - tags,
         attributes=attributes,
         attribute_filter=_strict_attribute,
-        url_schemes={"http", "https", "mailto", "data"},  # data: only for raster images (the filter)
+        url_schemes={*_LINK_SCHEMES, "data"},  # data: only for raster images (see the filter)
         link_rel="noopener noreferrer nofollow",
     )
 
@@ -235,11 +254,21 @@ def sanitize_markdown(source: str, attachments: dict | None = None) -> str:
     return sanitize_html(rendered)
 
 
+_BLOCK = '<div class="cvkit-md">'
+
+
 def _html_block(fragment: str) -> str:
     """Cleaned HTML that a Markdown renderer passes through unchanged: one ``<div>`` on one
     line (an HTML block ends at the first blank line; newlines become character references,
     which mean the same in HTML)."""
-    return '<div class="cvkit-md">' + fragment.replace("\r", "").replace("\n", "&#10;") + "</div>"
+    line = fragment.replace("\r", "").replace("\n", "&#10;")
+    return line if line.startswith(_BLOCK) else _BLOCK + line + "</div>"
+
+
+def _markdown_block(source: str, attachments=None) -> str:
+    """Markdown source as a cleaned HTML block (a block made here before is only cleaned again)."""
+    cleaned = sanitize_html(source) if source.startswith(_BLOCK) else sanitize_markdown(source, attachments)
+    return _html_block(cleaned) if cleaned.strip() else ""
 
 
 # ----------------------------------------------------------------------------- SVG
@@ -388,6 +417,8 @@ def _clean_bundle(data: dict, metadata: dict, *, trusted: bool) -> tuple[dict, d
 def _clean_output(output, *, trusted_cell: bool):
     from nbformat.v4 import new_output
 
+    if not isinstance(output, dict):
+        return None
     kind = output.get("output_type")
     if kind == "stream":
         name = output.get("name") if output.get("name") in ("stdout", "stderr") else "stdout"
@@ -417,17 +448,21 @@ def sanitize_notebook(nb, resources: dict | None = None):
     notebook_trusted = (nb.get("metadata", {}).get("cvkit", {}) or {}).get("trusted") is True
     cells = []
     for cell in nb.cells:
+        if not isinstance(cell, dict):
+            continue
         kind = cell.get("cell_type")
         if kind not in ("code", "markdown", "raw"):
             continue
-        metadata = cell.setdefault("metadata", NotebookNode())
+        if not isinstance(cell.get("metadata"), dict):
+            cell["metadata"] = NotebookNode()
+        metadata = cell["metadata"]
         metadata.pop("magics_language", None)
         grading = metadata.get("nbgrader")
         if isinstance(grading, dict):
             if "grade_id" in grading:
                 grading["grade_id"] = _GRADE_ID.sub("_", _text(grading["grade_id"]))
             if grading.get("comment"):
-                grading["comment"] = _html_block(sanitize_markdown(_text(grading["comment"])))
+                grading["comment"] = _markdown_block(_text(grading["comment"]))
         elif grading is not None:
             metadata.pop("nbgrader")
         tags = metadata.get("tags")
@@ -438,11 +473,11 @@ def sanitize_notebook(nb, resources: dict | None = None):
             if not (isinstance(count, int) and not isinstance(count, bool)):
                 cell["execution_count"] = None
             trusted_cell = _trusted_test_cell(cell, notebook_trusted)
-            outputs = [_clean_output(o, trusted_cell=trusted_cell) for o in cell.get("outputs", [])]
+            outputs = cell.get("outputs") if isinstance(cell.get("outputs"), list) else []
+            outputs = [_clean_output(o, trusted_cell=trusted_cell) for o in outputs]
             cell["outputs"] = [o for o in outputs if o is not None]
         elif kind == "markdown":
-            cleaned = sanitize_markdown(_text(cell.get("source", "")), cell.get("attachments"))
-            cell["source"] = _html_block(cleaned) if cleaned.strip() else ""
+            cell["source"] = _markdown_block(_text(cell.get("source", "")), cell.get("attachments"))
             cell.pop("attachments", None)
         else:  # raw cells: HTML ones become cleaned HTML blocks, the others are not shown in HTML anyway
             mimetype = _text(metadata.get("raw_mimetype", metadata.get("format", ""))).lower()
@@ -554,31 +589,34 @@ def _fresh(folder: Path) -> bool:
         return False
 
 
-def _replace_folder(target: Path, fill) -> None:
-    """Build ``target`` in a sibling temporary folder and move it in place (safe when several
-    processes install at once: the last complete copy wins, none is ever half-written)."""
-    target.parent.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(prefix=f".{target.name}-", dir=target.parent))
+def _replace_folder(target: Path, fill, scratch: Path) -> None:
+    """Build ``target`` in a private folder below ``scratch`` and move it in place with one
+    rename: a page folder never shows a half-written ``mathjax/`` (nbgrader may be walking it
+    to set permissions), and when several processes install at once the first complete copy
+    stays and the others are thrown away."""
+    scratch.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix="build-", dir=scratch))
     try:
         fill(work)
         (work / _MATHJAX_STAMP).write_text(_stamp())
         work.chmod(0o755)
-        if target.exists() and not _fresh(target):
-            old = target.with_name(f".{target.name}-old-{uuid.uuid4().hex}")
+        if target.exists() and not _fresh(target):  # an older or broken copy: out of the way first
             try:
-                target.rename(old)
+                target.rename(scratch / f"old-{uuid.uuid4().hex}")
             except OSError:
                 pass
-            else:
-                shutil.rmtree(old, ignore_errors=True)
         try:
             work.rename(target)
         except OSError:
             if not _fresh(target):
                 raise
     finally:
-        if work.exists():
-            shutil.rmtree(work, ignore_errors=True)
+        for leftover in [work, *scratch.glob("old-*")]:
+            shutil.rmtree(leftover, ignore_errors=True)
+
+
+def _scratch(root: Path) -> Path:
+    return root / ".mathjax-work"
 
 
 def _master(root: Path) -> Path:
@@ -594,11 +632,11 @@ def _master(root: Path) -> Path:
                 shutil.copyfile(source / relative, dest)
                 dest.chmod(0o644)
 
-        _replace_folder(master, fill)
+        _replace_folder(master, fill, _scratch(root))
     return master
 
 
-def _link_tree(master: Path, target: Path) -> None:
+def _link_tree(master: Path, target: Path, scratch: Path) -> None:
     def fill(work: Path) -> None:
         for relative in mathjax_files():
             dest = work / relative
@@ -608,32 +646,41 @@ def _link_tree(master: Path, target: Path) -> None:
             except OSError:
                 shutil.copyfile(master / relative, dest)
 
-    _replace_folder(target, fill)
+    _replace_folder(target, fill, scratch)
 
 
 def install_offline_mathjax(feedback_root, folders: Iterable | None = None) -> list[Path]:
     """Put MathJax (``mathjax/``) next to every feedback page below ``feedback_root``.
 
     ``folders`` limits the work to these page folders (default: every folder below
-    ``feedback_root`` that holds an ``.html`` file). Folders that already have this MathJax
-    are left alone, so calling it after every ``generate_feedback`` is cheap. Returns the page
-    folders that now have MathJax. The files are hard links to one copy in
-    ``feedback_root/.mathjax-<version>/`` (copies on file systems without links)."""
+    ``feedback_root`` that holds an ``.html`` file; hidden folders are skipped). Folders that
+    already have this MathJax are left alone, so calling it again is cheap (with thousands of
+    page folders, pass the new ones as ``folders``). A folder that disappears meanwhile (its
+    feedback being generated again) is skipped. Returns the page folders that have MathJax.
+    The files are hard links to one copy in ``feedback_root/.mathjax-<version>/`` (copies on
+    file systems without links); all work happens in ``feedback_root/.mathjax-work/``."""
     root = Path(feedback_root)
     if folders is None:
-        if not root.is_dir():
-            return []
-        folders = sorted({page.parent for page in root.rglob("*.html")
-                          if not any(part.startswith(".mathjax") or part == MATHJAX_DIR
-                                     for part in page.relative_to(root).parts[:-1])})
+        folders = []
+        for here, subfolders, names in os.walk(root):  # never into the MathJax copies themselves
+            subfolders[:] = sorted(d for d in subfolders if d != MATHJAX_DIR and not d.startswith("."))
+            if any(name.endswith(".html") for name in names):
+                folders.append(Path(here))
     folders = [Path(f) for f in folders if Path(f).is_dir()]
     if not folders:
         return []
     master = _master(root)
+    done = []
     for folder in folders:
-        if not _fresh(folder / MATHJAX_DIR):
-            _link_tree(master, folder / MATHJAX_DIR)
-    return folders
+        try:
+            if not _fresh(folder / MATHJAX_DIR):
+                _link_tree(master, folder / MATHJAX_DIR, _scratch(root))
+        except OSError:
+            if folder.is_dir():
+                raise
+            continue
+        done.append(folder)
+    return done
 
 
 def mathjax_post_convert_hook(feedback_root):
@@ -744,12 +791,12 @@ def sanitize_csv_file(path) -> Path:
     """Rewrite the CSV file ``path`` in place with every cell passed through :func:`csv_safe`
     (properly quoted; written to a temporary file next to it, then moved over it)."""
     path = Path(path)
-    with path.open(newline="", encoding="utf-8") as handle:
+    with path.open(newline="", encoding="utf-8", errors="surrogateescape") as handle:
         rows = list(csv.reader(handle))
     fd, temporary = tempfile.mkstemp(prefix=f".{path.name}-", dir=path.parent)
     try:
-        with os.fdopen(fd, "w", newline="", encoding="utf-8") as handle:
-            writer = csv.writer(handle)
+        with os.fdopen(fd, "w", newline="", encoding="utf-8", errors="surrogateescape") as handle:
+            writer = csv.writer(handle, lineterminator="\n")  # as nbgrader writes it
             for row in rows:
                 writer.writerow([csv_safe(cell) for cell in row])
         try:

@@ -233,7 +233,7 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
                     "call": (call_target(spec.call) or "").rpartition(":")[2] or None,
                 })
         blocks.update(spec.allowed)
-        plans.append((call, spec, seed, positions))
+        plans.append((call, spec, seed, positions, cases))
     outcome = run_calls(worker_cells(notebook, source_notebook), requests, blocks=tuple(sorted(blocks)),
                         memory_mb=memory_mb)
     result.worker_problem = outcome.crashed
@@ -244,12 +244,18 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
     def stand_in(*args, **kwargs):  # the candidate lives in the worker
         raise RuntimeError("trusted grading evaluates outcomes computed by the worker")
 
-    for call, spec, seed, positions in plans:
+    telling: dict[str, bool] = {}   # algorithm id -> passes a hidden case that tells something
+    for call, spec, seed, positions, cases in plans:
         runner = lambda index, case, attempt, positions=positions: (  # noqa: E731
             outcome.outcomes[positions[(index, attempt)]] if (index, attempt) in positions else None)
         report = evaluate(call.algorithm_id, stand_in, hidden=call.hidden, seed=seed, runner=runner)
         result.reports.setdefault(call.grade_id, []).append((call, report))
-    _hard_coding_rule(result)
+        if call.hidden:
+            for case_result in report.cases:
+                case = cases[case_result.index] if case_result.index < len(cases) else None
+                if case is not None and not _trivial(case, case_result.expected):
+                    telling[call.algorithm_id] = telling.get(call.algorithm_id, False) or case_result.passed
+    _hard_coding_rule(result, telling)
     return result
 
 
@@ -272,33 +278,40 @@ def _building_blocks_first(calls: list[CheckCall]) -> list[CheckCall]:
     return ordered
 
 
-def _trivial(case) -> bool:
-    """A case whose expected output is constant (all zeros, say): answering it proves nothing."""
-    expected = case.expected
-    if isinstance(expected, np.ndarray) and expected.size > 1 and expected.dtype.kind in "biuf":
-        with np.errstate(invalid="ignore"):
-            return bool(np.all(expected == expected.flat[0]))
+def _trivial(case, expected) -> bool:
+    """A case whose answer can be given without computing anything: an all-zero output, or an
+    output equal to one of the inputs (a flat image, a size-1 filter)."""
+    def same(a, b) -> bool:
+        try:
+            a, b = np.asarray(a), np.asarray(b)
+            return a.shape == b.shape and a.dtype.kind in "biuf" and b.dtype.kind in "biuf" and bool(np.array_equal(a, b))
+        except Exception:  # noqa: BLE001 - objects that do not compare are not trivial
+            return False
+
+    if isinstance(expected, np.ndarray) and expected.dtype.kind in "biuf" and expected.size > 0:
+        if not np.any(expected):
+            return True
+        return any(same(expected, arg) for arg in list(case.args) + list(case.kwargs.values())
+                   if isinstance(arg, np.ndarray))
     return False
 
 
-def _hard_coding_rule(result: NotebookGrade) -> None:
+def _hard_coding_rule(result: NotebookGrade, telling: dict[str, bool]) -> None:
     """A function that passes the public cases but none of the hidden cases that tell anything
-    (a constant expected output tells nothing) has most likely memorised the public answers:
-    its visible test gets no credit either, and it is flagged."""
-    memorised = set()
+    (see :func:`_trivial`) has most likely memorised the public answers: its visible test gets
+    no credit either, nor do the trivial hidden cases it passed, and it is flagged."""
+    memorised = {call.algorithm_id for entries in result.reports.values() for call, report in entries
+                 if not call.hidden and report.passed and telling.get(call.algorithm_id) is False}
     for entries in result.reports.values():
         for call, report in entries:
-            if call.hidden:
-                telling = [case for case in report.cases if not _trivial(case)]
-                if telling and not any(case.passed for case in telling):
-                    memorised.add(call.algorithm_id)
-    for entries in result.reports.values():
-        for call, report in entries:
-            if not call.hidden and report.passed and call.algorithm_id in memorised:
-                for case in report.cases:
+            if call.algorithm_id not in memorised:
+                continue
+            for case in report.cases:
+                if case.passed:
                     case.passed = False
-                    case.message = ("passes the shown cases but none of the hidden ones: the answers of the "
-                                    "shown cases look memorised")
+                    case.message = ("passes the shown cases but none of the hidden ones that tell anything: the "
+                                    "answers of the shown cases look memorised")
+            if not call.hidden:
                 result.flags.append(f"{call.grade_id}: passes only the public cases ({call.algorithm_id})")
 
 
