@@ -731,20 +731,10 @@ class Course:
                 outcome = {"success": False, "error": repr(error)}
             if not outcome.get("success"):
                 failed.append(f"{student}/{assignment}: {outcome.get('error', '')[-500:]}")
-                continue
-            self._secure_feedback(student, assignment)
         if failed:
             log = self.root / ".cvkit" / "feedback_errors.log"
             log.parent.mkdir(parents=True, exist_ok=True)
             log.write_text("\n".join(failed))
-
-    def _secure_feedback(self, student: str, assignment: str) -> None:
-        """MathJax next to the feedback pages, so they render offline (see :mod:`.grading.safety`)."""
-        try:
-            from .grading.safety import install_offline_mathjax
-        except ImportError:  # pragma: no cover
-            return
-        install_offline_mathjax(self.root / "feedback")
 
     def audit(self, jobs: Iterable[tuple[str, str]]) -> list[tuple[str, str]]:
         """Submissions with no autograded notebook or no grade in the gradebook."""

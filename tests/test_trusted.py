@@ -331,3 +331,12 @@ def test_building_blocks_are_graded_before_the_exercises_that_use_them():
     order = [c.algorithm_id for c in _building_blocks_first(calls)]
     assert order.index("filters.pad") < order.index("filters.correlate")
     assert order.index("filters.pad") < order.index("filters.median")
+
+
+def test_scan_sees_reflection_and_the_import_machinery():
+    flags = scan('g = getattr(f, "__globals__")\nh = getattr(f, name)\nimport sys\nsys.meta_path.remove(b)\n'
+                 'm = sys.modules["cvkit"]\nimp = np.__builtins__["__import__"]')
+    for expected in ("getattr(…, '__globals__')", "computed attribute name", "changes sys.meta_path",
+                     "indexes sys.modules", "indexes np.__builtins__"):
+        assert any(expected in f for f in flags), (expected, flags)
+    assert scan("def f(x):\n    return getattr(x, 'shape')") == []

@@ -91,7 +91,8 @@ from pathlib import Path
 from typing import Any, Iterable
 
 __all__ = [
-    "SanitizeStudentContent", "SafeFeedbackExporter", "sanitize_html", "sanitize_markdown", "safe_svg",
+    "SanitizeStudentContent", "SafeFeedbackExporter", "sanitize_notebook", "sanitize_html", "sanitize_markdown",
+    "safe_svg",
     "MATHJAX_URL", "mathjax_files", "install_offline_mathjax", "mathjax_post_convert_hook",
     "csv_safe", "sanitize_csv_file",
 ]
@@ -489,8 +490,8 @@ def sanitize_notebook(nb, resources: dict | None = None):
         cells.append(cell)
     nb.cells = cells
     nb.metadata.pop("widgets", None)
-    if "title" in nb.metadata:
-        nb.metadata["title"] = html.escape(_text(nb.metadata["title"]))
+    if "title" in nb.metadata:  # nbconvert's templates escape it; nbgrader's does not show it
+        nb.metadata["title"] = re.sub(r"[<>]", "", _text(nb.metadata["title"]))
     if resources is not None:
         info = resources.get("nbgrader")
         if isinstance(info, dict) and "notebook" in info:

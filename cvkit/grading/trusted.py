@@ -128,7 +128,10 @@ _SUSPICIOUS_CALLS = {
 _SUSPICIOUS_MODULES = ("ctypes", "subprocess", "importlib", "inspect", "gc", "signal", "multiprocessing",
                        "threading", "socket", "shutil", "pickle", "builtins", "cvkit.grading", "cvkit.registry")
 _SUSPICIOUS_ATTRIBUTES = ("__globals__", "__code__", "__builtins__", "__subclasses__", "__closure__",
-                          "f_back", "f_locals", "f_globals", "tb_frame")
+                          "f_back", "f_locals", "f_globals", "tb_frame", "meta_path", "path_hooks", "__dict__",
+                          "__mro__", "__bases__", "__base__", "gi_frame", "cr_frame", "__import__", "__loader__",
+                          "__spec__")
+_REFLECTION = ("getattr", "setattr", "delattr", "vars", "dir")
 _GRADER_NAMES = ("check", "evaluate", "student")
 
 
@@ -169,6 +172,17 @@ def scan(source: str, where: str = "") -> list[str]:
             name = _dotted(node.func)
             if name in _SUSPICIOUS_CALLS:
                 add(f"calls {name} ({_SUSPICIOUS_CALLS[name]})")
+            if name in _REFLECTION and len(node.args) >= 2:
+                key = node.args[1]
+                if not isinstance(key, ast.Constant):
+                    add(f"calls {name} with a computed attribute name")
+                elif isinstance(key.value, str) and key.value.startswith("_"):
+                    add(f"calls {name}(…, {key.value!r}) (reaches into internals)")
+            if isinstance(node.func, ast.Attribute) and node.func.attr in ("remove", "clear", "pop", "insert") \
+                    and _dotted(node.func.value).endswith(("meta_path", "path_hooks", "modules")):
+                add(f"changes {_dotted(node.func.value)} (the import machinery)")
+        elif isinstance(node, ast.Subscript) and _dotted(node.value).endswith(("sys.modules", "__builtins__")):
+            add(f"indexes {_dotted(node.value)}")
         elif isinstance(node, ast.Attribute) and node.attr in _SUSPICIOUS_ATTRIBUTES:
             add(f"uses .{node.attr}")
         elif isinstance(node, (ast.Assign, ast.AugAssign, ast.AnnAssign)):
