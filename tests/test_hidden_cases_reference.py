@@ -49,14 +49,40 @@ def test_every_algorithm_with_a_check_is_swept():
     assert "detection.shape_model" in CHECKED and "calibration.calibrate" in CHECKED
 
 
-@pytest.mark.parametrize("algorithm_id", CHECKED)
-def test_reference_computes_every_hidden_case(algorithm_id):
+def sweep_part(algorithm_id, students, public):
+    """The failures of one algorithm's reference on the public cases (if ``public``) and on
+    the hidden cases of ``students`` (run in a worker process of :func:`sweep`)."""
     spec = registry.get(algorithm_id).check
-    failures = _reference_failures(algorithm_id, spec.public_cases(), "public")
-    for student in STUDENTS:
+    failures = _reference_failures(algorithm_id, spec.public_cases(), "public") if public else []
+    for student in students:
         seed = hidden_seed(algorithm_id, student=student, salt=SALT)
         cases = spec.hidden_cases(np.random.default_rng(seed))
         failures += _reference_failures(algorithm_id, cases, f"seed {seed} (student {student!r}, salt {SALT!r})")
+    return algorithm_id, failures
+
+
+@pytest.fixture(scope="module")
+def sweep():
+    """algorithm id → failures, over every core (the sweep is long: about 6 CPU-minutes)."""
+    import concurrent.futures
+    import multiprocessing
+    import os
+
+    chunk = 50
+    found = {algorithm_id: [] for algorithm_id in CHECKED}
+    context = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(max_workers=os.cpu_count() or 2, mp_context=context) as pool:
+        jobs = [pool.submit(sweep_part, algorithm_id, STUDENTS[i:i + chunk], i == 0)
+                for algorithm_id in CHECKED for i in range(0, N_SEEDS, chunk)]
+        for job in concurrent.futures.as_completed(jobs):
+            algorithm_id, failures = job.result()
+            found[algorithm_id] += failures
+    return found
+
+
+@pytest.mark.parametrize("algorithm_id", CHECKED)
+def test_reference_computes_every_hidden_case(algorithm_id, sweep):
+    failures = sweep[algorithm_id]
     assert not failures, (
         f"the reference of {algorithm_id} raises on {len(failures)} case(s) (over {N_SEEDS} seeds); "
         "grading would drop them:\n" + "\n".join(
@@ -215,3 +241,25 @@ def test_reference_errors_never_escape_evaluate(fragile):
         for spec in (FRAGILE, HOPELESS, NOTHING_VISIBLE):
             evaluate(ID, candidate, check=spec)
             evaluate(ID, candidate, hidden=True, seed=11, check=spec)
+
+
+def test_trusted_grading_never_scores_a_dropped_case_and_tells_the_instructor(fragile):
+    """Through the sandboxed trusted grader: the hidden case the reference cannot compute is
+    not counted (a correct answer keeps full credit) and the instructor gets a flag."""
+    from cvkit.grading.trusted import grade_notebook
+
+    def code(source, grade_id, **meta):
+        return {"cell_type": "code", "source": source, "outputs": [], "execution_count": None,
+                "metadata": {"nbgrader": {"grade_id": grade_id, "schema_version": 3, **meta}}}
+
+    answer = "import numpy as np\ndef fragile(values):\n    with np.errstate(invalid='ignore'):\n" \
+             "        return np.sqrt(np.asarray(values, dtype=float))"
+    nb = {"cells": [code(answer, "answer", solution=True, grade=False, locked=False),
+                    code(f'check("{ID}", fragile, hidden=True, points=2)', "hidden", solution=False, grade=True,
+                         locked=True, points=2)],
+          "metadata": {}, "nbformat": 4, "nbformat_minor": 5}
+    graded = grade_notebook(nb, student="dora", salt="s", source_notebook=nb)
+    assert graded.credit("hidden", 2)[0] == 2
+    (call, report), = graded.reports["hidden"]
+    assert len(report.cases) == 3 and len(report.dropped) == 1
+    assert any("dropped" in flag for flag in graded.flags)

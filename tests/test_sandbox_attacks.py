@@ -216,6 +216,23 @@ def cell_grades_graded(course):
     return out
 
 
+FLAGGED = {  # what the instructor is told about each attack
+    "via_globals": "__globals__", "via_sys_modules": "sys.modules", "via_scipy": "__builtins__",
+    "via_frames": "__builtins__", "via_gc": "__builtins__", "via_thread": "__builtins__", "via_lectures": "opens files",
+    "via_pillow": "import PIL", "sleeper": "was stopped", "alarm_ignorer": "__builtins__", "daemon": "__builtins__",
+    "parent_killer": "__builtins__", "tmp_writer": "opens files", "fork_counter": "__builtins__",
+}
+
+
+def test_attacks_are_flagged_and_honest_work_is_not(graded):
+    course, _, _ = graded
+    scores = course.scores(ASSIGNMENT)
+    flags = {student: [f for e in exercises for f in e.flags] for student, exercises in scores.items()}
+    for student, expected in FLAGGED.items():
+        assert any(expected in f for f in flags[student]), (student, flags[student])
+    assert not flags["ada"] and not flags["bea"]
+
+
 def test_not_a_notebook_is_listed_as_not_graded_never_as_zero(graded):
     course, results, _ = graded
     not_graded = course.not_graded()

@@ -254,6 +254,8 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
     result.cell_errors = outcome.cell_errors
     result.sandboxed = outcome.sandboxed
     result.flags += [f"(notebook): {refused}" for refused in outcome.refused]
+    result.flags += [f"(notebook): {error}" for error in outcome.cell_errors
+                     if "was stopped" in error or "ended early" in error or "killed" in error or "out of turn" in error]
 
     def stand_in(*args, **kwargs):  # the candidate lives in the worker
         raise RuntimeError("trusted grading evaluates outcomes computed by the worker")
@@ -264,6 +266,12 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
             outcome.outcomes[positions[(index, attempt)]] if (index, attempt) in positions else None)
         report = evaluate(call.algorithm_id, stand_in, hidden=call.hidden, seed=seed, runner=runner)
         result.reports.setdefault(call.grade_id, []).append((call, report))
+        if report.dropped:  # the reference could not compute these cases: never scored, reported
+            result.flags.append(f"{call.grade_id}: {len(report.dropped)} case(s) dropped, the reference could not "
+                                f"compute them ({report.dropped[0]})")
+        if not report.gradable:
+            result.flags.append(f"{call.grade_id}: not graded, the reference could not compute any case; "
+                                "regrade after fixing the check")
         if call.hidden:
             for case_result in report.cases:
                 case = cases[case_result.index] if case_result.index < len(cases) else None
