@@ -171,9 +171,9 @@ class _ControlGroup:
     """A ``pids`` (and ``memory``) control group for one sandbox, where the grader may make one
     (root on cgroup v1, or a v2 hierarchy whose own group delegates ``pids``)."""
 
-    def __init__(self, limits: Limits):
+    def __init__(self, limits: Limits, enabled: bool = True):
         self.paths: list[Path] = []
-        if not hasattr(os, "geteuid") or os.geteuid() != 0:
+        if not enabled or not hasattr(os, "geteuid") or os.geteuid() != 0:
             return
         name = f"cvkit-{uuid.uuid4().hex[:12]}"
         try:
@@ -260,23 +260,18 @@ class Sandbox:
         env.setdefault("TMPDIR", "/tmp")
         env["CVKIT_SANDBOX_NPROC"] = str(self.limits.processes)
         self.sandboxed = sandboxed
-        self.group = _ControlGroup(self.limits) if sandboxed else _ControlGroup.__new__(_ControlGroup)
-        if not sandboxed:
-            self.group.paths = []
+        self.group = _ControlGroup(self.limits, enabled=sandboxed)
+        self._scratch = None
+        if sandboxed:
+            cwd, full, outer_env = "/", command(argv, self.mounts, self.limits, env), {"PATH": "/usr/bin:/bin"}
+        else:  # --no-sandbox: the same program with the resource limits only, in a scratch folder
             self._scratch = tempfile.mkdtemp(prefix="cvkit-nosandbox-")
-            for source, target in self.mounts.writable:
-                if target == self.mounts.chdir:
-                    self._scratch_cwd = source
-            cwd = getattr(self, "_scratch_cwd", self._scratch)
+            cwd = next((source for source, target in self.mounts.writable if target == self.mounts.chdir), self._scratch)
             env.update(HOME=self._scratch, TMPDIR=self._scratch)
-            full = argv
-        else:
-            self._scratch = None
-            cwd = "/"
-            full = command(argv, self.mounts, self.limits, env)
+            full, outer_env = argv, env
         try:
-            self.process = subprocess.Popen(full, cwd=cwd, env=env if not sandboxed else {"PATH": "/usr/bin:/bin"},
-                                            preexec_fn=_preexec(self.limits, self.group), **popen)
+            self.process = subprocess.Popen(full, cwd=cwd, env=outer_env, preexec_fn=_preexec(self.limits, self.group),
+                                            **popen)
         except BaseException:
             self.group.remove()
             raise

@@ -1,0 +1,164 @@
+"""The operating-system sandbox itself (cvkit.grading.isolation), one property at a time."""
+import os
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from cvkit.grading import isolation
+
+ROOT = Path(__file__).resolve().parent.parent
+PYTHON = os.path.realpath(getattr(sys, "_base_executable", sys.executable))
+
+
+def run(code: str, limits=None, mounts=None, timeout=60) -> tuple[int, str]:
+    with isolation.Sandbox([PYTHON, "-I", "-S", "-c", textwrap.dedent(code)], limits=limits or isolation.Limits(),
+                           mounts=mounts, stdout=subprocess.PIPE, stderr=subprocess.STDOUT) as box:
+        out, _ = box.process.communicate(timeout=timeout)
+        return box.process.returncode, out.decode(errors="replace")
+
+
+@pytest.fixture(autouse=True)
+def sandbox_available(grading_sandbox):
+    assert grading_sandbox is None, grading_sandbox  # the reason, with how to install bubblewrap
+
+
+def test_unprivileged_and_alone():
+    status, out = run("""\
+        import os
+        print(os.getuid(), os.getgid(), os.getpid())
+        print(sorted(p for p in os.listdir('/proc') if p.isdigit()))""")
+    uid, gid, pid = out.split("\n")[0].split()
+    assert status == 0 and uid == gid == str(isolation.SANDBOX_UID)
+    assert int(pid) < 10  # a PID namespace of its own: the grader's processes are invisible
+    assert len(eval(out.split("\n")[1])) <= 3
+
+
+def test_sees_no_course_no_lectures_no_host_tmp(tmp_path):
+    secret = tmp_path / "salt"
+    secret.write_text("s3cret")
+    # paths that exist on this machine (the runtime's own folders, e.g. /root/.pyenv, are mounted)
+    candidates = [str(secret), str(ROOT / "lectures"), str(ROOT / "autograders"), "/var/tmp", "/etc/shadow",
+                  "/etc/passwd", "/root/.bashrc", "/home", "/srv", "/opt"]
+    present = [p for p in candidates if os.path.exists(p) and not os.path.realpath(sys.base_prefix).startswith(p)]
+    assert len(present) >= 4
+    status, out = run(f"""\
+        import os
+        for path in {present!r}:
+            print(path, os.path.exists(path))
+        print('tmp', os.listdir('/tmp'), 'shm', os.listdir('/dev/shm'))""")
+    assert status == 0, out
+    for line in out.splitlines()[:-1]:
+        assert line.endswith("False"), line
+    assert out.splitlines()[-1] == "tmp [] shm []"
+
+
+def test_no_network():
+    status, out = run("""\
+        import socket
+        try:
+            socket.create_connection(('1.1.1.1', 53), timeout=3)
+            print('connected')
+        except OSError as error:
+            print('refused', error)""")
+    assert "refused" in out
+
+
+def test_read_only_runtime_and_private_writable_tmp():
+    status, out = run(f"""\
+        import os
+        try:
+            open({os.path.join(os.path.realpath(sys.base_prefix), 'cvkit-was-here')!r}, 'w')
+            print('wrote the runtime')
+        except OSError:
+            print('read-only')
+        open('/tmp/x', 'w').write('ok')
+        print(open('/tmp/x').read())""")
+    assert out.split() == ["read-only", "ok"]
+    assert not os.path.exists("/tmp/x") or open("/tmp/x").read() != "ok"
+
+
+def test_memory_and_file_size_limits():
+    status, out = run("""\
+        try:
+            b = bytearray(2 * 1024 ** 3)
+            print('allocated')
+        except MemoryError:
+            print('memory refused')""", limits=isolation.Limits(memory_mb=512))
+    assert "memory refused" in out
+    status, out = run("open('/tmp/big', 'wb').write(b'x' * (3 << 20))", limits=isolation.Limits(file_mb=1, tmpfs_mb=64))
+    assert status != 0  # SIGXFSZ (or an error) at the file-size limit
+
+
+def test_process_limit():
+    status, out = run("""\
+        import os, resource, time
+        n = int(os.environ['CVKIT_SANDBOX_NPROC'])
+        resource.setrlimit(resource.RLIMIT_NPROC, (n, n))
+        count = 0
+        for _ in range(100):
+            try:
+                pid = os.fork()
+            except OSError:
+                break
+            if pid == 0:
+                time.sleep(3)
+                os._exit(0)
+            count += 1
+        print('children', count)""", limits=isolation.Limits(processes=16))
+    count = int(out.split("children")[1].split()[0])
+    assert count < 16
+
+
+def test_killing_the_sandbox_ends_every_process_in_it():
+    marker = f"cvkit-isolation-{os.getpid()}"
+    box = isolation.Sandbox([PYTHON, "-I", "-S", "-c", textwrap.dedent(f"""\
+        import os, time
+        if os.fork() == 0:
+            os.setsid()
+            if os.fork() == 0:
+                os.execv('/bin/sleep', ['/bin/sleep', '300', '{marker}'])
+            os._exit(0)
+        time.sleep(300)""")], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 20
+        while not subprocess.run(["pgrep", "-f", marker], capture_output=True).stdout and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert subprocess.run(["pgrep", "-f", marker], capture_output=True).stdout  # the daemon runs...
+    finally:
+        box.close()
+    deadline = time.monotonic() + 10
+    while subprocess.run(["pgrep", "-f", marker], capture_output=True).stdout and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not subprocess.run(["pgrep", "-f", marker], capture_output=True).stdout  # ...and is gone with it
+
+
+def test_probe_explains_how_to_install(monkeypatch):
+    monkeypatch.setattr(isolation, "bwrap_path", lambda: None)
+    monkeypatch.setattr(isolation, "_probe", {})
+    reason = isolation.probe()
+    assert reason and "apt-get install bubblewrap" in reason and "--no-sandbox" in reason
+    with pytest.raises(isolation.SandboxUnavailable):
+        isolation.require()
+
+
+def test_collect_files_refuses_links_and_devices(tmp_path):
+    folder = tmp_path / "sub"
+    folder.mkdir()
+    (folder / "nb.ipynb").write_text("{}")
+    (folder / "data").mkdir()
+    (folder / "data" / "a.txt").write_text("a")
+    os.symlink("/etc/passwd", folder / "passwd")
+    os.symlink(tmp_path, folder / "up")
+    outside = tmp_path / "outside.txt"
+    outside.write_text("theirs")
+    os.link(outside, folder / "hard.txt")
+    os.mkfifo(folder / "pipe")
+    files, refused = isolation.collect_files(folder)
+    assert sorted(files) == ["data/a.txt", "nb.ipynb"]
+    text = " ".join(refused)
+    for name in ("passwd", "up", "hard.txt", "pipe"):
+        assert name in text
