@@ -284,9 +284,11 @@ def test_check_call_helpers():
     d, i = bound(np.eye(3), "query", np.zeros(3), k=2)
     assert d.shape == (2,) and i.tolist() == [0, 1]
     assert call_target(None) is None
-    assert call_target(instance_call) == "cvkit.grading.checks:instance_call"
-    with pytest.raises(ValueError, match="module-level"):
+    assert call_target(instance_call) == "cvkit.grading.runtime.adapters:instance_call"
+    with pytest.raises(ValueError, match="cvkit.grading.runtime"):
         call_target(lambda cls, *a: cls(*a))
+    with pytest.raises(ValueError, match="cvkit.grading.runtime"):
+        call_target(f)  # it would not exist in the grading sandbox
 
 
 def test_a_function_instead_of_a_class_is_told_what_is_wrong():

@@ -340,3 +340,55 @@ def test_scan_sees_reflection_and_the_import_machinery():
                      "indexes sys.modules", "indexes np.__builtins__"):
         assert any(expected in f for f in flags), (expected, flags)
     assert scan("def f(x):\n    return getattr(x, 'shape')") == []
+
+
+def _chapter3_solution(grade_id):
+    from pathlib import Path
+
+    from cvkit.course import solution_sources
+
+    path = Path(__file__).resolve().parent.parent / "lectures" / "ch03_filtering" / "ch03_filtering.ipynb"
+    return solution_sources(json.loads(path.read_text()))[grade_id]
+
+
+HONEST_PAD = _chapter3_solution("pad_answer")
+WRONG_PAD = HONEST_PAD.replace("return np.minimum(idx, period - idx)", "return np.minimum(idx, period - 1 - idx)")
+assert WRONG_PAD != HONEST_PAD
+
+
+def _cascade_notebook(pad_answer, correlate_answer):
+    cells = [_code(SETUP, "setup"), _code(pad_answer, "pad_answer", solution=True),
+             _code('check("filters.pad", pad)', "pad_visible", grade=True, points=1),
+             _code(correlate_answer, "correlate_answer", solution=True),
+             _code('check("filters.correlate", correlate)', "correlate_visible", grade=True, points=1),
+             _code('### BEGIN HIDDEN TESTS\ncheck("filters.correlate", correlate, hidden=True, points=2)\n'
+                   '### END HIDDEN TESTS', "correlate_hidden", grade=True, points=2)]
+    return {"cells": cells, "metadata": {}, "nbformat": 4, "nbformat_minor": 5}
+
+
+CORRELATE_WITH_OWN_PAD = _chapter3_solution("correlate_answer")  # it calls the student's own pad
+
+
+def test_a_wrong_building_block_costs_points_once():
+    """The student's correlate calls their own (wrong) pad: correlate is graded with the
+    reference pad, passes, and the report says which function is to blame."""
+    nb = _cascade_notebook(WRONG_PAD, CORRELATE_WITH_OWN_PAD)
+    graded = grade_notebook(nb, student="cas", salt="s", source_notebook=_cascade_notebook("pass", "pass"))
+    assert graded.credit("pad_visible", 1)[0] == 0
+    assert graded.credit("correlate_visible", 1)[0] == 1 and graded.credit("correlate_hidden", 2)[0] == 2
+    (_, report), = graded.reports["correlate_visible"]
+    assert "`pad`" in report.cascade and "costs points once" in report.cascade
+    # with a correct pad there is no cascade to report
+    graded = grade_notebook(_cascade_notebook(HONEST_PAD, CORRELATE_WITH_OWN_PAD), student="cas", salt="s",
+                            source_notebook=_cascade_notebook("pass", "pass"))
+    assert graded.credit("pad_visible", 1)[0] == 1 and graded.credit("correlate_visible", 1)[0] == 1
+    assert not getattr(graded.reports["correlate_visible"][0][1], "cascade", None)
+
+
+def test_a_wrong_exercise_is_not_excused_by_its_building_block():
+    wrong_correlate = CORRELATE_WITH_OWN_PAD.replace("kernel[m, n] *", "kernel[kh - 1 - m, kw - 1 - n] *")
+    graded = grade_notebook(_cascade_notebook(WRONG_PAD, wrong_correlate), student="cas", salt="s",
+                            source_notebook=_cascade_notebook("pass", "pass"))
+    assert graded.credit("correlate_visible", 1)[0] == 0
+    (_, report), = graded.reports["correlate_visible"]
+    assert "problem is in `correlate` itself" in report.cascade

@@ -225,46 +225,22 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
     if not calls:
         return result
 
-    plans = []          # per check call: (spec, cases, seed, first request index per (case, attempt))
-    requests = []
-    blocks: set = set()
-    for call in _building_blocks_first(calls):
-        record = registry.get(call.algorithm_id)
-        spec = record.check
-        seed = hidden_seed(call.algorithm_id, student=student, salt=salt) if call.hidden else None
-        cases = spec.hidden_cases(np.random.default_rng(seed)) if call.hidden else spec.public_cases()
-        positions = {}
-        names = list(_arg_names(record.reference, spec))
-        for index, case in enumerate(cases):
-            for attempt in ((0, 1) if spec.seeded else (0,)):
-                positions[(index, attempt)] = len(requests)
-                requests.append({
-                    "function": call.function, "group": f"{call.function}:{call.algorithm_id}",
-                    "args": case.args, "kwargs": case.kwargs,
-                    "time_limit": spec.time_limit, "allowed": list(spec.allowed), "arg_names": names,
-                    "forbidden_libraries": list(spec.forbidden_libraries) if attempt == 0 else [],
-                    "forbidden_functions": list(spec.forbidden) if attempt == 0 else [],
-                    "call": (call_target(spec.call) or "").rpartition(":")[2] or None,
-                })
-        blocks.update(spec.allowed)
-        plans.append((call, spec, seed, positions, cases))
-    outcome = run_calls(worker_cells(notebook, source_notebook), requests, blocks=tuple(sorted(blocks)),
-                        memory_mb=memory_mb)
+    plans = [_plan(call, student, salt) for call in _building_blocks_first(calls)]
+    requests = [request for plan in plans for request in plan.requests]
+    blocks = sorted({block for plan in plans for block in plan.spec.allowed})
+    cells = worker_cells(notebook, source_notebook)
+    outcome = run_calls(cells, requests, blocks=tuple(blocks), memory_mb=memory_mb)
     result.worker_problem = outcome.crashed
     result.cell_errors = outcome.cell_errors
     result.sandboxed = outcome.sandboxed
     result.flags += [f"(notebook): {refused}" for refused in outcome.refused]
     result.flags += [f"(notebook): {error}" for error in outcome.cell_errors
                      if "was stopped" in error or "ended early" in error or "killed" in error or "out of turn" in error]
-
-    def stand_in(*args, **kwargs):  # the candidate lives in the worker
-        raise RuntimeError("trusted grading evaluates outcomes computed by the worker")
-
+    reports = _evaluate_plans(plans, outcome.outcomes)
+    _cascades(plans, reports, result, cells, blocks, memory_mb)
     telling: dict[str, bool] = {}   # algorithm id -> passes a hidden case that tells something
-    for call, spec, seed, positions, cases in plans:
-        runner = lambda index, case, attempt, positions=positions: (  # noqa: E731
-            outcome.outcomes[positions[(index, attempt)]] if (index, attempt) in positions else None)
-        report = evaluate(call.algorithm_id, stand_in, hidden=call.hidden, seed=seed, runner=runner)
+    for plan, report in zip(plans, reports):
+        call = plan.call
         result.reports.setdefault(call.grade_id, []).append((call, report))
         if report.dropped:  # the reference could not compute these cases: never scored, reported
             result.flags.append(f"{call.grade_id}: {len(report.dropped)} case(s) dropped, the reference could not "
@@ -274,11 +250,105 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
                                 "regrade after fixing the check")
         if call.hidden:
             for case_result in report.cases:
-                case = cases[case_result.index] if case_result.index < len(cases) else None
+                case = plan.cases[case_result.index] if case_result.index < len(plan.cases) else None
                 if case is not None and not _trivial(case, case_result.expected):
                     telling[call.algorithm_id] = telling.get(call.algorithm_id, False) or case_result.passed
     _hard_coding_rule(result, telling)
     return result
+
+
+@dataclass
+class _Plan:
+    """One check call's cases and the sandbox requests that run them."""
+
+    call: CheckCall
+    spec: object
+    seed: int | None
+    cases: list
+    requests: list
+    positions: dict  # (case index, attempt) -> index in ``requests``
+
+
+def _plan(call: CheckCall, student: str, salt: str, substitute: dict | None = None) -> _Plan:
+    record = registry.get(call.algorithm_id)
+    spec = record.check
+    seed = hidden_seed(call.algorithm_id, student=student, salt=salt) if call.hidden else None
+    cases = spec.hidden_cases(np.random.default_rng(seed)) if call.hidden else spec.public_cases()
+    names = list(_arg_names(record.reference, spec))
+    requests, positions = [], {}
+    for index, case in enumerate(cases):
+        for attempt in ((0, 1) if spec.seeded else (0,)):
+            positions[(index, attempt)] = len(requests)
+            requests.append({
+                "function": call.function, "group": f"{call.function}:{call.algorithm_id}",
+                "args": case.args, "kwargs": case.kwargs,
+                "time_limit": spec.time_limit, "allowed": list(spec.allowed), "arg_names": names,
+                "forbidden_libraries": list(spec.forbidden_libraries) if attempt == 0 else [],
+                "forbidden_functions": list(spec.forbidden) if attempt == 0 else [],
+                "call": (call_target(spec.call) or "").rpartition(":")[2] or None,
+                "substitute": dict(substitute or {}),
+            })
+    return _Plan(call, spec, seed, cases, requests, positions)
+
+
+def _evaluate_plans(plans: list[_Plan], outcomes: list) -> list:
+    """The reports of ``plans``, whose requests' outcomes are ``outcomes`` (in order)."""
+    def stand_in(*args, **kwargs):  # the candidate lives in the worker
+        raise RuntimeError("trusted grading evaluates outcomes computed by the worker")
+
+    reports, offset = [], 0
+    for plan in plans:
+        def runner(index, case, attempt, plan=plan, offset=offset):
+            position = plan.positions.get((index, attempt))
+            return outcomes[offset + position] if position is not None else None
+
+        reports.append(evaluate(plan.call.algorithm_id, stand_in, hidden=plan.call.hidden, seed=plan.seed,
+                                runner=runner))
+        offset += len(plan.requests)
+    return reports
+
+
+def _cascades(plans: list[_Plan], reports: list, result: NotebookGrade, cells, blocks, memory_mb) -> None:
+    """One mistake costs points once: an exercise that fails while one of its building blocks
+    (``filters.pad`` for ``filters.correlate``) is the student's own and fails its own check is
+    graded again with the reference building block in its place (the sandbox serves it under
+    the student's function name); the better of the two grades counts, and the report says
+    which function is to blame."""
+    function_of, failing = {}, set()
+    for plan, report in zip(plans, reports):
+        function_of.setdefault(plan.call.algorithm_id, plan.call.function)
+        if not report.passed:
+            failing.add(plan.call.algorithm_id)
+    again = []
+    for index, (plan, report) in enumerate(zip(plans, reports)):
+        if report.passed:
+            continue
+        culprits = {function_of[block]: block for block in plan.spec.allowed
+                    if block in failing and block in function_of and function_of[block] != plan.call.function}
+        if culprits:
+            again.append((index, culprits))
+    if not again:
+        return
+    student_plans = [_Plan(plans[i].call, plans[i].spec, plans[i].seed, plans[i].cases,  # the same cases
+                           [dict(r, substitute=culprits) for r in plans[i].requests], plans[i].positions)
+                     for i, culprits in again]
+    outcome = run_calls(cells, [r for p in student_plans for r in p.requests], blocks=tuple(blocks),
+                        memory_mb=memory_mb)
+    for new_report, new, (i, culprits) in zip(_evaluate_plans(student_plans, outcome.outcomes), student_plans, again):
+        old = reports[i]
+        names = ", ".join(f"`{name}`" for name in culprits)
+        own = plans[i].call.function
+        ids = ", ".join(culprits.values())
+        if new_report.score > old.score:
+            verdict = "passes" if new_report.passed else f"passes {sum(c.passed for c in new_report.cases)} of " \
+                                                         f"{len(new_report.cases)} cases"
+            new_report.cascade = (f"Your {names} fails its own check ({ids}), and your `{own}` calls it. Graded with "
+                                  f"cvkit's reference {names} instead, your `{own}` {verdict} — so the mistake costs "
+                                  f"points once: fix {names} first.")
+            reports[i] = new_report
+        else:
+            old.cascade = (f"Your {names} fails its own check ({ids}), but even with cvkit's reference {names} "
+                           f"your `{own}` fails: the problem is in `{own}` itself.")
 
 
 def _building_blocks_first(calls: list[CheckCall]) -> list[CheckCall]:

@@ -133,7 +133,7 @@ def _proxy(channel: _Channel, algorithm_id: str):
     return building_block
 
 
-def _install_stand_ins(channel: _Channel, blocks: list[str], data_names: list[str]) -> None:
+def _install_stand_ins(channel: _Channel, blocks: list[str], data_names: list[str]) -> dict:
     def student(algorithm_id=None):
         return lambda function: function
 
@@ -141,9 +141,10 @@ def _install_stand_ins(channel: _Channel, blocks: list[str], data_names: list[st
         return None
 
     topics: dict[str, dict] = {}
+    proxies = {}
     for algorithm_id in list(blocks) + [f"data.{name}" for name in data_names]:
         module, _, name = algorithm_id.partition(".")
-        topics.setdefault(module, {})[name] = _proxy(channel, algorithm_id)
+        topics.setdefault(module, {})[name] = proxies[algorithm_id] = _proxy(channel, algorithm_id)
     modules = {
         "cvkit": _stand_in("cvkit", {"student": student}, True),
         "cvkit.registry": _stand_in("cvkit.registry", {"student": student}, True),
@@ -159,6 +160,7 @@ def _install_stand_ins(channel: _Channel, blocks: list[str], data_names: list[st
     modules["matplotlib"].pyplot = modules["matplotlib.pyplot"]
     modules["IPython"].display = modules["IPython.display"]
     sys.modules.update(modules)
+    return proxies
 
 
 class _ImportGate:
@@ -208,7 +210,7 @@ def main() -> None:  # pragma: no cover - runs inside the sandbox
 
     channel = _Channel()
     request = channel.receive()
-    _install_stand_ins(channel, list(request.get("blocks", [])), list(request.get("data", [])))
+    proxies = _install_stand_ins(channel, list(request.get("blocks", [])), list(request.get("data", [])))
     gate = _ImportGate()
     safe_builtins = dict(vars(builtins))
     safe_builtins["__import__"] = gate
@@ -248,13 +250,20 @@ def main() -> None:  # pragma: no cover - runs inside the sandbox
             channel.send({"outcome": {"error": f"grader error decoding the case: {exc}"}})
             continue
         adapter = getattr(adapters, call["call"]) if call.get("call") else None
-        outcome = run_guarded(
-            bind_call(adapter, function), args, kwargs,
-            arg_names=tuple(call.get("arg_names", ())), time_limit=float(call.get("time_limit", 20.0)),
-            forbidden_libraries=tuple(call.get("forbidden_libraries", ())),
-            forbidden_functions=tuple(call.get("forbidden_functions", ())),
-            watch_reference=False, reference_codes={},
-        )
+        # a cascade: the student's own building block (their `pad`) replaced by the grader's
+        substitute = {name: proxies[block] for name, block in (call.get("substitute") or {}).items() if block in proxies}
+        saved = {name: namespace.get(name) for name in substitute}
+        namespace.update(substitute)
+        try:
+            outcome = run_guarded(
+                bind_call(adapter, function), args, kwargs,
+                arg_names=tuple(call.get("arg_names", ())), time_limit=float(call.get("time_limit", 20.0)),
+                forbidden_libraries=tuple(call.get("forbidden_libraries", ())),
+                forbidden_functions=tuple(call.get("forbidden_functions", ())),
+                watch_reference=False, reference_codes={},
+            )
+        finally:
+            namespace.update(saved)
         channel.send({"outcome": _outcome_item(outcome, gate.refused[before:])})
     sys.stdout.flush()
     os._exit(0)
