@@ -116,7 +116,13 @@ def _cmd_demo(args) -> int:
     for a in assignments:
         course.make_samples(a)
     print(f"[3/4] autograding with nbgrader ({args.workers} workers)")
-    results = course.grade(assignments, workers=args.workers, progress=True)
+    from .grading.isolation import SandboxUnavailable
+
+    try:
+        results = course.grade(assignments, workers=args.workers, progress=True, sandbox=not args.no_sandbox)
+    except SandboxUnavailable as error:
+        print(f"cvkit demo: cannot grade safely: {error}", file=sys.stderr)
+        return 2
     print("[4/4] feedback and grades exported")
     status = _print_results(course, results, assignments)
     # the three samples must land where they should: complete full marks, blank zero
@@ -171,6 +177,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--db-url", help="gradebook SQLAlchemy URL (default SQLite in --dir)")
     p.add_argument("--assignment", action="append", help="only this assignment (repeatable)")
     p.add_argument("--keep", action="store_true", help="do not wipe --dir first")
+    p.add_argument("--no-sandbox", action="store_true",
+                   help="grade the sample submissions without the bubblewrap sandbox (marked in the table)")
     p.set_defaults(func=_cmd_demo)
     return parser
 

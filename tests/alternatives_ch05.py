@@ -358,7 +358,7 @@ def sift(image, sigma0=1.6, scales=3, octaves=None, upsample=True, contrast_thre
                 offset, value = refine_extremum(dog[o], s, r, c)
             except np.linalg.LinAlgError:
                 break
-            if np.all(np.abs(offset) < 0.5):
+            if np.all(np.abs(offset) < 0.6):
                 final.setdefault((o, s, r, c), (offset, value))
                 break
             s, r, c = s + int(np.rint(offset[0])), r + int(np.rint(offset[1])), c + int(np.rint(offset[2]))

@@ -376,7 +376,9 @@ def refine_extremum(dog_stack, scale, row, col):
     ``(D[+1] − D[−1]) / 2`` and the Hessian by the second differences
     ``D[+1] + D[−1] − 2D`` and the mixed ``(D[+1,+1] − D[+1,−1] − D[−1,+1] + D[−1,−1]) / 4``,
     all in the order (scale, row, col). An |offset| > 0.5 along an axis means that the
-    extremum is closer to another sample (SIFT then moves there and repeats).
+    extremum is closer to another sample (SIFT then moves there and repeats; :func:`sift`
+    moves only from 0.6 on, as Otero & Delbracio's IPOL SIFT and VLFeat do, so that an
+    extremum half-way between two samples is not bounced between them).
 
     Raises
     ------

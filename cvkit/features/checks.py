@@ -1570,7 +1570,7 @@ sift_descriptor = Check(
 def _sift_variant(image, sigma0=1.6, scales=3, octaves=None, upsample=True, contrast_threshold=0.04, edge_ratio=10.0,
                   assumed_blur=0.5, border=5, max_steps=5, *, edges=True, refine=True, to_input=True, divide=True,
                   level="scale"):
-    from ._sift import _default_octaves
+    from ._sift import OFFSET_LIMIT, _default_octaves
 
     img = np.asarray(image, dtype=np.float64)
     if octaves is None:
@@ -1591,7 +1591,7 @@ def _sift_variant(image, sigma0=1.6, scales=3, octaves=None, upsample=True, cont
                 x, value = _refine_extremum(dog[o], s, r, c)
             except ValueError:
                 break
-            if np.all(np.abs(x) < 0.5):
+            if np.all(np.abs(x) < OFFSET_LIMIT):  # 0.6, as the reference (IPOL, VLFeat)
                 converged.append((o, s, r, c, x, value))
                 break
             step = np.rint(x).astype(int)
