@@ -60,6 +60,10 @@ class SandboxResult:
     sandboxed: bool = True
 
 
+class _Replace(Exception):
+    """A case ran out of time inside the worker: go on in a fresh one (nothing half-done is kept)."""
+
+
 class _Stopped(Exception):
     """The sandbox ended, broke the protocol or ran out of time (``reason`` says which)."""
 
@@ -308,13 +312,18 @@ def run_calls(
                 if used > limit + GRACE_SECONDS and not outcome.timed_out:
                     outcome = Outcome(error=f"stopped after {limit:g} s (it took {used:.1f} s): vectorize with NumPy "
                                             "instead of looping over pixels", exception="Timeout", timed_out=True)
-                if outcome.timed_out:
-                    strikes[group] = strikes.get(group, 0) + 1
                 outcomes[current] = outcome
                 pending.pop(0)
                 current = None
+                if outcome.timed_out:
+                    strikes[group] = strikes.get(group, 0) + 1
+                    if pending:
+                        raise _Replace()
             session.send({"end": True})
             break
+        except _Replace:
+            restarts -= 1  # a timeout is not a crash: it does not use up the restarts
+            continue
         except _Stopped as stop:
             result.output = session.output
             if current is None:

@@ -2,12 +2,20 @@
 watch on calls into libraries (or cvkit's own reference) that would do the exercise for it.
 
 Nothing here writes to stderr: nbgrader gives zero to a test cell with any stderr output, so
-warnings and prints from student code are captured into the report instead.
+warnings and prints from student code are captured into the report instead, and the guard's own
+bookkeeping runs with warnings silenced.
+
+Importing is not the candidate's time: while a module is being loaded (the first ``import`` of
+it, wherever it comes from: an ``import`` statement, ``importlib.import_module``, a library's lazy
+attribute) the clock is paused and the call watch is off, and the time limit never interrupts an
+import, so a timed-out case leaves no half-initialised module behind.
 """
 from __future__ import annotations
 
 import contextlib
 import copy
+import importlib
+import importlib.util  # noqa: F401  (its code is recognised as an import in progress)
 import io
 import signal
 import sys
@@ -48,6 +56,43 @@ class Outcome:
         return self.error is None and not self.modified and not self.forbidden_calls
 
 
+class _Sink(io.StringIO):
+    """Captured output; code that closes ``sys.stdout``/``sys.stderr`` does not lose it."""
+
+    def close(self) -> None:
+        pass
+
+
+@contextlib.contextmanager
+def _quiet():
+    """The guard's own bookkeeping: no warning and no print of it reaches the real stderr."""
+    sink = _Sink()
+    with warnings.catch_warnings(), contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+        warnings.simplefilter("ignore")
+        yield
+
+
+#: a module's namespace without any attribute lookup on the module (``vars(module)`` goes
+#: through ``__getattribute__``, which lazy modules override to load themselves)
+_module_namespace = types.ModuleType.__dict__["__dict__"].__get__
+
+
+def _namespace_of(module) -> dict | None:
+    if not issubclass(type(module), types.ModuleType):  # type(), not isinstance: no __class__ lookup
+        return None
+    namespace = _module_namespace(module)
+    return namespace if type(namespace) is dict else None
+
+
+def _module_name(owner) -> str:
+    """``__module__`` as a string (some extensions store the module object itself there)."""
+    if type(owner) is str:
+        return owner
+    namespace = _namespace_of(owner)
+    name = namespace.get("__name__") if namespace is not None else None
+    return name if type(name) is str else ""
+
+
 _builtin_cache: dict = {}
 
 
@@ -56,26 +101,30 @@ def _forbidden_builtins(libraries: tuple) -> dict:
 
     Extension functions such as ``cv2.GaussianBlur`` have no ``__module__``, so they are
     recognised by identity instead (the table is rebuilt when new modules are imported).
+    Nothing here runs a module's code: namespaces are read directly, never through
+    ``getattr`` (a module-level ``__getattr__`` that warns about a deprecated name would write
+    to stderr), and warnings are silenced all the same.
     """
+    libraries = tuple(libraries)
     key = (libraries, len(sys.modules))
     if key in _builtin_cache:
         return _builtin_cache[key]
     table = {}
-    for name, module in list(sys.modules.items()):
-        if module is None or not name.startswith(libraries):
-            continue
-        try:
-            items = list(vars(module).items())
-        except TypeError:
-            continue
-        for attr, value in items:
-            if not isinstance(value, types.BuiltinFunctionType):
+    with _quiet():
+        for name, module in list(sys.modules.items()):
+            if type(name) is not str or not name.startswith(libraries):
                 continue
-            owner = getattr(value, "__module__", None) or ""
-            # re-exports such as scipy.signal.arange (= numpy.arange) are not the library's own
-            if owner and not owner.startswith(libraries):
+            namespace = _namespace_of(module)
+            if namespace is None:
                 continue
-            table.setdefault(id(value), f"{name}.{attr}")
+            for attr, value in list(namespace.items()):
+                if type(value) is not types.BuiltinFunctionType:
+                    continue
+                owner = _module_name(value.__module__)
+                # re-exports such as scipy.signal.arange (= numpy.arange) are not the library's own
+                if owner and not owner.startswith(libraries):
+                    continue
+                table.setdefault(id(value), f"{name}.{attr}")
     _builtin_cache.clear()
     _builtin_cache[key] = table
     return table
@@ -105,8 +154,14 @@ class _CallWatcher:
         self.enabled = True
         self.builtins = _forbidden_builtins(self.libraries) if self.libraries else {}
 
+    def refresh(self) -> None:
+        """Recognise the C functions of forbidden modules imported since the watch began."""
+        if self.libraries:
+            self.builtins = _forbidden_builtins(self.libraries)
+
     def _module_of(self, frame) -> str:
-        return frame.f_globals.get("__name__", "") or ""
+        name = frame.f_globals.get("__name__", "")
+        return name if type(name) is str else ""
 
     def _is_watched_frame(self, frame) -> bool:
         if frame.f_code in self.reference_codes:
@@ -160,33 +215,248 @@ class _CallWatcher:
                 if not self._nested(frame):
                     self._record(known)
                 return
-            module = getattr(arg, "__module__", None) or ""
+            module = getattr(arg, "__module__", None)
+            if type(module) is not str:  # None, or (some extensions) the module object itself
+                module = _module_name(module) if module is not None else ""
             if self.libraries and module.startswith(self.libraries) and not self._nested(frame):
                 self._record(f"{module}.{getattr(arg, '__name__', '?')}")
 
 
-@contextlib.contextmanager
-def _time_limit(seconds: float | None):
-    """Raise :class:`CandidateTimeout` in the main thread after ``seconds`` (Unix only)."""
-    usable = (
-        seconds
-        and hasattr(signal, "setitimer")
-        and threading.current_thread() is threading.main_thread()
-    )
-    if not usable:
-        yield
-        return
+#: while the time is up but the candidate is inside an import (or inside the guard's own code),
+#: how soon to look again whether it can be stopped (seconds)
+_RETRY = 0.002
+#: after stopping the candidate, how soon to stop it again if its code swallowed the exception
+#: (a bare ``except:`` in a loop)
+_AGAIN = 0.05
 
-    def _expire(signum, frame):
+
+class _Clock:
+    """The case's time limit: SIGALRM in the main thread (Unix only), paused while a module loads.
+
+    Its handler raises :class:`CandidateTimeout` only where the candidate's own code (or a
+    library it called) runs. Never inside an import: a module left half-initialised breaks
+    every later use of it (``SystemError … bad call flags``, crashes at exit). Never inside the
+    call watch: Python switches off a profile function that raises, which would read as the
+    candidate switching off the watch. Never in the guard itself. There it looks again
+    :data:`_RETRY` seconds later.
+    """
+
+    def __init__(self, seconds: float, base) -> None:
+        self.seconds = float(seconds)
+        self.base = base  # the guard's frame: the candidate's code runs above it
+        self.running = False
+        self.expired = False
+        self.paused: float | None = None  # seconds that were left when a module began to load
+        self._previous_handler = None
+        self._previous_timer = (0.0, 0.0)
+        self._started = 0.0
+
+    @staticmethod
+    def usable(seconds) -> bool:
+        return (
+            bool(seconds) and seconds > 0
+            and hasattr(signal, "setitimer")
+            and threading.current_thread() is threading.main_thread()
+        )
+
+    def start(self) -> None:
+        self._previous_handler = signal.signal(signal.SIGALRM, self._expire)
+        self._started = time.monotonic()
+        self.running = True
+        self._previous_timer = signal.setitimer(signal.ITIMER_REAL, self.seconds)
+
+    def stop(self) -> None:
+        if not self.running:
+            return
+        self.running = False  # from here on a late signal is ignored
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, self._previous_handler)
+        left, interval = self._previous_timer
+        if left > 0:  # someone else's timer (pytest-timeout, an outer guard): what is left of it
+            spent = time.monotonic() - self._started
+            signal.setitimer(signal.ITIMER_REAL, max(left - spent, 1e-3), interval)
+
+    def pause(self) -> None:
+        if self.running and self.paused is None:
+            left, _ = signal.setitimer(signal.ITIMER_REAL, 0)
+            if left <= 0:
+                self.expired = True  # it went off just now: the signal's handler will wait
+            self.paused = left
+
+    def resume(self) -> None:
+        if self.running and self.paused is not None:
+            left, self.paused = self.paused, None
+            signal.setitimer(signal.ITIMER_REAL, _RETRY if self.expired else left)
+
+    def _expire(self, signum, frame) -> None:
+        if not self.running:
+            return  # late: the candidate has finished
+        self.expired = True
+        if self.paused is not None:
+            return  # a module is loading: resume() sets the clock going again
+        if not self._interruptible(frame):
+            signal.setitimer(signal.ITIMER_REAL, _RETRY)
+            return
+        signal.setitimer(signal.ITIMER_REAL, _AGAIN)
         raise CandidateTimeout()
 
-    previous = signal.signal(signal.SIGALRM, _expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
+    def _interruptible(self, frame) -> bool:
+        """Is ``frame`` (and every frame between it and the guard) the candidate's or a library's
+        ordinary code, with no import in progress?"""
+        if frame is self.base:
+            return False
+        while frame is not None and frame is not self.base:
+            code = frame.f_code
+            if id(code) in _UNINTERRUPTIBLE or code.co_filename in _IMPORT_FILES:
+                return False
+            frame = frame.f_back
+        return True
+
+
+class _Session:
+    """One guarded call in progress: its clock and its watch."""
+
+    def __init__(self, clock: _Clock | None, watcher: _CallWatcher | None) -> None:
+        self.clock = clock
+        self.watcher = watcher
+        self.thread = threading.get_ident()
+        self.loading = False  # a module is being loaded (the clock is paused, the watch off)
+
+
+_sessions: list[_Session] = []  # guarded calls in progress, innermost last
+_bootstrap = getattr(importlib, "_bootstrap", None)
+# what importlib._bootstrap._find_and_load was before the guard put _find_and_load in its place
+_previous_find_and_load = getattr(_bootstrap, "_find_and_load", None)
+
+
+def _session_here() -> _Session | None:
+    ident = threading.get_ident()
+    for session in reversed(_sessions):
+        if session.thread == ident:
+            return session
+    return None
+
+
+def _find_and_load(name, *args, **kwargs):
+    """importlib's ``_find_and_load`` while a guarded call runs.
+
+    importlib calls it for every module that is not loaded yet, whichever way the import
+    came (``import``, ``importlib.import_module``, a lazy attribute, the sandbox's import gate),
+    so a first import neither counts toward the time limit nor runs under the call watch, which
+    makes it several times slower (and module code is not the candidate calling anything).
+    """
+    load = _previous_find_and_load
+    session = _session_here()
+    if session is None or session.loading:
+        return load(name, *args, **kwargs)
+    session.loading = True
+    clock, watcher = session.clock, session.watcher
+    if clock is not None:
+        clock.pause()
+    watching = watcher is not None and sys.getprofile() is watcher
+    if watching:
+        sys.setprofile(None)
+    before = set(sys.modules)
     try:
-        yield
+        return load(name, *args, **kwargs)
+    except BaseException as exc:
+        if not isinstance(exc, Exception):  # interrupted (Ctrl-C): leave no half-imported module
+            _discard_partial(before)
+        raise
     finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous)
+        try:
+            if watching:
+                if len(sys.modules) != len(before):
+                    watcher.refresh()
+                if sys.getprofile() is None:
+                    sys.setprofile(watcher)
+        finally:
+            session.loading = False
+            if clock is not None:
+                clock.resume()
+
+
+def _discard_partial(before: set) -> list:
+    """Remove from ``sys.modules`` what an interrupted import left: modules still being
+    initialised, and modules whose package is gone (importing them again would run the
+    package's code over their old state)."""
+    removed = []
+    with _quiet():
+        for name in [n for n in list(sys.modules) if n not in before]:
+            namespace = _namespace_of(sys.modules.get(name))
+            spec = namespace.get("__spec__") if namespace is not None else None
+            try:
+                initialising = getattr(spec, "_initializing", False) is True
+            except Exception:
+                initialising = False
+            if initialising:
+                sys.modules.pop(name, None)
+                removed.append(name)
+        for name in [n for n in list(sys.modules) if n not in before]:
+            parts = name.split(".") if type(name) is str else []
+            parents = [".".join(parts[:i]) for i in range(1, len(parts))]
+            if any(parent not in sys.modules for parent in parents):
+                sys.modules.pop(name, None)
+                removed.append(name)
+    return removed
+
+
+def _begin(session: _Session) -> None:
+    """Put the import hook in place, start the clock, switch the watch on (in that order)."""
+    global _previous_find_and_load
+    if not _sessions and _bootstrap is not None:
+        current = getattr(_bootstrap, "_find_and_load", None)
+        if current is not None and current is not _find_and_load:
+            _previous_find_and_load = current
+            _bootstrap._find_and_load = _find_and_load
+    _sessions.append(session)
+    if session.clock is not None:
+        session.clock.start()
+    if session.watcher is not None:
+        sys.setprofile(session.watcher)
+
+
+def _end(session: _Session, previous_profile) -> None:
+    """Stop the clock, check and switch off the watch, take the import hook away."""
+    try:
+        if session.clock is not None:
+            session.clock.stop()
+    finally:
+        watcher = session.watcher
+        if watcher is not None:
+            watcher.enabled = False
+            if sys.getprofile() is not watcher:
+                watcher._record("sys.setprofile (switching off the grader's watch)")
+        sys.setprofile(previous_profile)
+        if session in _sessions:
+            _sessions.remove(session)
+        if not _sessions and _bootstrap is not None and getattr(_bootstrap, "_find_and_load", None) is _find_and_load:
+            _bootstrap._find_and_load = _previous_find_and_load
+
+
+def _code_ids(*objects) -> set:
+    codes = set()
+    for item in objects:
+        members = vars(item).values() if isinstance(item, type) else (item,)
+        for member in members:
+            member = getattr(member, "__func__", member)
+            member = getattr(member, "__wrapped__", member)
+            code = getattr(member, "__code__", None)
+            if code is not None:
+                codes.add(id(code))
+    return codes
+
+
+def _import_files() -> frozenset:
+    """The file names of importlib's machinery (frozen in CPython: ``<frozen importlib._bootstrap>``)."""
+    files = {"<frozen importlib._bootstrap>", "<frozen importlib._bootstrap_external>", "<frozen importlib.util>"}
+    for module_name, function in (("importlib._bootstrap", "_gcd_import"),
+                                  ("importlib._bootstrap_external", "decode_source"),
+                                  ("importlib.util", "resolve_name")):
+        code = getattr(getattr(sys.modules.get(module_name), function, None), "__code__", None)
+        if code is not None:
+            files.add(code.co_filename)
+    return frozenset(files)
 
 
 def _reference_functions() -> dict:
@@ -249,8 +519,21 @@ def run_guarded(
     watch_reference: bool = True,
     reference_codes: dict | None = None,
 ) -> Outcome:
-    """Call ``function(*args, **kwargs)`` on copies of the inputs under the guard."""
+    """Call ``function(*args, **kwargs)`` on copies of the inputs under the guard.
+
+    ``time_limit`` is the candidate's own time: loading a module for the first time does not
+    count (it runs without the call watch, too), and the limit never falls inside an import.
+    ``Outcome.elapsed`` is the wall time of the whole call, imports included.
+    """
     outcome = Outcome()
+    with _quiet():  # the guard's own work: none of it reaches the real stdout/stderr
+        _run(outcome, function, args, kwargs, arg_names, time_limit, forbidden_libraries,
+             forbidden_functions, allowed_ids, watch_reference, reference_codes)
+    return outcome
+
+
+def _run(outcome, function, args, kwargs, arg_names, time_limit, forbidden_libraries,
+         forbidden_functions, allowed_ids, watch_reference, reference_codes) -> None:
     call_args = _copy_inputs(args)
     call_kwargs = _copy_inputs(kwargs)
     watcher = None
@@ -262,24 +545,21 @@ def run_guarded(
         inner = getattr(function, "__wrapped__", function)
         watcher.exempt = getattr(inner, "__code__", None)
         watcher.own_module = getattr(function, "__module__", None)
-    out, err = io.StringIO(), io.StringIO()
+        watcher.stop_code = sys._getframe().f_code
+    # the clock knows this frame (the candidate runs above it) until the call is over
+    clock = _Clock(time_limit, sys._getframe()) if _Clock.usable(time_limit) else None
+    session = _Session(clock, watcher)
+    out, err = _Sink(), _Sink()
     previous_profile = sys.getprofile()
     start = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught, contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         warnings.simplefilter("always")
         try:
-            with _time_limit(time_limit):
-                if watcher is not None:
-                    watcher.stop_code = sys._getframe().f_code
-                    sys.setprofile(watcher)
-                try:
-                    outcome.value = function(*call_args, **call_kwargs)
-                finally:
-                    if watcher is not None:
-                        watcher.enabled = False
-                        if sys.getprofile() is not watcher:
-                            watcher._record("sys.setprofile (switching off the grader's watch)")
-                    sys.setprofile(previous_profile)
+            try:
+                _begin(session)
+                outcome.value = function(*call_args, **call_kwargs)
+            finally:
+                _end(session, previous_profile)
         except CandidateTimeout:
             outcome.timed_out = True
             outcome.exception = "Timeout"
@@ -295,12 +575,19 @@ def run_guarded(
             if isinstance(exc, NotImplementedError):
                 outcome.error = "not implemented yet (the function raises NotImplementedError)"
             else:
-                message = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+                try:
+                    text = str(exc).strip()
+                except Exception:  # an exception whose str() fails
+                    text = ""
+                message = text.splitlines()[0] if text else ""
                 outcome.error = f"raised {type(exc).__name__}" + (f": {message}" if message else "")
             outcome.traceback = _candidate_traceback(exc)
-    outcome.elapsed = time.perf_counter() - start
-    outcome.stdout, outcome.stderr = out.getvalue(), err.getvalue()
-    outcome.warnings = [f"{w.category.__name__}: {w.message}" for w in caught]
+        finally:
+            if clock is not None:
+                clock.base = None  # no reference cycle through the frame
+        outcome.elapsed = time.perf_counter() - start
+        outcome.stdout, outcome.stderr = out.getvalue(), err.getvalue()
+        outcome.warnings = [_describe_warning(w) for w in caught]
     if watcher is not None:
         outcome.forbidden_calls = list(watcher.calls)
     names = list(arg_names) + [f"argument {i}" for i in range(len(arg_names), len(args))]
@@ -310,4 +597,19 @@ def run_guarded(
     for key in kwargs:
         if not _same(kwargs[key], call_kwargs[key]):
             outcome.modified.append(key)
-    return outcome
+
+
+def _describe_warning(w) -> str:
+    try:
+        return f"{w.category.__name__}: {w.message}"
+    except Exception:  # a warning whose str() fails
+        return f"{getattr(w.category, '__name__', 'Warning')}: ?"
+
+
+#: code of the guard itself, where the time limit never interrupts
+_UNINTERRUPTIBLE = _code_ids(
+    _Clock, _Session, _CallWatcher, _find_and_load, _discard_partial, _begin, _end, _session_here,
+    _forbidden_builtins, _namespace_of, _module_name, _quiet, _Sink, _run, run_guarded,
+)
+#: importlib's own code: an import in progress
+_IMPORT_FILES = _import_files()
