@@ -899,33 +899,66 @@ def _flags(folder: Path) -> list[str]:
 
 
 def _reported_mistakes(folder: Path) -> dict[str, list[str]]:
-    """grade_id → ["mistake:<name>" | "problem:<text>"] from the reports in graded notebooks."""
+    """grade_id → ["mistake:<name>" | "problem:<text>"] from the reports in graded notebooks:
+    one item per report, in plain words — the named mistake, else what the first diagnosed
+    failing case looks like ("your output is shifted by 1 row down"), else the first clause of
+    the first failing case's message (never the tolerances)."""
     found: dict[str, list[str]] = {}
-    for path in folder.glob("*.ipynb"):
+    for path in sorted(folder.glob("*.ipynb")):
         nb = json.loads(path.read_text())
         for cell in nb.get("cells", []):
             grade_id = cell.get("metadata", {}).get("nbgrader", {}).get("grade_id")
             for output in cell.get("outputs", []):
                 report = output.get("data", {}).get(MIME_TYPE)
-                if not report or not grade_id:
+                if not report or not grade_id or not isinstance(report, dict):
                     continue
                 items = found.setdefault(grade_id, [])
+                failures = [c for c in report.get("cases", []) if isinstance(c, dict) and not c.get("passed")]
                 if report.get("mistake"):
-                    items.append(f"mistake:{report['mistake']}")
-                failures = [c for c in report.get("cases", []) if not c.get("passed")]
-                if failures and not report.get("mistake"):
-                    first = (failures[0].get("message") or "failed").splitlines()[0]
-                    items.append(f"problem:{_headline(first)}")
+                    item = f"mistake:{report['mistake']}"
+                elif failures:
+                    diagnosis = report.get("diagnosis") or next((c.get("diagnosis") for c in failures
+                                                                 if c.get("diagnosis")), None)
+                    item = f"problem:{_headline(diagnosis or failures[0].get('message') or 'failed')}"
+                else:
+                    continue
+                if item not in items:
+                    items.append(item)
     return found
 
 
+#: the numpy.testing vocabulary of reports written before plain words came first
+_TECHNICAL_LINE = re.compile(r"\b(rtol|atol)\b|to tolerance|^Mismatched elements")
+
+
 def _headline(message: str, width: int = 90) -> str:
-    """The first clause of a failure message ("calls X, which would..." → "calls X")."""
-    for stop in (", which", ": "):
-        if stop in message and not (stop == ": " and message.startswith("raised ")):
-            message = message.split(stop, 1)[0]
-            break
-    return message if len(message) <= width else message[: width - 1].rsplit(" ", 1)[0] + "…"
+    """The first clause of a failure message, in plain words: "calls X, which would..." →
+    "calls X"; "60 of 90 values differ, all in the border frame 2 pixels wide (the interior is
+    right); first at ..." → up to the semicolon; "Your output is shifted by 1 row down: ..." →
+    "your output is shifted by 1 row down". Reports in the old numpy.testing wording ("Not
+    equal to tolerance rtol=…") become "N of M values differ"."""
+    lines = [line.strip() for line in str(message or "").splitlines() if line.strip()]
+    if not lines:
+        return "failed"
+    first = lines[0]
+    if _TECHNICAL_LINE.search(first):
+        counted = re.search(r"Mismatched elements: (\d+) / (\d+)", str(message))
+        first = (f"{counted.group(1)} of {counted.group(2)} values differ" if counted
+                 else "the values differ from the expected ones")
+    first = re.sub(r"\s*\([^()]*\b(?:rtol|atol)\b[^()]*\)", "", first)
+    prefix = re.match(r"(result \[\d+\]: )?", first).group(0)
+    first = first[len(prefix):]
+    if not first.startswith(("shape mismatch", "dtype mismatch", "raised ")):
+        first = re.split(r"; |\. (?=[A-Z])", first, maxsplit=1)[0]
+        for stop in (", which", ": "):
+            if stop in first:
+                first = first.split(stop, 1)[0]
+                break
+    first = prefix + first
+    first = first.rstrip(" .")
+    if first[:1].isupper() and first[1:2].islower():
+        first = first[0].lower() + first[1:]
+    return first if len(first) <= width else first[: width - 1].rsplit(" ", 1)[0] + "…"
 
 
 def solution_sources(notebook: dict) -> dict[str, str]:
@@ -1015,11 +1048,15 @@ def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str]
     for s in students:
         missing = [e.name for e in scores[s] if any(p.startswith("not implemented") for p in e.problems)]
         for e in scores[s]:
-            for m in e.mistakes:
-                notes.append(f"  {s} · {e.name}: mistake “{m}”")
-            for p in e.problems:
-                if not p.startswith("not implemented"):
-                    notes.append(f"  {s} · {e.name}: {p}")
+            # one line per student × exercise (its visible and hidden tests together): the named
+            # mistake(s), else the first problem, in the reports' plain words
+            mistakes = list(dict.fromkeys(e.mistakes))
+            problems = [p for p in dict.fromkeys(e.problems) if not p.startswith("not implemented")]
+            if mistakes:
+                notes.append(f"  {s} · {e.name}: mistake{'s' if len(mistakes) > 1 else ''} "
+                             + ", ".join(f"“{m}”" for m in mistakes))
+            elif problems:
+                notes.append(f"  {s} · {e.name}: {problems[0]}")
         if missing:
             shown = ", ".join(missing) if len(missing) <= 4 else f"{len(missing)} exercises"
             notes.append(f"  {s} · not attempted: {shown}")

@@ -93,9 +93,12 @@ def test_error_message_has_numpy_testing_details():
         return out
 
     report = evaluate("testing.shift_right", off_by_one_pixel)
-    message = report.cases[0].message
-    assert "Mismatched elements: 1 / 12" in message
-    assert "Max absolute difference: 0.5 at [1, 2]" in message
+    message = report.cases[0].message   # plain words first, the numpy.testing lines in the details
+    assert message.startswith("1 of 12 values differ") and "[row 1, col 2]: yours 5.5, expected 5" in message
+    assert "tolerance" not in message and "rtol" not in message
+    details = report.cases[0].details
+    assert "Mismatched elements: 1 / 12" in details
+    assert "Max absolute difference: 0.5 at [1, 2]" in details
     assert report.cases[0].worst == (1, 2)
 
 

@@ -95,6 +95,7 @@ class HomographyClose(Comparator):
     rtol: float = 1e-8
     probes: object = None
     corners: bool = True
+    elementwise = True  # a normalised H is compared entry by entry by the diagnosis
 
     def describe(self) -> str:
         return f"H[2,2] = 1 and mapped points within {self.atol:g} px + {self.rtol:g}·|value|"
@@ -109,6 +110,16 @@ class HomographyClose(Comparator):
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         return np.vstack([pts, [[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]]])
 
+    def normalise(self, value):
+        """H scaled so that H[2, 2] = 1 (what the check asks for), for matching mistakes up to
+        scale: A⁻¹·R·A is named whether or not the candidate divided by H[2, 2]."""
+        H, problem = _as_matrix(value)
+        if problem or not np.all(np.isfinite(H)):
+            return value
+        if abs(H[2, 2]) > 1e-12 * max(1e-300, float(np.abs(H).max())):
+            return H / H[2, 2]
+        return value
+
     def __call__(self, got, expected, case=None):
         H, problem = _as_matrix(got)
         if problem:
@@ -116,14 +127,13 @@ class HomographyClose(Comparator):
         E = np.asarray(expected, dtype=np.float64)
         if not np.all(np.isfinite(H)):
             return Mismatch("your H contains NaN or inf")
-        if abs(H[2, 2] - E[2, 2]) > 1e-9 * max(1.0, abs(E[2, 2])):
-            advice = ": scale the homography by dividing it by H[2, 2]" if E[2, 2] == 1.0 else ""
-            return Mismatch(f"H[2, 2] = {H[2, 2]:.6g}, expected {E[2, 2]:.6g}{advice}",
-                            max_abs=abs(H[2, 2] - E[2, 2]), worst=(2, 2))
+        scale_wrong = abs(H[2, 2] - E[2, 2]) > 1e-9 * max(1.0, abs(E[2, 2]))
         if case is None:
             points = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
         else:
             points = self._probe_points(case)
+        # what H does does not depend on its scale: judge that first, so that the advice about
+        # the scale is given only when the scale is the one thing wrong
         mine, theirs = _map(H, points), _map(E, points)
         scale = float(np.abs(theirs[np.isfinite(theirs)]).max()) if np.isfinite(theirs).any() else 1.0
         tolerance = self.atol + self.rtol * max(1.0, scale)
@@ -132,13 +142,22 @@ class HomographyClose(Comparator):
         distance = np.where(np.isfinite(distance), distance, np.inf)
         worst = int(np.argmax(distance))
         if distance[worst] <= tolerance:
-            return None
+            if not scale_wrong:
+                return None
+            advice = (": your H maps every point right and only its scale is off; "
+                      "normalise it by dividing it by H[2, 2]" if E[2, 2] == 1.0 else "")
+            return Mismatch(f"H[2, 2] = {H[2, 2]:.6g}, expected {E[2, 2]:.6g}{advice}",
+                            max_abs=abs(H[2, 2] - E[2, 2]), worst=(2, 2))
         bad = int(np.count_nonzero(distance > tolerance))
         x, y = points[worst]
+        note = (f"\n(its scale differs too: H[2, 2] = {H[2, 2]:.6g}, expected {E[2, 2]:.6g}; fix what H does first)"
+                if scale_wrong else "")
         return Mismatch(
-            f"Your H maps points elsewhere: {bad} of {len(points)} test points differ by more than {tolerance:.3g} px\n"
+            f"Your H maps points elsewhere: {bad} of {len(points)} test points land more than {tolerance:.3g} px "
+            f"from where they should\n"
             f"Max distance {distance[worst]:.6g} px for the point ({x:.6g}, {y:.6g}): yours goes to "
-            f"({mine[worst, 0]:.6g}, {mine[worst, 1]:.6g}), expected ({theirs[worst, 0]:.6g}, {theirs[worst, 1]:.6g})",
+            f"({mine[worst, 0]:.6g}, {mine[worst, 1]:.6g}), expected ({theirs[worst, 0]:.6g}, {theirs[worst, 1]:.6g})"
+            + note,
             max_abs=float(distance[worst]), worst=(worst,), mismatched=bad, total=len(points))
 
 

@@ -1,7 +1,9 @@
 """Comparators: is a candidate's output right, and if not, how exactly does it differ?
 
-Messages follow ``numpy.testing``: shape or dtype mismatch, how many elements differ, the
-largest absolute and relative difference and where it is.
+A :class:`Mismatch` message starts with plain words a student understands (how many values
+differ and where, the first one with yours vs expected, the largest error; see
+:func:`cvkit.grading.diagnose.describe_difference`); the ``numpy.testing``-style lines with the
+tolerances go to ``Mismatch.details``, shown on demand.
 """
 from __future__ import annotations
 
@@ -10,10 +12,15 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from .diagnose import describe_difference
+
 
 @dataclass
 class Mismatch:
-    """Why an output was judged wrong."""
+    """Why an output was judged wrong.
+
+    ``message`` is for the student (plain words first); ``details`` holds the technical part
+    (tolerances, ``numpy.testing``-style counts), shown in an expandable section."""
 
     message: str
     max_abs: float | None = None
@@ -21,16 +28,50 @@ class Mismatch:
     worst: tuple | None = None
     mismatched: int | None = None
     total: int | None = None
+    details: str | None = None
+
+
+def _get_message(self) -> str:
+    text = self.__dict__["_message"]
+    if callable(text):  # written on first use: matching a bank's mistakes only asks "None or not?"
+        text = self.__dict__["_message"] = text()
+    return text
+
+
+def _set_message(self, value) -> None:
+    self.__dict__["_message"] = value
+
+
+Mismatch.message = property(_get_message, _set_message, doc="The message for the student (a str; a comparator "
+                            "may pass a function returning it, called the first time it is read).")
 
 
 class Comparator:
-    """Base class: ``comparator(got, expected, case)`` returns ``None`` or a :class:`Mismatch`."""
+    """Base class: ``comparator(got, expected, case)`` returns ``None`` or a :class:`Mismatch`.
+
+    A comparator that accepts outputs only in one normalised form (a homography with
+    H[2, 2] = 1, an eigenvector of one sign, ...) overrides :meth:`normalise`: the grader then
+    also matches the bank's mistakes *up to* that normalisation, so a structural mistake is
+    named whether or not the candidate normalised its result."""
+
+    #: outputs are judged value by value (allclose-like), so a failing output's difference can be
+    #: diagnosed value by value too (shifted, transposed, scaled...; :mod:`cvkit.grading.diagnose`)
+    elementwise = False
 
     def __call__(self, got: Any, expected: Any, case: Any = None) -> Mismatch | None:  # pragma: no cover
         raise NotImplementedError
 
     def describe(self) -> str:
         return type(self).__name__
+
+    def normalise(self, value: Any) -> Any:
+        """The canonical form of an output for matching mistakes (default: the output itself)."""
+        return value
+
+    @property
+    def normalises(self) -> bool:
+        """True when :meth:`normalise` is overridden."""
+        return type(self).normalise is not Comparator.normalise
 
 
 def _as_numeric(got: Any, what: str = "your output") -> tuple[np.ndarray | None, str | None]:
@@ -77,6 +118,7 @@ class Close(Comparator):
     atol: float = 1e-10
     kind: str | None = None
     scaled: bool = False
+    elementwise = True
 
     def describe(self) -> str:
         atol = f"{self.atol:g}·max(1, max|expected|)" if self.scaled else f"{self.atol:g}"
@@ -117,8 +159,9 @@ class Close(Comparator):
                 return None
             worst = _index(int(np.flatnonzero(bad)[0]), exp.shape)
             return Mismatch(
-                f"Mismatched elements: {n} / {exp.size} ({100 * n / exp.size:.3g}%)\nFirst at {list(worst)}",
+                lambda: describe_difference(arr, exp, bad),
                 worst=worst, mismatched=n, total=exp.size,
+                details=f"Mismatched elements: {n} / {exp.size} ({100 * n / exp.size:.3g}%), first at {list(worst)}",
             )
         a = arr.astype(np.float64)
         e = exp.astype(np.float64)
@@ -153,7 +196,8 @@ class Close(Comparator):
             where = f" at {list(_index(flat, e.shape))}" if e.ndim else ""
             lines.append(f"Max absolute difference: {max_abs:.6g}{where} (yours {a.flat[flat]:.6g}, expected {e.flat[flat]:.6g})")
             lines.append(f"Max relative difference: {max_rel:.6g}")
-        return Mismatch("\n".join(lines), max_abs=max_abs, max_rel=max_rel, worst=worst, mismatched=n, total=int(e.size))
+        return Mismatch(lambda: describe_difference(arr, exp, bad), max_abs=max_abs, max_rel=max_rel, worst=worst,
+                        mismatched=n, total=int(e.size), details="\n".join(lines))
 
 
 def close(rtol: float = 1e-7, atol: float = 1e-10, kind: str | None = None, scaled: bool = False) -> Close:

@@ -10,12 +10,15 @@ import hashlib
 import inspect
 import json
 import os
+import re
 from typing import Any, Callable
 
 import numpy as np
 
 from .. import registry
 from .checks import Check, Mistake, bind_call
+from .compare import Mismatch, Statistics
+from .diagnose import CONVENTION, diagnose, explain_exception, image_variants
 from .runtime.guard import Outcome, run_guarded
 from .report import MIME_TYPE, CaseResult, Report
 
@@ -61,6 +64,201 @@ def _mistake_output(mistake: Mistake, case, call: Callable | None = None) -> tup
         return False, None
 
 
+def _mistake_error(mistake: Mistake, case, call: Callable | None = None) -> str | None:
+    """``"IndexError: <first line>"`` when the mistake raises on the case, else None."""
+    try:
+        with registry.use("reference"), np.errstate(all="ignore"):
+            bind_call(call, mistake.function)(*copy.deepcopy(case.args), **copy.deepcopy(case.kwargs))
+    except Exception as error:
+        text = str(error).strip().splitlines()[0] if str(error).strip() else ""
+        return f"{type(error).__name__}: {text}"
+    return None
+
+
+def _normalised(compare, value):
+    try:
+        return compare.normalise(value)
+    except Exception:
+        return value
+
+
+def _matching_mistakes(spec: Check, case, got: Any, expected: Any) -> list[Mistake]:
+    """The bank's mistakes that reproduce ``got`` on ``case`` (and differ from ``expected``
+    there), exactly or, when the comparator has a normal form, up to it: a structural mistake
+    (A⁻¹·R·A) is named whether or not the candidate also normalised its result."""
+    compare = spec.compare
+    normalises = bool(getattr(compare, "normalises", False))
+    found = []
+    if normalises:
+        ng, ne = _normalised(compare, got), _normalised(compare, expected)
+    for mistake in spec.mistakes:
+        produced, wrong = _mistake_output(mistake, case, spec.call)
+        if not produced:
+            continue
+        with np.errstate(all="ignore"):
+            try:
+                if compare(wrong, expected, case) is None:
+                    continue  # this case does not tell the mistake from the right answer
+                if compare(got, wrong, case) is None:
+                    found.append(mistake)
+                    continue
+                if normalises:
+                    nw = _normalised(compare, wrong)
+                    if compare(nw, ne, case) is not None and compare(ng, nw, case) is None:
+                        found.append(mistake)
+            except Exception:
+                continue
+    return found
+
+
+def _diagnosable(spec: Check) -> bool:
+    """Outputs compared value by value (allclose-like comparators), not random draws."""
+    compare = spec.compare
+    return not spec.seeded and not isinstance(compare, Statistics) and bool(getattr(compare, "elementwise", False))
+
+
+def _diagnosis(spec: Check, got: Any, expected: Any) -> str | None:
+    """The shape of the error of a failing output (:func:`cvkit.grading.diagnose.diagnose`)."""
+    if not _diagnosable(spec):
+        return None
+    compare = spec.compare
+    if getattr(compare, "normalises", False):
+        got, expected = _normalised(compare, got), _normalised(compare, expected)
+    rtol = getattr(compare, "rtol", 1e-7)
+    atol = getattr(compare, "atol", 1e-10)
+    rtol = float(rtol) if isinstance(rtol, (int, float)) else 1e-7
+    atol = float(atol) if isinstance(atol, (int, float)) else 1e-10
+    try:
+        with np.errstate(all="ignore"):
+            if isinstance(expected, (tuple, list)) and not isinstance(expected, np.ndarray):
+                found = diagnose(got, expected, rtol=rtol)
+            else:
+                e = np.asarray(expected, dtype=np.float64)
+                finite = np.abs(e[np.isfinite(e)])
+                scale = max(1.0, float(finite.max())) if finite.size else 1.0
+                found = diagnose(got, expected, rtol=rtol, atol=atol * scale)
+    except Exception:
+        return None
+    return str(found) if found is not None else None
+
+
+#: words of the numpy.testing vocabulary that students should not have to read first
+_TECHNICAL = re.compile(r"\b(rtol|atol)\b|to tolerance|^Mismatched elements|^Max relative difference")
+_TECHNICAL_ASIDE = re.compile(r"\s*\((?:[^()]*\b(?:rtol|atol)\b[^()]*)\)")
+
+
+def _plain_words(mismatch: Mismatch) -> tuple[str, str]:
+    """(message, details) of a comparator's mismatch with plain words first: lines in the
+    numpy.testing vocabulary (tolerances, "Mismatched elements") move to the details."""
+    if mismatch.details is not None or not _TECHNICAL.search(mismatch.message or ""):
+        return mismatch.message, mismatch.details or ""
+    lines = mismatch.message.splitlines()
+    plain, technical = [], []
+    for i, line in enumerate(lines):
+        prefix = ""
+        match = re.match(r"^(result \[\d+\]: |[\w.\[\]' ]{1,40}: )(?=Not equal|Mismatched)", line)
+        if match:
+            prefix, line = match.group(1), line[match.end():]
+        if _TECHNICAL.search(line) and not _TECHNICAL_ASIDE.search(line):
+            technical.append(prefix + line)
+            if i == 0 or not plain:
+                lead = prefix
+                if mismatch.mismatched is not None and mismatch.total:
+                    lead += (f"all {mismatch.total} values differ" if mismatch.mismatched == mismatch.total
+                             else f"{mismatch.mismatched} of {mismatch.total} values differ")
+                    plain.append(lead[0].upper() + lead[1:] + ".")
+            continue
+        stripped = _TECHNICAL_ASIDE.sub("", line)
+        if stripped != line:
+            technical += [m.strip(" ()") for m in _TECHNICAL_ASIDE.findall(line)]
+        plain.append(prefix + stripped)
+    if not plain:
+        return mismatch.message, ""
+    return "\n".join(plain), "\n".join(technical)
+
+
+def _passes(spec: Check, got: Any, expected: Any, case) -> bool:
+    try:
+        with np.errstate(all="ignore"):
+            return spec.compare(got, expected, case) is None
+    except Exception:
+        return False
+
+
+def _swapped(value: Any) -> Any:
+    arr = np.asarray(value) if isinstance(value, np.ndarray) else None
+    return np.swapaxes(arr, 0, 1) if arr is not None and arr.ndim >= 2 else value
+
+
+_CRASHES = ("IndexError", "ValueError")
+#: seconds a candidate may run on a variant of a case that made it crash (visible cases only)
+_VARIANT_TIME_LIMIT = 5.0
+
+
+def _explain_crash(spec: Check, reference: Callable, case, outcome: Outcome, expected: Any,
+                   run_here: Callable | None) -> tuple[str | None, Mistake | None]:
+    """Why a candidate raised an index or shape error, in words, and the mistake of the bank
+    behind it if one can be found.
+
+    In this process (``run_here``, the notebook's ``check()``) the candidate is run again on a
+    square crop and on a transposed copy of the case's image: if it then runs and matches a
+    mistake ("x and y swapped"), or gives the right answer, the crash came from mixing up rows
+    and columns. Wherever it runs (also for outcomes computed in the sandbox), the bank's
+    mistakes are tried for the same error on the case, and the error message is read against
+    the case's inputs (:func:`cvkit.grading.diagnose.explain_exception`).
+    """
+    text, mistake = None, None
+    image = case.args[0] if case.args else None
+    swap_plausible = True
+    if run_here is not None:
+        for kind, args in image_variants(case.args):
+            H, W = image.shape[:2]
+            variant = copy.copy(case)
+            variant.args, variant.kwargs = args, dict(case.kwargs)
+            try:
+                expected_v = _reference_output(reference, variant, spec.call)
+            except Exception:
+                continue
+            again = run_here(variant)
+            if again is None or not again.ok:
+                if kind == "square" and again is not None and again.exception == outcome.exception:
+                    swap_plausible = False  # it crashes on a square image too: not a rows/columns mix-up
+                continue
+            got_v = again.value
+            crop = f"a square {min(H, W)}×{min(H, W)} crop" if kind == "square" else "the transposed image"
+            why = (f"it crashes only on the {H}×{W} image (not square), so rows and columns are mixed up somewhere: "
+                   f"{CONVENTION}")
+            if kind == "transposed" and (_passes(spec, got_v, expected, case)
+                                         or _passes(spec, _swapped(got_v), expected, case)):
+                return (f"Given the transposed image (rows and columns swapped) your code runs and gives the right "
+                        f"answer: somewhere it treats the image as image[x, y]. "
+                        f"{CONVENTION[0].upper() + CONVENTION[1:]}."), mistake
+            matches = _matching_mistakes(spec, variant, got_v, expected_v)
+            if matches:
+                mistake = matches[0]
+                return (f"On {crop} of this image your code runs, and its output matches the mistake "
+                        f"“{mistake.name}”: {why}."), mistake
+            if text is None:
+                right = _passes(spec, got_v, expected_v, variant)
+                text = (f"On {crop} of this image your code runs{' and gives the right answer' if right else ''}: "
+                        f"{why}.")
+    if mistake is None:
+        error = outcome.error or ""
+        for candidate in spec.mistakes:
+            raised = _mistake_error(candidate, case, spec.call)
+            if raised and outcome.exception and raised.startswith(outcome.exception + ":") \
+                    and raised.partition(": ")[2] == error.partition(": ")[2]:
+                mistake = candidate
+                text = text or f"The mistake “{candidate.name}” raises the same error on this case."
+                break
+    if text is None:
+        reading = explain_exception((outcome.error or "").partition(": ")[2], case.args,
+                                    swap_plausible=swap_plausible)
+        if reading:
+            text = reading[0].upper() + reading[1:] + ("" if reading.endswith(".") else ".")
+    return text, mistake
+
+
 def evaluate(
     algorithm_id: str,
     candidate: Callable,
@@ -97,6 +295,19 @@ def evaluate(
 
     Notes
     -----
+    **Feedback on a failing case.** The message starts with plain words (how many values
+    differ and where, the first one with yours vs expected, the largest error; the comparator's
+    tolerances are in ``CaseResult.details``). The bank's mistakes are matched exactly and, when
+    the comparator has a normal form (:meth:`~cvkit.grading.compare.Comparator.normalise`), up
+    to it. When no mistake fits, an output compared value by value gets a
+    :func:`~cvkit.grading.diagnose.diagnose` (``CaseResult.diagnosis``: shifted, transposed,
+    flipped, scaled, offset, only the border wrong, colour channels swapped, NaN...). An
+    ``IndexError``/``ValueError`` is explained: on the visible cases run here, the candidate is
+    run again on a square crop and on a transposed copy of the image (if it then matches a
+    mistake, that mistake is named); everywhere, the bank's mistakes are tried for the same
+    error and the message is read against the inputs
+    (:func:`~cvkit.grading.diagnose.explain_exception`).
+
     **Cases the reference cannot compute are dropped, never scored.** When the reference
     implementation raises on a case (a bug of the check or of the reference, not of the
     candidate), that case is left out: it counts neither as passed nor as failed
@@ -139,6 +350,7 @@ def evaluate(
     mistake_votes: dict[str, int] = {}
     matching: list[list[Mistake]] = []  # per counted case, the known mistakes that reproduce its output
     runs_here = runner is None  # the candidate is called in this process (it can run other cases)
+    run_here = None
     if runner is None:
         graded = bind_call(spec.call, candidate)
 
@@ -152,6 +364,18 @@ def evaluate(
                 allowed_ids=tuple(spec.allowed),
                 watch_reference=attempt == 0,
             )
+
+        def run_here(case):  # a variant of a case, to explain a crash (short: it is only feedback)
+            return run_guarded(
+                graded, case.args, case.kwargs,
+                arg_names=names,
+                time_limit=min(spec.time_limit, _VARIANT_TIME_LIMIT),
+                forbidden_libraries=spec.forbidden_libraries,
+                forbidden_functions=spec.forbidden,
+                allowed_ids=tuple(spec.allowed),
+                watch_reference=True,
+            )
+    crashes_explained = 0
 
     for index, case in enumerate(cases):
         found: list[Mistake] = []
@@ -180,6 +404,14 @@ def evaluate(
         mismatch = None
         if outcome.error is not None:
             result.message = outcome.error
+            if outcome.exception in _CRASHES and crashes_explained < 3:
+                crashes_explained += 1
+                text, culprit = _explain_crash(spec, record.reference, case, outcome, expected,
+                                               None if hidden else run_here)
+                result.diagnosis = text
+                if culprit is not None:
+                    found.append(culprit)
+                    mistake_votes[culprit.name] = mistake_votes.get(culprit.name, 0) + 1
         elif outcome.forbidden_calls:
             result.message = (
                 "calls " + ", ".join(outcome.forbidden_calls)
@@ -207,21 +439,17 @@ def evaluate(
             elif mismatch is None:
                 result.passed = True
             else:
-                result.message = mismatch.message
+                result.message, result.details = _plain_words(mismatch)
                 result.worst = mismatch.worst
         if not result.passed and result.got is not None:
             # every known mistake that reproduces this wrong output gets this case's vote (one
             # case may not tell two mistakes apart; the other cases then decide)
-            for mistake in spec.mistakes:
-                produced, wrong = _mistake_output(mistake, case, spec.call)
-                if not produced:
-                    continue
-                with np.errstate(all="ignore"):
-                    if spec.compare(wrong, expected, case) is None:
-                        continue  # this case does not tell the mistake from the right answer
-                    if spec.compare(outcome.value, wrong, case) is None:
-                        found.append(mistake)
-                        mistake_votes[mistake.name] = mistake_votes.get(mistake.name, 0) + 1
+            for mistake in _matching_mistakes(spec, case, outcome.value, expected):
+                found.append(mistake)
+                mistake_votes[mistake.name] = mistake_votes.get(mistake.name, 0) + 1
+            if not found and mismatch is not None:
+                # no named mistake fits: say what the wrong output looks like (shifted, transposed...)
+                result.diagnosis = _diagnosis(spec, outcome.value, expected)
         report.cases.append(result)
         matching.append(found)
     if report.dropped and not report.cases:
@@ -327,5 +555,19 @@ def check(algorithm_id: str, candidate: Callable, hidden: bool = False, points: 
         value = report.score if points is None else report.score * float(points)
         return round(float(value), 6)
     if not report.passed:
-        raise AssertionError(report.summary())
+        __tracebackhide__ = True  # noqa: F841  (pytest and IPython skip this frame)
+        raise CheckFailed(report.summary()) from None
     return None
+
+
+class CheckFailed(AssertionError):
+    """A visible :func:`check` failed; the report shown above says why.
+
+    In IPython and JupyterLab it is shown as the single line ``AssertionError: <summary>``,
+    without the grader's frames (IPython uses ``_render_traceback_`` instead of the
+    traceback): the only frame of the student's code would be the test cell's ``check(...)``
+    line, and the report above already shows where the student's function went wrong."""
+
+    def _render_traceback_(self) -> list[str]:
+        lines = str(self).splitlines() or [""]
+        return [f"\x1b[0;31mAssertionError\x1b[0m: {lines[0]}"] + lines[1:]

@@ -31,6 +31,8 @@ class CaseResult:
     got: Any = None
     expected: Any = None
     worst: tuple | None = None
+    details: str = ""                 # the technical part of the message (tolerances), shown on demand
+    diagnosis: str | None = None      # what the wrong output looks like, or why the code crashed
 
     def to_dict(self) -> dict:
         return {
@@ -38,6 +40,8 @@ class CaseResult:
             "label": self.label,
             "passed": self.passed,
             "message": self.message,
+            "details": self.details,
+            "diagnosis": self.diagnosis,
             "mistake": self.mistake,
             "elapsed": round(self.elapsed, 4),
             "warnings": self.warnings,
@@ -96,6 +100,21 @@ class Report:
     def failures(self) -> list:
         return [c for c in self.cases if not c.passed]
 
+    @property
+    def diagnosis(self) -> str | None:
+        """What the first diagnosed failing case's output looks like (shifted, transposed...),
+        when no known mistake was named; None otherwise."""
+        if self.mistake:
+            return None
+        return next((c.diagnosis for c in self.cases if not c.passed and c.diagnosis), None)
+
+    def _diagnosed_case(self):
+        return next((c for c in self.cases if not c.passed and c.diagnosis), None)
+
+    def _diagnosis_line(self) -> str:
+        case = self._diagnosed_case()
+        return f"What we see (case {case.index + 1}): {case.diagnosis}" if case and not self.mistake else ""
+
     def summary(self) -> str:
         kind = "hidden" if self.hidden else "visible"
         if self.problem:
@@ -113,10 +132,13 @@ class Report:
             text += f"\n{self.dropped_note()}"
         if self.mistake:
             text += f"\nYour output matches a known mistake: {self.mistake}. {self.hint}"
+        elif self._diagnosis_line():
+            text += "\n" + self._diagnosis_line()
         return text
 
     def text(self, max_failures: int = 3) -> str:
         lines = [self.summary()]
+        summarised = self._diagnosed_case() if not self.mistake else None
         shown = 0
         for case in self.cases:
             if case.passed:
@@ -129,6 +151,10 @@ class Report:
             lines.append(f"  input: {case.description}")
             for line in case.message.splitlines():
                 lines.append(f"  {line}")
+            if case.diagnosis and (case.traceback or not case.mistake) and case is not summarised:
+                lines.append(f"  → {case.diagnosis}")
+            if case.details:
+                lines += [f"  details: {line}" for line in case.details.splitlines()]
             if case.traceback:
                 lines.append("  traceback (your code):")
                 lines += [f"    {line}" for line in case.traceback.splitlines()[-8:]]
@@ -161,6 +187,7 @@ class Report:
             "score": self.score,
             "mistake": self.mistake,
             "hint": self.hint,
+            "diagnosis": self.diagnosis,
             "problem": self.problem,
             "cases": [c.to_dict() for c in self.cases],
             "dropped": [str(d) for d in self.dropped],
@@ -194,6 +221,8 @@ class Report:
                 f"<p class='cvkit-mistake'>Your output matches a known mistake: <b>{html.escape(self.mistake)}</b>. "
                 f"{html.escape(self.hint or '')}</p>"
             )
+        elif self._diagnosis_line():
+            parts.append(f"<p class='cvkit-diagnosis'>{html.escape(self._diagnosis_line())}</p>")
         rows = []
         for case in self.cases:
             mark = (f"<span aria-hidden='true'>{'✓' if case.passed else '✗'}</span> "
@@ -213,7 +242,14 @@ class Report:
         failing = [c for c in self.cases if not c.passed]
         if failing:
             first = failing[0]
-            parts.append(f"<pre class='cvkit-message' style='font-size:85%;color:{_TEXT}'>{html.escape(first.message)}</pre>")
+            parts.append(f"<pre class='cvkit-message' style='font-size:85%;color:{_TEXT};white-space:pre-wrap'>"
+                         f"{html.escape(first.message)}</pre>")
+            summarised = self._diagnosed_case() if not self.mistake else None
+            if first.diagnosis and (first.traceback or not first.mistake) and first is not summarised:
+                parts.append(f"<p class='cvkit-case-diagnosis'>→ {html.escape(first.diagnosis)}</p>")
+            if first.details:
+                parts.append(f"<details class='cvkit-details' style='color:{_MUTED}'><summary>details</summary>"
+                             f"<pre style='font-size:80%;color:{_MUTED}'>{html.escape(first.details)}</pre></details>")
             if first.traceback:
                 parts.append(f"<pre class='cvkit-traceback' style='font-size:80%;color:{_MUTED}'>"
                              f"{html.escape(first.traceback)}</pre>")

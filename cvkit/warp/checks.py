@@ -82,6 +82,7 @@ class WarpClose(Comparator):
     rtol: float = 1e-9
     atol: float = 1e-9
     margin: float = 1e-7
+    elementwise = True
 
     def describe(self) -> str:
         return f"allclose(rtol={self.rtol:g}, atol={self.atol:g}·max(1, max|expected|)) away from the border"
