@@ -392,3 +392,24 @@ def test_a_wrong_exercise_is_not_excused_by_its_building_block():
     assert graded.credit("correlate_visible", 1)[0] == 0
     (_, report), = graded.reports["correlate_visible"]
     assert "problem is in `correlate` itself" in report.cascade
+
+
+def test_in_the_notebook_a_wrong_building_block_costs_points_once(capsys):
+    """check() in the student's kernel applies the same rule as the grader."""
+    import cvkit
+    from cvkit.grading import check
+
+    student = registry.provider("student")
+    saved = dict(student.functions)
+    namespace = {"np": np, "student": cvkit.student}
+    try:
+        exec(compile(WRONG_PAD + "\n" + CORRELATE_WITH_OWN_PAD, "<answers>", "exec"), namespace)
+        with pytest.raises(AssertionError):
+            check("filters.pad", namespace["pad"])
+        check("filters.correlate", namespace["correlate"])  # passes with the reference pad
+        shown = capsys.readouterr().out
+        assert "costs points once" in shown and "`pad`" in shown
+        assert namespace["pad"] is student.functions["filters.pad"]  # the student's pad is put back
+    finally:
+        student.functions.clear()
+        student.functions.update(saved)

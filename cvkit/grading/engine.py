@@ -550,6 +550,8 @@ def check(algorithm_id: str, candidate: Callable, hidden: bool = False, points: 
         print(f"{algorithm_id}: checked by the trusted grader outside the notebook")
         return 0.0 if hidden else None
     report = evaluate(algorithm_id, candidate, hidden=hidden, seed=seed)
+    if not report.passed:
+        report = _with_reference_building_blocks(algorithm_id, candidate, report, hidden, seed)
     _show(report)
     if hidden:
         value = report.score if points is None else report.score * float(points)
@@ -558,6 +560,52 @@ def check(algorithm_id: str, candidate: Callable, hidden: bool = False, points: 
         __tracebackhide__ = True  # noqa: F841  (pytest and IPython skip this frame)
         raise CheckFailed(report.summary()) from None
     return None
+
+
+def _with_reference_building_blocks(algorithm_id: str, candidate: Callable, report: Report, hidden: bool,
+                                    seed: int | None) -> Report:
+    """One mistake costs points once (as in trusted grading, :mod:`cvkit.grading.trusted`): when
+    ``candidate`` fails and calls, by name, the student's own version of a building block its
+    check allows (registered with ``@student``) that fails its own visible check, grade it
+    again with the reference building block under that name. Returns the better report, with
+    ``cascade`` saying which function is to blame."""
+    spec = registry.get(algorithm_id).check
+    own_code = getattr(candidate, "__wrapped__", candidate)
+    namespace = getattr(own_code, "__globals__", None)
+    if not isinstance(namespace, dict) or not spec.allowed:
+        return report
+    student = registry.provider("student").functions
+    culprits = {}
+    for block in spec.allowed:
+        own = student.get(block)
+        if own is None or own is candidate or own is own_code:
+            continue
+        names = [name for name, value in list(namespace.items()) if value is own]
+        if names and not evaluate(block, own).passed:
+            culprits[block] = (names, own)
+    if not culprits:
+        return report
+    saved = {}
+    try:
+        for block, (names, _) in culprits.items():
+            for name in names:
+                saved[name] = namespace[name]
+                namespace[name] = registry.get(block).reference
+        again = evaluate(algorithm_id, candidate, hidden=hidden, seed=seed)
+    finally:
+        namespace.update(saved)
+    yours = ", ".join(f"`{names[0]}`" for names, _ in culprits.values())
+    ids = ", ".join(culprits)
+    own_name = getattr(own_code, "__name__", "function")
+    if again.score > report.score:
+        verdict = "passes" if again.passed else f"passes {sum(c.passed for c in again.cases)} of {len(again.cases)} cases"
+        again.cascade = (f"Your {yours} fails its own check ({ids}), and your `{own_name}` calls it. Graded with "
+                         f"cvkit's reference {yours} instead, your `{own_name}` {verdict} — so the mistake costs "
+                         f"points once: fix {yours} first.")
+        return again
+    report.cascade = (f"Your {yours} fails its own check ({ids}), but even with cvkit's reference {yours} your "
+                      f"`{own_name}` fails: the problem is in `{own_name}` itself.")
+    return report
 
 
 class CheckFailed(AssertionError):

@@ -13,7 +13,6 @@
 """
 from __future__ import annotations
 
-import html
 import json
 import os
 from pathlib import Path
@@ -124,14 +123,7 @@ def apply_trusted_checks(nb, *, student: str, salt: str, source_notebook=None, m
         grade_id = meta.get("grade_id")
         if not (meta.get("grade") and not meta.get("solution")) or grade_id not in grade.reports:
             continue
-        outputs = []
-        for _, report in grade.reports[grade_id]:
-            outputs.append(new_output("display_data", data=_bundle(report)))
-            cascade = getattr(report, "cascade", None)
-            if cascade:  # one mistake costs points once: say which function is to blame
-                outputs.append(new_output("display_data", data={
-                    "text/plain": cascade,
-                    "text/html": f"<p class='cvkit-cascade'><b>Note:</b> {html.escape(cascade)}</p>"}))
+        outputs = [new_output("display_data", data=_bundle(report)) for _, report in grade.reports[grade_id]]
         credit, reasons = grade.credit(grade_id, float(meta.get("points", 0)))
         hidden = any(call.hidden for call, _ in grade.reports[grade_id])
         if hidden:

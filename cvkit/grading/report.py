@@ -69,6 +69,7 @@ class Report:
     problem: str | None = None  # a failure before any case ran (e.g. not a function), or "not graded"
     dropped: list = field(default_factory=list)  # cases the reference could not compute (instructor's bug)
     fallback: str | None = None  # why the cases graded are the visible ones although hidden=True
+    cascade: str | None = None  # graded with a reference building block: which of the student's functions to fix
 
     @property
     def passed(self) -> bool:
@@ -126,6 +127,8 @@ class Report:
         else:
             kind += " tests"
         text = f"{self.algorithm} (§{self.section}), {kind}: {n}/{len(self.cases)} cases passed — {verdict}"
+        if self.cascade:
+            text += f"\n{self.cascade}"
         if self.fallback:
             text += f"\n{self.fallback}"
         elif self.dropped:
@@ -192,6 +195,7 @@ class Report:
             "cases": [c.to_dict() for c in self.cases],
             "dropped": [str(d) for d in self.dropped],
             "fallback": self.fallback,
+            "cascade": self.cascade,
         }
 
     # ---------------------------------------------------------------- HTML for JupyterLab
@@ -214,6 +218,8 @@ class Report:
             f"<p class='cvkit-summary' style='margin:2px 0;font-weight:bold;color:{_TEXT}'>"
             f"<span aria-hidden='true' style='color:{accent}'>{'✓' if self.passed else '✗'} </span>{title}</p>",
         ]
+        if self.cascade:
+            parts.append(f"<p class='cvkit-cascade' style='color:{_TEXT}'><b>Note:</b> {html.escape(self.cascade)}</p>")
         for note in filter(None, (self.fallback, self.dropped_note() if not self.fallback else "")):
             parts.append(f"<p class='cvkit-dropped' style='color:{_MUTED}'>{html.escape(note)}</p>")
         if self.mistake:
