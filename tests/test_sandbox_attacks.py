@@ -21,7 +21,8 @@ import pytest
 from cvkit.course import Course
 from cvkit.grading import isolation, sandbox
 
-from test_course_scaling import ASSIGNMENT, ROOT, _answers, _cell, cell_grades
+from test_course_scaling import ASSIGNMENT, ROOT, _answers, _cell, cell_grades, make_course
+from test_course_scaling import project  # noqa: F401  (the tiny chapter's project, a fixture)
 
 pytestmark = pytest.mark.slow
 
@@ -142,15 +143,7 @@ def bubblewrap():
 
 
 @pytest.fixture(scope="module")
-def graded(bubblewrap, tmp_path_factory):
-    from test_course_scaling import source_notebook
-
-    project = tmp_path_factory.mktemp("attack-project")
-    (project / "autograders").mkdir()
-    shutil.copy(ROOT / "autograders" / "nbgrader_config.py", project / "autograders" / "nbgrader_config.py")
-    (project / "autograders" / "plan.toml").write_text(f'[[assignment]]\nid = "{ASSIGNMENT}"\n')
-    (project / "lectures" / ASSIGNMENT).mkdir(parents=True)
-    (project / "lectures" / ASSIGNMENT / f"{ASSIGNMENT}.ipynb").write_text(json.dumps(source_notebook()))
+def graded(bubblewrap, project, tmp_path_factory):
     course = Course(tmp_path_factory.mktemp("attack-course") / "course", project=project)
     (course.root / ".grading_salt").write_text("attack-salt")
     course.build([ASSIGNMENT])
@@ -341,15 +334,7 @@ def test_no_sandbox_stops_grading_with_a_clear_message(monkeypatch, tmp_path):
         course.grade(workers=1)
 
 
-def test_no_sandbox_mode_is_marked_everywhere(bubblewrap, tmp_path):
-    from test_course_scaling import make_course, source_notebook
-
-    project = tmp_path / "project"
-    (project / "autograders").mkdir(parents=True)
-    shutil.copy(ROOT / "autograders" / "nbgrader_config.py", project / "autograders" / "nbgrader_config.py")
-    (project / "autograders" / "plan.toml").write_text(f'[[assignment]]\nid = "{ASSIGNMENT}"\n')
-    (project / "lectures" / ASSIGNMENT).mkdir(parents=True)
-    (project / "lectures" / ASSIGNMENT / f"{ASSIGNMENT}.ipynb").write_text(json.dumps(source_notebook()))
+def test_no_sandbox_mode_is_marked_everywhere(bubblewrap, project, tmp_path):
     course = make_course(project, tmp_path / "course", students={"ada": _answers()})
     try:
         results = course.grade(workers=1, sandbox=False)
