@@ -550,6 +550,16 @@ def check(algorithm_id: str, candidate: Callable, hidden: bool = False, points: 
         print(f"{algorithm_id}: checked by the trusted grader outside the notebook")
         return 0.0 if hidden else None
     report = evaluate(algorithm_id, candidate, hidden=hidden, seed=seed)
+    if _not_answered(report):
+        # the released stub: one line instead of a report of identical failures
+        name = getattr(getattr(candidate, "__wrapped__", candidate), "__name__", "your function")
+        line = (f"{algorithm_id}: not answered yet — `{name}` still raises NotImplementedError. Write your "
+                f"version in the answer cell above, run it, then run this cell again.")
+        print(line)
+        if hidden:
+            return 0.0
+        __tracebackhide__ = True  # noqa: F841
+        raise CheckFailed(line) from None
     if not report.passed:
         report = _with_reference_building_blocks(algorithm_id, candidate, report, hidden, seed)
     _show(report)
@@ -560,6 +570,42 @@ def check(algorithm_id: str, candidate: Callable, hidden: bool = False, points: 
         __tracebackhide__ = True  # noqa: F841  (pytest and IPython skip this frame)
         raise CheckFailed(report.summary()) from None
     return None
+
+
+NOT_IMPLEMENTED = "not implemented yet (the function raises NotImplementedError)"
+
+
+def _not_answered(report: Report) -> bool:
+    """Every case failed because the candidate raised NotImplementedError (the released stub)."""
+    return bool(report.cases) and all(not c.passed and c.message.startswith(NOT_IMPLEMENTED) for c in report.cases)
+
+
+def needs_answer(exercise: str):
+    """Context manager for a demo that runs a student's answer: while the answer is still the
+    released stub (it raises ``NotImplementedError``), print one line saying which exercise the
+    demo waits for, instead of stopping *Run All* with a traceback.
+
+    >>> with needs_answer("Exercise 3.9b"):
+    ...     raise NotImplementedError()
+    This demo uses your answer to Exercise 3.9b; it runs once you have written it.
+    """
+    return _NeedsAnswer(exercise)
+
+
+class _NeedsAnswer:
+    def __init__(self, exercise: str):
+        if not isinstance(exercise, str) or not exercise:
+            raise TypeError("exercise must be a non-empty string naming the exercise, e.g. 'Exercise 3.9b'")
+        self.exercise = exercise
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, error, traceback):
+        if kind is not None and issubclass(kind, NotImplementedError):
+            print(f"This demo uses your answer to {self.exercise}; it runs once you have written it.")
+            return True
+        return False
 
 
 def _with_reference_building_blocks(algorithm_id: str, candidate: Callable, report: Report, hidden: bool,
