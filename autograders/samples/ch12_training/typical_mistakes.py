@@ -5,7 +5,8 @@
 # follows: wrong answers students really write (the off-by-one epoch of a cosine schedule, a
 # warm-up that stops one step short of its target, PyTorch's label smoothing where the notes'
 # is asked for, CutMix labels weighted by the side of the box, an EMA with its decay the wrong
-# way round) and one exercise not attempted. Every other exercise keeps the correct solution.
+# way round, dropout scaled the old way: kept units multiplied by p_keep instead of divided) and
+# one exercise not attempted. Every other exercise keeps the correct solution.
 # This file is data for the demo and its tests, not a module to import.
 
 # %% cosine_decay_answer
@@ -56,6 +57,16 @@ def ema_update(ema_params, params, decay=0.999):
     if isinstance(ema_params, (list, tuple)):
         return [ema_update(a, p, decay) for a, p in zip(ema_params, params)]
     return (1 - decay) * np.asarray(ema_params, dtype=float) + decay * np.asarray(params, dtype=float)
+
+# %% dropout_forward_answer
+@student("nn.dropout_forward")
+def dropout_forward(x, p_keep, training, rng=None):
+    """Old-style scaling: the kept units multiplied by p_keep instead of divided by it."""
+    x = np.asarray(x, dtype=float)
+    if not training:
+        return x.copy(), {"x": x, "p_keep": p_keep, "training": training, "mask": np.ones(x.shape, dtype=bool)}
+    mask = np.random.default_rng(rng).random(x.shape) < p_keep
+    return x * mask * p_keep, {"x": x, "p_keep": p_keep, "training": training, "mask": mask}
 
 # %% random_search_answer
 @student("train.random_search")
