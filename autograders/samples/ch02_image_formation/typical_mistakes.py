@@ -3,7 +3,7 @@
 # `cvkit demo` builds the sample student `sample_mistakes` from the solutions of the source
 # notebook, then replaces each answer cell named below (`# %% <grade_id>`) by the code that
 # follows: wrong answers students really write. Every other exercise keeps the correct
-# solution; demosaicking is left unattempted.
+# solution (the image memory of §2.11 among them); demosaicking is left unattempted.
 # This file is data for the demo and its tests, not a module to import.
 
 # %% project_pinhole_answer
@@ -70,6 +70,14 @@ def blur_circle_diameter(object_distance, focus_distance, focal_length, aperture
         c = np.where(np.isinf(d_o) & ~np.isinf(d_f), aperture * f / (d_f - f), c)
         c = np.where(np.isinf(d_f) & ~np.isinf(d_o), -aperture * f / d_o, c)
     return np.where(np.isinf(d_o) & np.isinf(d_f), 0.0, c)
+
+# %% quantize_answer
+@student("formation.quantize")
+def quantize(image, bits, vmax=1.0):
+    """Rounds with the school rule floor(t + 0.5): half-way values go up, not to the even level."""
+    levels = 2 ** bits - 1
+    t = np.clip(np.asarray(image, dtype=float), 0, vmax) / vmax * levels
+    return np.floor(t + 0.5) / levels * vmax
 
 # %% bayer_mosaic_answer
 @student("formation.bayer_mosaic")
