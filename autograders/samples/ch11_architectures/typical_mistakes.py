@@ -3,7 +3,7 @@
 # `cvkit demo` builds the sample student `sample_mistakes` from the solutions of the source
 # notebook, then replaces each answer cell named below (`# %% <grade_id>`) by the code that
 # follows: wrong answers students really write. Every other exercise keeps the correct
-# solution. Five typical mistakes, and the layer list of the architectures left unattempted.
+# solution. Four typical mistakes, and the layer list of the architectures left unattempted.
 # This file is data for the demo and its tests, not a module to import.
 
 # %% count_parameters_answer
@@ -67,16 +67,6 @@ def count_flops(spec, input_shape):
         return shape, total
 
     return walk(spec, tuple(input_shape))[1]
-
-# %% dropout_forward_answer
-@student("nn.dropout_forward")
-def dropout_forward(x, p_keep, training, rng=None):
-    """Old-style scaling: the kept units multiplied by p_keep instead of divided by it."""
-    x = np.asarray(x, dtype=float)
-    if not training:
-        return x.copy(), {"x": x, "p_keep": p_keep, "training": training, "mask": np.ones(x.shape, dtype=bool)}
-    mask = np.random.default_rng(rng).random(x.shape) < p_keep
-    return x * mask * p_keep, {"x": x, "p_keep": p_keep, "training": training, "mask": mask}
 
 # %% global_avg_pool_backward_answer
 @student("nn.global_avg_pool_backward")
