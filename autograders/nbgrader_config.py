@@ -67,6 +67,8 @@ c.Autograde.autograde_preprocessors = [
 # Feedback pages (cvkit.grading.safety): nothing the student controls can run in them (outputs,
 # Markdown, attachments, metadata are cleaned; only the trusted grader's reports keep their
 # layout), and MathJax comes from a mathjax/ folder next to each page, never from the network.
+# The mark schemes of open tasks stay with the instructor: nbgrader restores locked task cells
+# from the source version when autograding, mark scheme included; SafeFeedbackExporter removes it.
 c.GenerateFeedback.preprocessors = [GetGrades, SanitizeStudentContent, HideHiddenTests, CSSHTMLHeaderPreprocessor]
 c.GenerateFeedback.exporter_class = SafeFeedbackExporter
 c.GenerateFeedback.post_convert_hook = mathjax_post_convert_hook(ROOT / "feedback")

@@ -194,6 +194,7 @@ class ExerciseScore:
     mistakes: list = field(default_factory=list)
     problems: list = field(default_factory=list)
     flags: list = field(default_factory=list)
+    to_mark: bool = False  # a written question or open task not yet marked by hand (formgrader)
 
 
 @dataclass
@@ -794,18 +795,20 @@ class Course:
                 csv.writer(handle).writerows(out)
         with (self.root / "exports" / "exercises.csv").open("w", newline="") as handle:
             writer = csv.writer(handle)
-            writer.writerow(["assignment", "student", "exercise", "score", "max_score", "mistakes", "problems", "flags"])
+            writer.writerow(["assignment", "student", "exercise", "score", "max_score", "mistakes", "problems", "flags",
+                             "status"])
             for assignment in sorted({a for _, a in self.submissions()}):
                 for student, exercises in self.scores(assignment).items():
                     for e in exercises:
                         writer.writerow([csv_safe(x) for x in (
-                            assignment, student, e.name, f"{e.score:g}", f"{e.max_score:g}",
-                            "; ".join(e.mistakes), "; ".join(e.problems), "; ".join(e.flags))])
+                            assignment, student, e.name, "" if e.to_mark else f"{e.score:g}", f"{e.max_score:g}",
+                            "; ".join(e.mistakes), "; ".join(e.problems), "; ".join(e.flags),
+                            "to mark by hand (formgrader)" if e.to_mark else "graded")])
                 for key, reason in sorted(not_graded.items()):
                     student, _, a = key.partition("/")
                     if a == assignment:
-                        writer.writerow([csv_safe(x) for x in (assignment, student, "(submission)", "", "", "", 
-                                                                f"not graded: {reason}", "not graded")])
+                        writer.writerow([csv_safe(x) for x in (assignment, student, "(submission)", "", "", "",
+                                                                f"not graded: {reason}", "not graded", "not graded")])
         return target
 
     def _unsandboxed(self) -> set[str]:
@@ -850,6 +853,7 @@ class Course:
                     for grade in sorted(nb.grades, key=lambda g: g.cell_id if hasattr(g, "cell_id") else g.name):
                         name = re.sub(r"_(visible|hidden|test)$", "", grade.name)
                         entry = exercises.setdefault(name, ExerciseScore(name, 0.0, 0.0))
+                        entry.to_mark = entry.to_mark or bool(grade.needs_manual_grade)
                         entry.score += float(grade.score or 0.0)
                         entry.max_score += float(grade.max_score or 0.0)
                         for item in found.get(grade.name, []):
@@ -1029,6 +1033,9 @@ def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str]
     cell = {}
     for s in students:
         for e in scores[s]:
+            if e.to_mark:
+                cell[(e.name, s)] = f"to mark/{e.max_score:g} ✎"
+                continue
             mark = "✓" if e.score >= e.max_score - 1e-9 else ("·" if e.score > 0 else "✗")
             cell[(e.name, s)] = f"{e.score:.2f}/{e.max_score:g} {mark}"
     width = max(len(x) for x in exercises + ["exercise"]) + 2
@@ -1040,10 +1047,14 @@ def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str]
     lines.append("-" * len(lines[0]))
     totals = []
     for s in students:
-        got = sum(e.score for e in scores[s])
+        got = sum(e.score for e in scores[s] if not e.to_mark)
         top = sum(e.max_score for e in scores[s])
-        totals.append(f"{got:.2f}/{top:g}".rjust(colw))
+        pending = sum(e.max_score for e in scores[s] if e.to_mark)
+        totals.append((f"{got:.2f}/{top:g}" + (f" +{pending:g}✎" if pending else "")).rjust(colw))
     lines.append("total".ljust(width) + "".join(totals))
+    if any(e.to_mark for s in students for e in scores[s]):
+        lines.append("✎ written answers and open tasks to mark by hand in nbgrader's formgrader "
+                     "(`+N✎`: points still to mark); the totals add them once marked")
     notes = []
     for s in students:
         missing = [e.name for e in scores[s] if any(p.startswith("not implemented") for p in e.problems)]

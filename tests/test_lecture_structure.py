@@ -120,9 +120,10 @@ def test_one_title_and_learning_objectives_and_self_assessment(path):
     titles = [text for level, text in headings if level == 1]
     assert len(titles) == 1 and titles[0].startswith(f"Chapter {_chapter_of(path.parent.name)} "), titles
     markdown = [L.source(c) for c in nb["cells"] if c["cell_type"] == "markdown"]
-    opening = "\n".join(markdown[:4])
-    assert "**Learning objectives.**" in opening, "learning objectives near the top"
-    block = opening.split("**Learning objectives.**", 1)[1]
+    opening = [text for text in markdown[:4] if "**Learning objectives.**" in text]
+    assert opening, "learning objectives near the top"
+    block = opening[0].split("**Learning objectives.**", 1)[1]
+    block = re.split(r"\n\s*\n(?![ \t]*[-*] )", block.strip("\n"), maxsplit=1)[0]  # the list right after it
     bullets = [line for line in block.splitlines() if re.match(r"^\s*[-*] \S", line)]
     assert 3 <= len(bullets) <= 5, f"3-5 learning objectives, found {len(bullets)}"
     tail = [i for i, (level, text) in enumerate(headings) if level == 2 and text.startswith("Self-assessment")]
@@ -161,6 +162,7 @@ def test_written_questions_and_an_open_task(path):
         meta = L.nbgrader(cell)
         text = L.source(cell)
         assert cell["cell_type"] == "markdown" and meta.get("points", 0) > 0 and meta.get("locked")
+        assert meta["grade_id"].startswith("task_"), meta["grade_id"]
         assert "**Open task" in text and "BEGIN MARK SCHEME" in text and "END MARK SCHEME" in text, meta["grade_id"]
     released = L.release(path)
     for cell in released.cells:

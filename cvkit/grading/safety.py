@@ -698,6 +698,16 @@ def mathjax_post_convert_hook(feedback_root):
 
 
 # ----------------------------------------------------------------------------- exporter
+def _without_mark_schemes(nb):
+    """The notebook without the mark schemes of its open tasks: nbgrader's autograde restores
+    locked task cells from the instructor's version, mark scheme included, and the feedback
+    page must not show it. Done before sanitizing, which drops the HTML comments that often
+    delimit the mark scheme (``<!-- BEGIN MARK SCHEME -->``)."""
+    from nbgrader.preprocessors import ClearMarkScheme
+
+    return ClearMarkScheme(enforce_metadata=False).preprocess(nb, {})[0]
+
+
 def _exporter_class():
     from jinja2 import DictLoader
     from nbconvert.exporters import HTMLExporter
@@ -736,7 +746,7 @@ def _exporter_class():
             # clean once before the configured preprocessors (a notebook that a student made
             # invalid would fail nbconvert's validation between preprocessors), and again after
             # them if the configuration does not include SanitizeStudentContent
-            nb = sanitize_notebook(copy.deepcopy(nb))
+            nb = sanitize_notebook(_without_mark_schemes(copy.deepcopy(nb)))
             nb, resources = super()._preprocess(nb, resources)
             if not resources.get("cvkit_sanitized"):
                 sanitize_notebook(nb, resources)
