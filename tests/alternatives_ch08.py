@@ -197,6 +197,231 @@ def find_chessboard_corners(image, cols, rows):
     return corners
 
 
+# the four steps of the detector, each written another way -----------------------------------
+def _gaussian_reflect(image, sigma):
+    """Separable Gaussian of radius ceil(3σ), border mirrored without repeating the edge pixel
+    (numpy's "reflect", the course's reflect101), by a sliding window and a dot product."""
+    radius = int(math.ceil(3 * sigma - 1e-9))
+    taps = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma) ** 2)
+    taps = taps / taps.sum()
+    out = np.asarray(image, dtype=np.float64)
+    for axis in (0, 1):
+        pad = [(0, 0), (0, 0)]
+        pad[axis] = (radius, radius)
+        windows = np.lib.stride_tricks.sliding_window_view(np.pad(out, pad, mode="reflect"), 2 * radius + 1, axis=axis)
+        out = windows @ taps
+    return out
+
+
+def _grey_unit(image):
+    img = np.asarray(image, dtype=np.float64)
+    if img.ndim == 3:
+        img = 0.299 * img[..., 0] + 0.587 * img[..., 1] + 0.114 * img[..., 2]
+    span = img.max() - img.min()
+    return np.zeros_like(img) if span <= 1e-12 * max(1.0, abs(img.max())) else (img - img.min()) / span
+
+
+def chessboard_response(image, sigma=1.5):
+    """np.roll differences on the whole image, the outer ring zeroed afterwards."""
+    S = _gaussian_reflect(_grey_unit(image), sigma)
+    sxx = np.roll(S, -1, 1) - 2 * S + np.roll(S, 1, 1)
+    syy = np.roll(S, -1, 0) - 2 * S + np.roll(S, 1, 0)
+    sxy = (np.roll(np.roll(S, -1, 0), -1, 1) - np.roll(np.roll(S, -1, 0), 1, 1)
+           - np.roll(np.roll(S, 1, 0), -1, 1) + np.roll(np.roll(S, 1, 0), 1, 1)) / 4
+    out = sxy ** 2 - sxx * syy
+    out[[0, -1], :] = 0.0
+    out[:, [0, -1]] = 0.0
+    return out
+
+
+def corner_candidates(image, count, sigma=1.5):
+    """Maxima by a sliding-window max, the ring test point by point, edge directions as the two
+    roots of the quadratic form a·dx² + 2b·dx·dy + c·dy² = 0."""
+    S = _gaussian_reflect(_grey_unit(image), sigma)
+    R = chessboard_response(image, sigma)
+    R[:5], R[-5:], R[:, :5], R[:, -5:] = 0, 0, 0, 0
+    H, W = R.shape
+    if R.max() <= 0:
+        return np.zeros((0, 2)), np.zeros((0, 2, 2))
+    window = np.lib.stride_tricks.sliding_window_view(np.pad(R, 2, constant_values=-np.inf), (5, 5)).max(axis=(2, 3))
+    ys, xs = np.nonzero((R >= window) & (R > 0) & (R > 1e-3 * R.max()))
+    strength = R[ys, xs]
+    order = sorted(range(len(xs)), key=lambda i: -strength[i])       # Python's sort is stable
+    typical = np.median([strength[i] for i in order[:count]])
+    order = [i for i in order if strength[i] > 0.05 * typical][:4 * count + 50]
+    points, directions = [], []
+    for i in order:
+        x, y = int(xs[i]), int(ys[i])
+        ring = []
+        for k in range(32):
+            px, py = x + 3 * math.cos(2 * math.pi * k / 32), y + 3 * math.sin(2 * math.pi * k / 32)
+            if not (0 <= px <= W - 1 and 0 <= py <= H - 1):
+                break
+            x0, y0 = min(int(px), W - 2), min(int(py), H - 2)
+            a, b = px - x0, py - y0
+            ring.append((1 - a) * (1 - b) * S[y0, x0] + a * (1 - b) * S[y0, x0 + 1]
+                        + (1 - a) * b * S[y0 + 1, x0] + a * b * S[y0 + 1, x0 + 1])
+        if len(ring) < 32:
+            continue
+        ring = np.array(ring)
+        dev = ring - ring.mean()
+        signs = [np.sign(v) for v in dev if abs(v) >= 0.2 * np.abs(dev).max()]
+        changes = sum(signs[j] != signs[j - 1] for j in range(len(signs)))
+        if changes != 4 or ring.max() - ring.min() < 0.15:
+            continue
+        a = S[y, x + 1] - 2 * S[y, x] + S[y, x - 1]
+        c = S[y + 1, x] - 2 * S[y, x] + S[y - 1, x]
+        b = (S[y + 1, x + 1] - S[y + 1, x - 1] - S[y - 1, x + 1] + S[y - 1, x - 1]) / 4
+        if abs(a) >= abs(c):                     # slopes m = dy/dx: c·m² + 2b·m + a = 0 ... or its mirror
+            roots = np.roots([a, 2 * b, c])      # dx/dy = t: a·t² + 2b·t + c = 0
+            pair = [np.array([t, 1.0]) for t in np.real(roots)]
+        else:
+            roots = np.roots([c, 2 * b, a])
+            pair = [np.array([1.0, m]) for m in np.real(roots)]
+        points.append([x, y])
+        directions.append([v / np.linalg.norm(v) for v in pair])
+    if not points:
+        return np.zeros((0, 2)), np.zeros((0, 2, 2))
+    return np.array(points, dtype=np.float64), np.array(directions, dtype=np.float64)
+
+
+def order_grid_corners(points, directions, cols, rows):
+    """Breadth-first growth that predicts each new node from the mean of the lattice steps it can
+    see (rather than from one line or one parallelogram); the order by enumerating the eight
+    symmetries of the grid."""
+    pts = np.asarray(points, dtype=np.float64)
+    dirs = np.asarray(directions, dtype=np.float64)
+    n = cols * rows
+    if len(pts) < n:
+        return None
+    for seed in range(min(8, len(pts))):
+        grid = {(0, 0): seed}
+        used = {seed}
+        offsets = pts - pts[seed]
+        dist = np.hypot(offsets[:, 0], offsets[:, 1])
+        ok_axes = [False, False]
+        for axis in (0, 1):
+            u = dirs[seed, axis] / np.linalg.norm(dirs[seed, axis])
+            for sign in (1, -1):
+                best, best_d = None, np.inf
+                for j in range(len(pts)):
+                    if j != seed and dist[j] < best_d and offsets[j] @ (sign * u) > math.cos(math.radians(20)) * dist[j]:
+                        best, best_d = j, dist[j]
+                key = (sign, 0) if axis == 0 else (0, sign)
+                if best is not None:
+                    ok_axes[axis] = True
+                    if best not in used:
+                        grid[key] = best
+                        used.add(best)
+        if not all(ok_axes):
+            continue
+        changed = True
+        while changed:
+            changed = False
+            for (i, j) in list(grid):
+                for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+                    target = (i + di, j + dj)
+                    if target in grid:
+                        continue
+                    here = pts[grid[(i, j)]]
+                    if (i - di, j - dj) in grid:
+                        back = pts[grid[(i - di, j - dj)]]
+                        guess, step = 2 * here - back, np.linalg.norm(here - back)
+                    else:
+                        guess = None
+                        for ei, ej in ((dj, di), (-dj, -di)):
+                            if (i + ei, j + ej) in grid and (i + di + ei, j + dj + ej) in grid:
+                                diag, side = pts[grid[(i + di + ei, j + dj + ej)]], pts[grid[(i + ei, j + ej)]]
+                                guess, step = here + diag - side, np.linalg.norm(diag - side)
+                                break
+                        if guess is None:
+                            continue
+                    gaps = [(np.linalg.norm(pts[k] - guess), k) for k in range(len(pts)) if k not in used]
+                    if gaps:
+                        gap, k = min(gaps)
+                        if gap <= 0.35 * step:
+                            grid[target] = k
+                            used.add(k)
+                            changed = True
+        while True:
+            lonely = [key for key in grid
+                      if sum((key[0] + a, key[1] + b) in grid for a, b in ((1, 0), (-1, 0), (0, 1), (0, -1))) <= 1]
+            if not lonely or len(lonely) == len(grid):
+                break
+            for key in lonely:
+                del grid[key]
+        if len(grid) != n:
+            continue
+        keys = np.array(list(grid))
+        lo = keys.min(axis=0)
+        shape = keys.max(axis=0) - lo + 1
+        if shape[0] * shape[1] != n:
+            continue
+        G = np.zeros((shape[0], shape[1], 2))
+        for (i, j), k in grid.items():
+            G[i - lo[0], j - lo[1]] = pts[k]
+        best = None
+        for B in (G, G.transpose(1, 0, 2)):              # B[r, c]
+            for P in (B, B[::-1], B[:, ::-1], B[::-1, ::-1]):
+                if P.shape[:2] != (rows, cols):
+                    continue
+                x_dir, y_dir = P[0, -1] - P[0, 0], P[-1, 0] - P[0, 0]
+                if x_dir[0] * y_dir[1] - x_dir[1] * y_dir[0] <= 0:
+                    continue
+                if best is None or np.linalg.norm(P[0, 0]) < np.linalg.norm(best[0, 0]):
+                    best = P
+        if best is not None:
+            return best.reshape(-1, 2).copy()
+    return None
+
+
+def refine_corners(image, corners, sigma):
+    """Newton's method corner by corner, with the derivatives of S interpolated from a 2×2 cell
+    each step (the image smoothed whole)."""
+    S = _gaussian_reflect(_grey_unit(image), sigma)
+    H, W = S.shape
+
+    def at(x, y, field):
+        if not (0 <= x <= W - 1 and 0 <= y <= H - 1):
+            return None
+        x0, y0 = min(int(x), W - 2), min(int(y), H - 2)
+        a, b = x - x0, y - y0
+        return ((1 - a) * (1 - b) * field(x0, y0) + a * (1 - b) * field(x0 + 1, y0)
+                + (1 - a) * b * field(x0, y0 + 1) + a * b * field(x0 + 1, y0 + 1))
+
+    def derivs(x, y):
+        if 0 < x < W - 1 and 0 < y < H - 1:
+            return np.array([(S[y, x + 1] - S[y, x - 1]) / 2, (S[y + 1, x] - S[y - 1, x]) / 2,
+                             S[y, x + 1] - 2 * S[y, x] + S[y, x - 1],
+                             (S[y + 1, x + 1] - S[y + 1, x - 1] - S[y - 1, x + 1] + S[y - 1, x - 1]) / 4,
+                             S[y + 1, x] - 2 * S[y, x] + S[y - 1, x]])
+        d = np.zeros(5)                               # the outer ring: the differences that exist
+        if 0 < x < W - 1:
+            d[0] = (S[y, x + 1] - S[y, x - 1]) / 2
+            d[2] = S[y, x + 1] - 2 * S[y, x] + S[y, x - 1]
+        if 0 < y < H - 1:
+            d[1] = (S[y + 1, x] - S[y - 1, x]) / 2
+            d[4] = S[y + 1, x] - 2 * S[y, x] + S[y - 1, x]
+        return d
+
+    out = []
+    for x, y in np.asarray(corners, dtype=np.float64):
+        qx, qy, ok = x, y, True
+        for _ in range(10):
+            d = at(qx, qy, derivs)
+            if d is None or d[2] * d[4] - d[3] ** 2 >= 0:
+                ok = False
+                continue
+            step = np.linalg.solve([[d[2], d[3]], [d[3], d[4]]], d[:2])
+            length = math.hypot(*step)
+            if length > 0.5:
+                step = step * 0.5 / length
+            qx, qy = qx - step[0], qy - step[1]
+        ok = ok and math.hypot(qx - x, qy - y) <= 1.5
+        out.append([qx, qy] if ok else [x, y])
+    return np.array(out, dtype=np.float64).reshape(-1, 2)
+
+
 # --------------------------------------------------------------------------------------------
 # homographies
 # --------------------------------------------------------------------------------------------
@@ -495,6 +720,10 @@ def birds_eye_homography(image_points, ground_points, pixels_per_unit):
 ALTERNATIVES = {
     "calibration.chessboard_points": chessboard_points,
     "calibration.find_chessboard_corners": find_chessboard_corners,
+    "calibration.chessboard_response": chessboard_response,
+    "calibration.corner_candidates": corner_candidates,
+    "calibration.order_grid_corners": order_grid_corners,
+    "calibration.refine_corners": refine_corners,
     "calibration.homography_dlt": homography_dlt,
     "calibration.levenberg_marquardt": levenberg_marquardt,
     "calibration.refine_homography": refine_homography,

@@ -8,6 +8,8 @@ known. Zhang's method (§8.2.1), step by step:
 step                                 function                                      §
 =================================== ============================================= =========
 pattern points and image corners     ``chessboard_points``, ``find_chessboard_corners`` 8.3
+... saddle response, candidates      ``chessboard_response``, ``corner_candidates``   8.3
+... grid order, sub-pixel position   ``order_grid_corners``, ``refine_corners``       8.3
 homography of each view (linear)     ``homography_dlt``                            8.3.2
 ... refined on the reprojection      ``refine_homography`` (``levenberg_marquardt``) 8.3.4
 intrinsics from B = A⁻ᵀA⁻¹           ``intrinsics_from_homographies``              8.3.5
@@ -27,7 +29,14 @@ to camera coordinates (Chapter 7); distortion follows OpenCV's model.
 >>> round(float(result.A[0, 0]), 6), round(float(result.A[1, 1]), 6)
 (800.0, 820.0)
 """
-from ._pattern import chessboard_points, find_chessboard_corners
+from ._pattern import (
+    chessboard_points,
+    chessboard_response,
+    corner_candidates,
+    find_chessboard_corners,
+    order_grid_corners,
+    refine_corners,
+)
 from ._homography import homography_dlt, refine_homography
 from ._optimize import levenberg_marquardt
 from ._zhang import (
@@ -40,6 +49,10 @@ from ._zhang import (
 
 __all__ = [
     "chessboard_points",
+    "chessboard_response",
+    "corner_candidates",
+    "order_grid_corners",
+    "refine_corners",
     "find_chessboard_corners",
     "homography_dlt",
     "levenberg_marquardt",

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._validation import as_image, check_int, check_real
+from .._validation import as_float_array, as_image, check_int, check_real
 from ..registry import algorithm, implementation
 
-__all__ = ["chessboard_points", "find_chessboard_corners"]
+__all__ = ["chessboard_points", "chessboard_response", "corner_candidates", "order_grid_corners",
+           "refine_corners", "find_chessboard_corners"]
 
 _LUMA = np.array([0.299, 0.587, 0.114])
 
@@ -249,6 +250,303 @@ def _ordered(grid: dict, points: np.ndarray, cols: int, rows: int) -> np.ndarray
     return best.reshape(-1, 2)
 
 
+
+
+def _grey01(img: np.ndarray) -> np.ndarray:
+    """Grey (luma) image rescaled to [0, 1]; zeros for a constant image."""
+    grey = img @ _LUMA if img.ndim == 3 else img
+    low, high = float(grey.min()), float(grey.max())
+    if high - low <= 1e-12 * max(1.0, abs(high)):
+        return np.zeros(grey.shape)
+    return (grey - low) / (high - low)
+
+
+def _hessian_map(S: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Second differences of S (I_xx, I_xy, I_yy), 0 where a neighbour is missing."""
+    gxx = np.zeros_like(S)
+    gyy = np.zeros_like(S)
+    gxy = np.zeros_like(S)
+    gxx[:, 1:-1] = S[:, 2:] + S[:, :-2] - 2.0 * S[:, 1:-1]
+    gyy[1:-1, :] = S[2:, :] + S[:-2, :] - 2.0 * S[1:-1, :]
+    gxy[1:-1, 1:-1] = 0.25 * (S[2:, 2:] - S[2:, :-2] - S[:-2, 2:] + S[:-2, :-2])
+    return gxx, gxy, gyy
+
+
+@algorithm("calibration.chessboard_response", section="8.3",
+           check="cvkit.calibration.checks:chessboard_response")
+def chessboard_response(image, sigma=1.5):
+    """Saddle response of an image: large and positive at the X-junctions of a chessboard.
+
+    Parameters
+    ----------
+    image : (H, W) or (H, W, 3) array_like
+        Grey or RGB image, any real dtype and intensity range.
+    sigma : float, optional
+        Standard deviation (pixels, > 0) of the Gaussian smoothing.
+
+    Returns
+    -------
+    (H, W) float64 ndarray
+        :math:`s = I_{xy}^2 - I_{xx} I_{yy}` (minus the determinant of the Hessian) of
+        ``S = filters.gaussian(grey, sigma)``, where grey = 0.299 R + 0.587 G + 0.114 B rescaled
+        to [0, 1] (all zeros for a constant image). The second derivatives are the central
+        differences ``I_xx = S[y, x+1] − 2 S[y, x] + S[y, x−1]``, ``I_yy`` likewise along the
+        rows, ``I_xy = (S[y+1, x+1] − S[y+1, x−1] − S[y−1, x+1] + S[y−1, x−1]) / 4``; the response
+        is 0 on the outermost rows and columns, where a neighbour is missing.
+
+    Raises
+    ------
+    ValueError, TypeError
+        A malformed image or a non-positive sigma.
+
+    Notes
+    -----
+    §8.3: around an X-junction the smoothed intensity curves up along one direction and down
+    along the other (a saddle: Hessian eigenvalues of opposite signs), so ``s`` is positive
+    there; at an L-shaped corner of the board's outline it is about 4 times smaller, on an
+    edge or a flat area about 0.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> board = np.kron([[0, 1], [1, 0]], np.ones((8, 8)))     # one X-junction at (7.5, 7.5)
+    >>> s = chessboard_response(board, 1.5)
+    >>> tuple(int(v) for v in np.unravel_index(np.argmax(s), s.shape))
+    (7, 7)
+    """
+    img = as_image(image)
+    sigma = check_real(sigma, "sigma", positive=True)
+    grey = _grey01(img)
+    S = implementation("filters.gaussian")(grey, sigma)
+    gxx, gxy, gyy = _hessian_map(S)
+    return gxy * gxy - gxx * gyy
+
+
+@algorithm("calibration.corner_candidates", section="8.3",
+           check="cvkit.calibration.checks:corner_candidates")
+def corner_candidates(image, count, sigma=1.5):
+    """Candidate X-junctions of an image (integer pixels), with their two edge directions.
+
+    Parameters
+    ----------
+    image : (H, W) or (H, W, 3) array_like
+        Grey or RGB image, any real dtype and intensity range.
+    count : int
+        The number of corners expected (cols·rows of the board, ≥ 1): it sets the typical
+        response of a corner, to which the weak maxima are compared.
+    sigma : float, optional
+        The smoothing of :func:`chessboard_response`.
+
+    Returns
+    -------
+    points : (K, 2) float64 ndarray
+        Pixel positions ``(x, y)`` (integer values) of the candidates, strongest response first.
+    directions : (K, 2, 2) float64 ndarray
+        ``directions[i]`` holds the two unit vectors ``(dx, dy)`` of the edges crossing at
+        candidate i: the directions along which the Hessian's quadratic form vanishes.
+
+    Raises
+    ------
+    ValueError, TypeError
+        A malformed image, count or sigma.
+
+    Notes
+    -----
+    1. The local maxima of ``chessboard_response(image, sigma)`` in 5 × 5 windows (ties
+       kept), with the 5 outermost rows and columns of the response set to 0 first, and above
+       1e-3 of the maximal response.
+    2. The typical corner response is the median of the ``count`` strongest maxima; maxima
+       weaker than 5 % of it are dropped, and at most ``4·count + 50`` strongest are kept.
+    3. The ring test: the smoothed grey image S is read (bilinearly) at 32 points of a circle
+       of radius 3 px around each candidate; samples deviating from the ring's mean by at least
+       20 % of the largest deviation vote with their sign. An X-junction gives exactly 4 sign
+       changes around the ring (an L-corner or an edge 2) and a ring contrast (max − min) of at
+       least 0.15; a ring reaching outside the image fails.
+    4. With the Hessian [[a, b], [b, c]] of S at the candidate (eigenvalues λ0 < 0 < λ1,
+       eigenvectors e0, e1), the edge directions are e1 ± √(λ1/−λ0)·e0, normalised.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import numpy as np
+    >>> from cvkit.data import render_chessboard
+    >>> A = np.array([[200.0, 0, 64], [0, 200, 48], [0, 0, 1]])
+    >>> img = render_chessboard(A, np.eye(3), [-15.0, -10.0, 200.0], cols=4, rows=3, square_size=10.0,
+    ...                         image_size=(96, 128))
+    >>> points, directions = corner_candidates(img, 12)
+    >>> len(points), points[0]                       # the 12 inner corners, on whole pixels here
+    (12, array([59., 38.]))
+    >>> np.abs(directions[0])                        # the board is seen face on: edges along y and x
+    array([[0., 1.],
+           [1., 0.]])
+    """
+    img = as_image(image)
+    count = check_int(count, "count", minimum=1)
+    sigma = check_real(sigma, "sigma", positive=True)
+    response = np.array(implementation("calibration.chessboard_response")(img, sigma), dtype=np.float64)
+    S = implementation("filters.gaussian")(_grey01(img), sigma)
+    empty = np.zeros((0, 2)), np.zeros((0, 2, 2))
+    border = 5
+    response[:border] = response[-border:] = 0.0
+    response[:, :border] = response[:, -border:] = 0.0
+    if response.max() <= 0:
+        return empty
+    ys, xs = np.nonzero(_local_maxima(response, 2) & (response > 1e-3 * response.max()))
+    strength = response[ys, xs]
+    order = np.argsort(-strength, kind="stable")
+    typical = float(np.median(strength[order[:count]]))
+    keep = order[strength[order] > 0.05 * typical][: 4 * count + 50]
+    xs, ys = xs[keep], ys[keep]
+    changes, contrast = _ring_sign_changes(S, np.column_stack([xs, ys]).astype(np.float64), 3.0)
+    junction = (changes == 4) & (contrast >= 0.15)
+    xs, ys = xs[junction], ys[junction]
+    if xs.size == 0:
+        return empty
+    a = S[ys, xs + 1] + S[ys, xs - 1] - 2.0 * S[ys, xs]
+    c = S[ys + 1, xs] + S[ys - 1, xs] - 2.0 * S[ys, xs]
+    b = 0.25 * (S[ys + 1, xs + 1] - S[ys + 1, xs - 1] - S[ys - 1, xs + 1] + S[ys - 1, xs - 1])
+    return np.column_stack([xs, ys]).astype(np.float64), _edge_directions(a, b, c)
+
+
+@algorithm("calibration.order_grid_corners", section="8.3",
+           check="cvkit.calibration.checks:order_grid_corners")
+def order_grid_corners(points, directions, cols, rows):
+    """Pick a complete ``cols × rows`` grid out of candidate corners and put it in board order.
+
+    Parameters
+    ----------
+    points : (K, 2) array_like
+        Candidate corners ``(x, y)``, the most reliable first (the first 8 serve as seeds).
+    directions : (K, 2, 2) array_like
+        The two edge directions (unit or not, any sign) at each candidate.
+    cols, rows : int
+        Inner corners along a row and along a column of the board (≥ 2).
+
+    Returns
+    -------
+    (cols·rows, 2) float64 ndarray or None
+        The grid's points in the order of :func:`chessboard_points` (see
+        :func:`find_chessboard_corners` for the axes and the origin), or None when no seed
+        grows into exactly ``cols × rows`` corners.
+
+    Raises
+    ------
+    ValueError, TypeError
+        Malformed points, directions or counts.
+
+    Notes
+    -----
+    From a seed, the first neighbour along each of the ± edge directions is the nearest
+    candidate within 20° of it. The grid then grows node by node: the next corner is predicted
+    by continuing a line (2·here − back) or by completing a parallelogram
+    (here + diagonal − side), and the nearest unused candidate is taken if it is within 35 % of
+    the step from the prediction. Nodes with a single neighbour (stray points stuck to the
+    board) are then dropped, repeatedly. A grid of exactly ``cols × rows`` nodes (either way
+    round) is put in order: x along the side with ``cols`` corners, right-handed in the image
+    (``cross(x_dir, y_dir) > 0``), origin the admissible corner nearest the pixel (0, 0).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x, y = np.meshgrid([10.0, 20.0, 30.0], [50.0, 40.0])           # a 3 × 2 grid, y up
+    >>> points = np.column_stack([x.ravel(), y.ravel()])
+    >>> directions = np.tile([[1.0, 0.0], [0.0, 1.0]], (6, 1, 1))
+    >>> order_grid_corners(points, directions, 3, 2)
+    array([[10., 40.],
+           [20., 40.],
+           [30., 40.],
+           [10., 50.],
+           [20., 50.],
+           [30., 50.]])
+    """
+    cols = check_int(cols, "cols", minimum=2)
+    rows = check_int(rows, "rows", minimum=2)
+    pts = as_float_array(points, "points", ndim=2, allow_empty=True).reshape(-1, 2)
+    dirs = as_float_array(directions, "directions", ndim=3, allow_empty=True)
+    if pts.shape[0] != np.asarray(points).shape[0] or dirs.shape != (len(pts), 2, 2):
+        raise ValueError(f"points must be (K, 2) and directions (K, 2, 2), got {np.shape(points)} and {dirs.shape}")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dirs = dirs / np.linalg.norm(dirs, axis=2, keepdims=True)
+    if len(pts) < cols * rows:
+        return None
+    for seed in range(min(8, len(pts))):
+        grid = _grow_grid(seed, pts, dirs)
+        if grid is not None and len(grid) == cols * rows:
+            corners = _ordered(grid, pts, cols, rows)
+            if corners is not None:
+                return corners
+    return None
+
+
+@algorithm("calibration.refine_corners", section="8.3",
+           check="cvkit.calibration.checks:refine_corners")
+def refine_corners(image, corners, sigma):
+    """Move each corner to the saddle point of the smoothed image next to it (sub-pixel).
+
+    Parameters
+    ----------
+    image : (H, W) or (H, W, 3) array_like
+        Grey or RGB image, any real dtype and intensity range.
+    corners : (N, 2) array_like
+        Approximate corners ``(x, y)`` (e.g. integer pixels).
+    sigma : float
+        Standard deviation (pixels, > 0) of the Gaussian smoothing.
+
+    Returns
+    -------
+    (N, 2) float64 ndarray
+        The refined corners; a corner whose iteration leaves the saddle, or ends more than
+        1.5 px from its start, is returned unchanged.
+
+    Raises
+    ------
+    ValueError, TypeError
+        A malformed image or corners, a non-positive sigma.
+
+    Notes
+    -----
+    S = ``filters.gaussian(grey, sigma)`` of the grey image rescaled to [0, 1] (as in
+    :func:`chessboard_response`); its gradient (central differences ``(S[y, x+1] − S[y, x−1]) / 2``,
+    ...) and Hessian (those of :func:`chessboard_response`) are interpolated bilinearly at the
+    current point q. 10 Newton steps ``q ← q − H⁻¹ ∇S`` follow, each shortened to at most 0.5 px;
+    a point where det H ≥ 0 (not a saddle) or outside the image does not move and counts as
+    having left the saddle. Around an X-junction of two straight edges the smoothed image is
+    point-symmetric about the crossing, so its gradient vanishes exactly there: the saddle
+    point is an unbiased estimate of the corner. (For speed the image is smoothed only on the
+    bounding box of the corners plus a margin of ``ceil(4σ) + 6`` px.)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import numpy as np
+    >>> from cvkit.data import render_chessboard
+    >>> A = np.array([[200.0, 0, 64], [0, 200, 48], [0, 0, 1]])
+    >>> img = render_chessboard(A, np.eye(3), [-14.5, -9.7, 200.0], cols=4, rows=3, square_size=10.0,
+    ...                         image_size=(96, 128))  # corners at (49.5 + 10 c, 38.3 + 10 r)
+    >>> np.round(refine_corners(img, [[49.0, 38.0], [60.0, 38.0]], 1.25), 1)
+    array([[49.5, 38.3],
+           [59.5, 38.3]])
+    """
+    img = as_image(image)
+    sigma = check_real(sigma, "sigma", positive=True)
+    start = as_float_array(corners, "corners", ndim=2, allow_empty=True)
+    if start.shape[1:] != (2,):
+        raise ValueError(f"corners must be (N, 2), got shape {start.shape}")
+    if len(start) == 0:
+        return np.zeros((0, 2))
+    grey = _grey01(img)
+    H, W = grey.shape
+    margin = int(np.ceil(4 * sigma)) + 6          # the crop's border does not reach the corners
+    x0, y0 = (min(max(int(np.floor(v)) - margin, 0), n - 1) for v, n in zip(start.min(axis=0), (W, H)))
+    x1, y1 = (max(int(np.ceil(v)) + margin + 1, 1) for v in start.max(axis=0))
+    crop = grey[y0:min(y1, H), x0:min(x1, W)]
+    if crop.size == 0:
+        return start.copy()
+    refined, ok = _saddle_refine(start, _derivatives(implementation("filters.gaussian")(crop, sigma)), 10, 1.5,
+                                 offset=(x0, y0))
+    return np.where(ok[:, None], refined, start)
+
+
 @algorithm("calibration.find_chessboard_corners", section="8.3",
            check="cvkit.calibration.checks:find_chessboard_corners")
 def find_chessboard_corners(image, cols, rows):
@@ -279,7 +577,10 @@ def find_chessboard_corners(image, cols, rows):
     Notes
     -----
     §8.3: chessboard corners are X-junctions — two edges crossing, alternating dark and light
-    around the point — which can be located far more precisely than a pixel.
+    around the point — which can be located far more precisely than a pixel. The detector is
+    the composition of four steps, each a function of its own (called through the registry):
+    :func:`corner_candidates` (which uses :func:`chessboard_response`), :func:`order_grid_corners`
+    and :func:`refine_corners`.
 
     1. **Candidates.** Grey = 0.299 R + 0.587 G + 0.114 B, rescaled to [0, 1]. After Gaussian
        smoothing (σ = 1.5, ``implementation("filters.gaussian")``) an X-junction is a *saddle*
@@ -329,64 +630,16 @@ def find_chessboard_corners(image, cols, rows):
     cols = check_int(cols, "cols", minimum=2)
     rows = check_int(rows, "rows", minimum=2)
     grey = img @ _LUMA if img.ndim == 3 else img
-    low, high = float(grey.min()), float(grey.max())
-    H, W = grey.shape
-    n = cols * rows
-    if high - low <= 1e-12 * max(1.0, abs(high)) or min(H, W) < 8:
+    high = float(grey.max())
+    if high - float(grey.min()) <= 1e-12 * max(1.0, abs(high)) or min(grey.shape) < 8:
         return None
-    grey = (grey - low) / (high - low)
-    gaussian = implementation("filters.gaussian")
-
-    # 1. candidates: local maxima of the saddle response -det(Hessian)
-    S = gaussian(grey, 1.5)
-    gxx = np.zeros_like(S)
-    gyy = np.zeros_like(S)
-    gxy = np.zeros_like(S)
-    gxx[:, 1:-1] = S[:, 2:] + S[:, :-2] - 2.0 * S[:, 1:-1]
-    gyy[1:-1, :] = S[2:, :] + S[:-2, :] - 2.0 * S[1:-1, :]
-    gxy[1:-1, 1:-1] = 0.25 * (S[2:, 2:] - S[2:, :-2] - S[:-2, 2:] + S[:-2, :-2])
-    response = gxy * gxy - gxx * gyy
-    border = 5
-    response[:border] = response[-border:] = 0.0
-    response[:, :border] = response[:, -border:] = 0.0
-    ys, xs = np.nonzero(_local_maxima(response, 2) & (response > 1e-3 * response.max()))
-    if xs.size < n:
-        return None
-    strength = response[ys, xs]
-    order = np.argsort(-strength, kind="stable")
-    typical = float(np.median(strength[order[:n]]))
-    keep = order[strength[order] > 0.05 * typical][: 4 * n + 50]
-    xs, ys = xs[keep], ys[keep]
-
-    # 2. X-junctions only
-    changes, contrast = _ring_sign_changes(S, np.column_stack([xs, ys]).astype(np.float64), 3.0)
-    junction = (changes == 4) & (contrast >= 0.15)
-    xs, ys = xs[junction], ys[junction]
-    if xs.size < n:
-        return None
-    candidates = np.column_stack([xs, ys]).astype(np.float64)
-    directions = _edge_directions(gxx[ys, xs], gxy[ys, xs], gyy[ys, xs])
-    strength = response[ys, xs]
-
-    # 4. grid, from the strongest seeds
-    corners = None
-    for seed in np.argsort(-strength, kind="stable")[:8]:
-        grid = _grow_grid(int(seed), candidates, directions)
-        if grid is not None and len(grid) == n:
-            corners = _ordered(grid, candidates, cols, rows)
-            if corners is not None:
-                break
+    points, directions = implementation("calibration.corner_candidates")(img, cols * rows, 1.5)
+    corners = implementation("calibration.order_grid_corners")(points, directions, cols, rows)
     if corners is None:
         return None
-
-    # 3. sub-pixel saddle points, at a scale that suits the squares
-    grid_view = corners.reshape(rows, cols, 2)
-    spacing = np.median(np.concatenate([np.hypot(*np.diff(grid_view, axis=1).reshape(-1, 2).T),
-                                        np.hypot(*np.diff(grid_view, axis=0).reshape(-1, 2).T)]))
+    grid = np.asarray(corners, dtype=np.float64).reshape(rows, cols, 2)
+    spacing = np.median(np.concatenate([np.hypot(*np.diff(grid, axis=1).reshape(-1, 2).T),
+                                        np.hypot(*np.diff(grid, axis=0).reshape(-1, 2).T)]))
     sigma = float(np.clip(spacing / 8.0, 1.0, 3.0))
-    margin = int(np.ceil(4 * sigma)) + 6          # the crop's border does not reach the corners
-    x0, y0 = (max(int(np.floor(v)) - margin, 0) for v in corners.min(axis=0))
-    x1, y1 = (int(np.ceil(v)) + margin + 1 for v in corners.max(axis=0))
-    crop = grey[y0:min(y1, H), x0:min(x1, W)]
-    refined, ok = _saddle_refine(corners, _derivatives(gaussian(crop, sigma)), 10, 1.5, offset=(x0, y0))
-    return np.where(ok[:, None], refined, corners)
+    return np.asarray(implementation("calibration.refine_corners")(img, grid.reshape(-1, 2), sigma),
+                      dtype=np.float64)

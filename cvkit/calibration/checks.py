@@ -43,6 +43,12 @@ from ._homography import refine_homography as _refine_homography
 from ._optimize import levenberg_marquardt as _levenberg_marquardt
 from ._pattern import chessboard_points as _chessboard_points
 from ._pattern import find_chessboard_corners as _find_chessboard_corners
+from ._pattern import chessboard_response as _chessboard_response
+from ._pattern import corner_candidates as _corner_candidates
+from ._pattern import order_grid_corners as _order_grid_corners
+from ._pattern import _LUMA, _derivatives, _edge_directions, _grey01, _hessian_map, _local_maxima
+from ..filters import gaussian as _gaussian
+from ..warp import bilinear_sample as _bilinear
 from ..grading.runtime.problems import Jacobian, Residuals, least_squares_call
 from ._zhang import _calibrate, _v
 from ._zhang import extrinsics_from_homography as _extrinsics_from_homography
@@ -50,7 +56,9 @@ from ._zhang import intrinsics_from_homographies as _intrinsics_from_homographie
 
 __all__ = [
     "HomographyClose", "CornersClose", "MinimumClose", "CalibrationClose",
-    "chessboard_points", "find_chessboard_corners", "homography_dlt", "levenberg_marquardt",
+    "MapClose", "CandidatesClose", "PointsClose",
+    "chessboard_points", "chessboard_response", "corner_candidates", "order_grid_corners", "refine_corners",
+    "find_chessboard_corners", "homography_dlt", "levenberg_marquardt",
     "refine_homography", "intrinsics_from_homographies", "extrinsics_from_homography",
     "estimate_radial_distortion", "calibrate",
 ]
@@ -576,8 +584,576 @@ find_chessboard_corners = Check(
                 "Return None unless the grid you grow is exactly cols × rows corners: a board with more corners is "
                 "another board"),
     ],
-    allowed=("filters.gaussian", "filters.correlate", "filters.convolve"),
+    allowed=("calibration.chessboard_response", "calibration.corner_candidates", "calibration.order_grid_corners",
+             "calibration.refine_corners", "filters.gaussian", "filters.correlate", "filters.convolve",
+             "warp.bilinear_sample"),
     time_limit=30.0,
+)
+
+
+# --------------------------------------------------------------------------------------------
+# the four steps of the detector (§8.3): response, candidates, grid order, sub-pixel position
+# --------------------------------------------------------------------------------------------
+@dataclass
+class MapClose(Comparator):
+    """A float image within ``rtol·max|expected|`` (+ 1e-12) of the expected one, pixel by pixel."""
+
+    rtol: float = 1e-6
+    elementwise = True
+
+    def describe(self) -> str:
+        return f"every pixel within {self.rtol:g}·max|expected|"
+
+    def __call__(self, got, expected, case=None):
+        exp = np.asarray(expected, dtype=np.float64)
+        if got is None:
+            return Mismatch("your output is None: did you forget to `return` the result?")
+        try:
+            arr = np.asarray(got, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            return Mismatch(f"your output could not be turned into a float array ({exc})")
+        if arr.shape != exp.shape:
+            return Mismatch(f"shape mismatch: expected {exp.shape} (one value per pixel), got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            return Mismatch("your output contains NaN or inf")
+        scale = float(np.abs(exp).max())
+        tolerance = self.rtol * scale + 1e-12
+        error = np.abs(arr - exp)
+        if error.max() <= tolerance:
+            return None
+        worst = np.unravel_index(int(np.argmax(error)), error.shape)
+        bad = int(np.count_nonzero(error > tolerance))
+        return Mismatch(
+            f"{bad} of {error.size} pixels differ by more than {tolerance:.3g} ({self.rtol:g} of the largest "
+            f"expected value, {scale:.4g}); worst at [row, col] = {tuple(int(i) for i in worst)}: yours "
+            f"{arr[worst]:.6g}, expected {exp[worst]:.6g}",
+            max_abs=float(error.max()), worst=tuple(int(i) for i in worst), mismatched=bad, total=error.size)
+
+
+def _line_angles(got_dirs, exp_dirs):
+    """Largest angle (degrees) between the lines of two direction pairs, best pairing."""
+    def unit(d):
+        with np.errstate(all="ignore"):
+            return d / np.linalg.norm(d, axis=-1, keepdims=True)
+    g, e = unit(got_dirs), unit(exp_dirs)
+    cos = np.abs(np.einsum("kid,kjd->kij", e, g)).clip(0.0, 1.0)        # [k, expected i, got j]
+    straight = np.maximum(np.arccos(cos[:, 0, 0]), np.arccos(cos[:, 1, 1]))
+    crossed = np.maximum(np.arccos(cos[:, 0, 1]), np.arccos(cos[:, 1, 0]))
+    return np.degrees(np.where(np.isfinite(straight), np.fmin(straight, crossed), np.inf))
+
+
+@dataclass
+class CandidatesClose(Comparator):
+    """``(points, directions)`` of corner candidates: the same pixels as the reference (within
+    ``radius`` px; ``slack`` points more or fewer tolerated), in the same order (strongest first),
+    and edge directions within ``degrees`` of the reference's (either order, either sign)."""
+
+    radius: float = 0.5
+    slack: int = 1
+    degrees: float = 3.0
+
+    def describe(self) -> str:
+        return (f"the same candidate pixels (at most {self.slack} more or fewer), strongest first, "
+                f"edge directions within {self.degrees:g}°")
+
+    def __call__(self, got, expected, case=None):
+        if isinstance(got, np.ndarray) or not isinstance(got, (tuple, list)) or len(got) != 2:
+            what = f"a tuple of {len(got)}" if isinstance(got, (tuple, list)) else type(got).__name__
+            return Mismatch(f"expected a tuple (points, directions), got {what}")
+        try:
+            pts = np.asarray(got[0], dtype=np.float64).reshape(-1, 2)
+            dirs = np.asarray(got[1], dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            return Mismatch(f"points must be (K, 2) and directions (K, 2, 2) float arrays ({exc})")
+        exp_pts, exp_dirs = (np.asarray(v, dtype=np.float64) for v in expected)
+        exp_pts = exp_pts.reshape(-1, 2)
+        if dirs.shape != (len(pts), 2, 2):
+            return Mismatch(f"directions must be (K, 2, 2) for K = {len(pts)} points, got shape {dirs.shape}")
+        if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(dirs))):
+            return Mismatch("your points or directions contain NaN or inf")
+        if len(exp_pts) == 0 or len(pts) == 0:
+            if len(exp_pts) == len(pts):
+                return None
+            return Mismatch(f"you found {len(pts)} candidates, expected {len(exp_pts)}")
+        d = np.hypot(*(exp_pts[:, None, :] - pts[None, :, :]).transpose(2, 0, 1))
+        nearest = d.argmin(axis=1)
+        matched = d[np.arange(len(exp_pts)), nearest] <= self.radius
+        missing = exp_pts[~matched]
+        used = np.zeros(len(pts), dtype=bool)
+        used[nearest[matched]] = True
+        extra = pts[~used]
+        if len(missing) + len(extra) > self.slack:
+            parts = []
+            if len(missing):
+                parts.append(f"{len(missing)} expected candidate(s) missing, e.g. (x, y) = "
+                             f"({missing[0, 0]:.4g}, {missing[0, 1]:.4g})")
+            if len(extra):
+                parts.append(f"{len(extra)} candidate(s) too many, e.g. (x, y) = ({extra[0, 0]:.4g}, {extra[0, 1]:.4g})")
+            return Mismatch(f"Not the same candidates ({len(pts)} yours, {len(exp_pts)} expected): "
+                            + "; ".join(parts), mismatched=len(missing) + len(extra), total=len(exp_pts))
+        order = nearest[matched]
+        if np.any(np.diff(order) < 0):
+            i = int(np.argmax(np.diff(order) < 0))
+            return Mismatch("The candidates are not in the expected order: sort them by decreasing response "
+                            f"(strongest first); expected candidate {i + 1} is your number {order[i + 1] + 1}, "
+                            f"before your number {order[i] + 1}")
+        angles = _line_angles(dirs[order], exp_dirs[matched])
+        worst = int(np.argmax(angles))
+        if angles[worst] > self.degrees:
+            p = exp_pts[matched][worst]
+            return Mismatch(f"Edge directions off by {angles[worst]:.3g}° (at most {self.degrees:g}°) at the "
+                            f"candidate ({p[0]:.4g}, {p[1]:.4g}): yours {np.round(dirs[order][worst], 3).tolist()}, "
+                            f"expected {np.round(exp_dirs[matched][worst], 3).tolist()}",
+                            max_abs=float(angles[worst]), worst=(worst,),
+                            mismatched=int(np.count_nonzero(angles > self.degrees)), total=len(angles))
+        return None
+
+
+@dataclass
+class PointsClose(Comparator):
+    """(N, 2) points in the expected order within ``mean`` px on average and ``maximum`` px each."""
+
+    mean: float = 0.01
+    maximum: float = 0.05
+
+    def describe(self) -> str:
+        return f"points within {self.mean:g} px on average and {self.maximum:g} px each"
+
+    def __call__(self, got, expected, case=None):
+        exp = np.asarray(expected, dtype=np.float64)
+        if got is None:
+            return Mismatch("your output is None: did you forget to `return` the result?")
+        try:
+            pts = np.asarray(got, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            return Mismatch(f"your output could not be turned into a float array ({exc})")
+        if pts.shape != exp.shape:
+            return Mismatch(f"shape mismatch: expected {exp.shape} (one (x, y) per corner), got {pts.shape}")
+        if not np.all(np.isfinite(pts)):
+            return Mismatch("your points contain NaN or inf")
+        if len(exp) == 0:
+            return None
+        d = np.hypot(*(pts - exp).T)
+        if d.mean() <= self.mean and d.max() <= self.maximum:
+            return None
+        worst = int(np.argmax(d))
+        return Mismatch(
+            f"Points differ: mean distance {d.mean():.4g} px (at most {self.mean:g}), max {d.max():.4g} px "
+            f"(at most {self.maximum:g}) at point {worst}: yours ({pts[worst, 0]:.5g}, {pts[worst, 1]:.5g}), "
+            f"expected ({exp[worst, 0]:.5g}, {exp[worst, 1]:.5g})",
+            max_abs=float(d.max()), worst=(worst,), mismatched=int(np.count_nonzero(d > self.maximum)), total=len(d))
+
+
+# calibration.chessboard_response -------------------------------------------------------------
+def _cr_parts(image, sigma, rescale=True, mean_grey=False, smooth=True):
+    img = np.asarray(image, dtype=np.float64)
+    grey = (img.mean(axis=2) if mean_grey else img @ _LUMA) if img.ndim == 3 else img
+    if rescale:
+        grey = _grey01(grey)
+    return _gaussian(grey, float(sigma)) if smooth else grey
+
+
+def _cr_from(S, gxx=None, gxy=None, gyy=None):
+    hxx, hxy, hyy = _hessian_map(S)
+    gxx, gxy, gyy = (hxx if gxx is None else gxx), (hxy if gxy is None else gxy), (hyy if gyy is None else gyy)
+    return gxy * gxy - gxx * gyy
+
+
+def _cr_det(image, sigma=1.5):
+    return -_chessboard_response(image, sigma)
+
+
+def _cr_not_smoothed(image, sigma=1.5):
+    return _cr_from(_cr_parts(image, sigma, smooth=False))
+
+
+def _cr_not_rescaled(image, sigma=1.5):
+    return _cr_from(_cr_parts(image, sigma, rescale=False))
+
+
+def _cr_mean_grey(image, sigma=1.5):
+    return _cr_from(_cr_parts(image, sigma, mean_grey=True))
+
+
+def _cr_no_quarter(image, sigma=1.5):
+    S = _cr_parts(image, sigma)
+    return _cr_from(S, gxy=4.0 * _hessian_map(S)[1])
+
+
+def _cr_gradient_twice(image, sigma=1.5):
+    S = _cr_parts(image, sigma)
+    Iy, Ix = np.gradient(S)
+    Ixy, Ixx = np.gradient(Ix)
+    Iyy = np.gradient(Iy)[0]
+    R = Ixy * Ixy - Ixx * Iyy
+    R[[0, -1]] = 0.0
+    R[:, [0, -1]] = 0.0
+    return R
+
+
+def _cr_public():
+    rng = np.random.default_rng(80310)
+    return [
+        Case((_board_image(rng, 5, 4, size=(60, 80), spin=0.4),), {}, "grey 60×80, 5 × 4 board, default sigma"),
+        Case((_board_image(rng, 4, 3, size=(48, 64), color=True, dtype="uint8"),), {"sigma": 1.0},
+             "RGB uint8 48×64, sigma = 1"),
+    ]
+
+
+def _cr_hidden(rng):
+    flat = np.full((30, 40), _u(rng, 0.1, 0.9))
+    return [
+        Case((_board_image(rng, 5, 4, size=(60, 80)),), {}, "grey board, default sigma"),
+        Case((_board_image(rng, 4, 3, size=(50, 70)), _u(rng, 1.0, 1.3, 2)), {}, "small sigma (positional)"),
+        Case((_board_image(rng, 4, 4, size=(60, 80)),), {"sigma": _u(rng, 2.0, 2.5, 2)}, "large sigma"),
+        Case((_board_image(rng, 5, 3, size=(50, 70), color=True),), {}, "RGB float image"),
+        Case((_board_image(rng, 4, 3, size=(50, 70), color=True, dtype="uint8"),), {"sigma": 1.5}, "RGB uint8"),
+        Case((_board_image(rng, 4, 3, size=(50, 70), dtype="uint8"),), {}, "grey uint8"),
+        Case((_board_image(rng, 5, 4, size=(60, 80), dtype="scaled"),), {}, "values in [-200, 800]"),
+        Case((rng.normal(0.5, 0.2, (24, 30)),), {"sigma": 1.0}, "noise only"),
+        Case((flat,), {}, "constant image: all zeros"),
+        Case((_board_image(rng, 3, 3, size=(40, 44), k=(-0.3, 0.05)),), {"sigma": 1.2}, "barrel distortion"),
+    ]
+
+
+chessboard_response = Check(
+    public=_cr_public,
+    hidden=_cr_hidden,
+    compare=MapClose(rtol=1e-6),
+    mistakes=[
+        Mistake("det of the Hessian (sign flipped)", _cr_det,
+                "The response is I_xy² − I_xx·I_yy = −det(Hessian): positive at a saddle (an X-junction)"),
+        Mistake("image not smoothed (sigma ignored)", _cr_not_smoothed,
+                "Smooth the grey image with filters.gaussian(grey, sigma) before taking the second differences"),
+        Mistake("intensities not rescaled to [0, 1]", _cr_not_rescaled,
+                "Rescale the grey image to [0, 1] first, (grey − min) / (max − min): then the response does not "
+                "depend on the dtype or the range of the input"),
+        Mistake("grey = mean of R, G, B", _cr_mean_grey,
+                "Grey is the luma 0.299 R + 0.587 G + 0.114 B, not the plain mean of the channels"),
+        Mistake("I_xy without the factor 1/4", _cr_no_quarter,
+                "The mixed difference spans two pixels in x and two in y: I_xy = (S[y+1,x+1] − S[y+1,x−1] − "
+                "S[y−1,x+1] + S[y−1,x−1]) / 4"),
+        Mistake("second derivatives by np.gradient twice (step 2)", _cr_gradient_twice,
+                "np.gradient of np.gradient spans 5 pixels: use the 3-pixel second difference "
+                "S[y, x+1] − 2 S[y, x] + S[y, x−1] (and likewise in y)"),
+    ],
+    allowed=("filters.gaussian", "filters.correlate", "filters.convolve", "filters.gaussian_kernel"),
+)
+
+
+# calibration.corner_candidates ---------------------------------------------------------------
+def _cc_swapped(image, count, sigma=1.5):
+    points, directions = _corner_candidates(image, count, sigma)
+    return points[:, ::-1].copy(), directions[..., ::-1].copy()
+
+
+def _cc_no_ring_test(image, count, sigma=1.5):
+    img = np.asarray(image, dtype=np.float64)
+    response = _chessboard_response(img, sigma)
+    S = _cr_parts(img, sigma)
+    response[:5] = response[-5:] = 0.0
+    response[:, :5] = response[:, -5:] = 0.0
+    if response.max() <= 0:
+        return np.zeros((0, 2)), np.zeros((0, 2, 2))
+    ys, xs = np.nonzero(_local_maxima(response, 2) & (response > 1e-3 * response.max()))
+    strength = response[ys, xs]
+    order = np.argsort(-strength, kind="stable")
+    typical = float(np.median(strength[order[:count]]))
+    keep = order[strength[order] > 0.05 * typical][: 4 * count + 50]
+    xs, ys = xs[keep], ys[keep]
+    gxx, gxy, gyy = _hessian_map(S)
+    return np.column_stack([xs, ys]).astype(np.float64), _edge_directions(gxx[ys, xs], gxy[ys, xs], gyy[ys, xs])
+
+
+def _cc_eigenvectors(image, count, sigma=1.5):
+    points, _ = _corner_candidates(image, count, sigma)
+    S = _cr_parts(image, sigma)
+    gxx, gxy, gyy = _hessian_map(S)
+    xs, ys = points[:, 0].astype(int), points[:, 1].astype(int)
+    H = np.stack([np.stack([gxx[ys, xs], gxy[ys, xs]], -1), np.stack([gxy[ys, xs], gyy[ys, xs]], -1)], -2)
+    return points, np.linalg.eigh(H)[1].transpose(0, 2, 1).copy()
+
+
+def _cc_unsorted(image, count, sigma=1.5):
+    points, directions = _corner_candidates(image, count, sigma)
+    order = np.lexsort((points[:, 0], points[:, 1]))          # row by row, as np.nonzero gives them
+    return points[order], directions[order]
+
+
+def _cc_public():
+    rng = np.random.default_rng(80311)
+    return [
+        Case((_board_image(rng, 5, 4, size=(80, 108), spin=0.4), 20), {}, "grey 80×108, 5 × 4 board, tilted"),
+        Case((_board_image(rng, 4, 3, size=(72, 96), color=True, dtype="uint8"), 12), {"sigma": 1.2},
+             "RGB uint8, 4 × 3 board, sigma = 1.2"),
+    ]
+
+
+def _cc_hidden(rng):
+    return [
+        Case((_board_image(rng, 5, 4, spin=0.5), 20), {}, "grey 5 × 4 board"),
+        Case((_board_image(rng, 6, 4, size=(110, 150), tilt=0.6), 24), {}, "6 × 4 board, strong tilt"),
+        Case((_board_image(rng, 4, 3, flip=True), 12), {}, "4 × 3 board upside down"),
+        Case((_board_image(rng, 5, 4, color=True), 20), {}, "RGB float image"),
+        Case((_board_image(rng, 4, 3, dtype="uint8", spin=0.6), 12), {}, "uint8 image, rotated board"),
+        Case((_board_image(rng, 4, 4, spin=0.3), 16), {"sigma": 1.2}, "square 4 × 4 board, sigma = 1.2"),
+        Case((_board_image(rng, 5, 4, dtype="scaled", noise=0.015), 20), {}, "values in [-200, 800], more noise"),
+        Case((_board_image(rng, 5, 4, k=(-0.3, 0.05)), 20), {}, "strong barrel distortion"),
+        Case((_board_image(rng, 4, 3), int(rng.integers(6, 10))), {}, "count smaller than the board"),
+        Case((np.full((40, 50), 0.5) + rng.normal(0, 0.01, (40, 50)), 12), {}, "no board at all (noise)"),
+    ]
+
+
+corner_candidates = Check(
+    public=_cc_public,
+    hidden=_cc_hidden,
+    compare=CandidatesClose(radius=0.5, slack=1, degrees=3.0),
+    mistakes=[
+        Mistake("(row, col) returned instead of (x, y)", _cc_swapped,
+                "Points and directions are (x, y) = (col, row): np.nonzero gives (rows, cols), swap them"),
+        Mistake("no ring test (L-corners and edges kept)", _cc_no_ring_test,
+                "Keep only X-junctions: the ring of radius 3 px around a corner must change sign 4 times "
+                "around its mean, with a contrast of at least 0.15"),
+        Mistake("Hessian eigenvectors instead of the edge directions", _cc_eigenvectors,
+                "The eigenvectors bisect the edges; the edges are where the quadratic form vanishes: "
+                "e1 ± √(λ1/−λ0)·e0, normalised"),
+        Mistake("candidates not sorted by strength", _cc_unsorted,
+                "Return the candidates strongest response first (np.argsort(-strength, kind='stable')): the "
+                "grid step takes its seeds from the front"),
+    ],
+    allowed=("calibration.chessboard_response", "filters.gaussian", "filters.correlate", "filters.convolve",
+             "warp.bilinear_sample"),
+)
+
+
+# calibration.order_grid_corners --------------------------------------------------------------
+def _grid_points(rng, board, noise=0.03, spin=0.5):
+    """Image points (rows, cols, 2) of a board seen by a random camera, and their edge directions."""
+    bc, br = board
+    A = _camera(rng, size=(120, 160))
+    for _ in range(100):
+        R = _rotation_matrix(rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-spin, spin))
+        depth = A[0, 0] * max(bc, br) * 10.0 / (160 * rng.uniform(0.5, 0.75))
+        centre = np.array([(bc - 1) * 5.0, (br - 1) * 5.0, 0.0])
+        t = np.array([rng.uniform(-0.08, 0.08) * depth, rng.uniform(-0.06, 0.06) * depth, depth]) - R @ centre
+        m = _project_full(_chessboard_points(bc, br, 10.0), A, R, t, (0.0, 0.0)).reshape(br, bc, 2)
+        if m.min() >= 6 and m[..., 0].max() <= 154 and m[..., 1].max() <= 114:
+            break
+    along = np.gradient(m, axis=1)
+    down = np.gradient(m, axis=0)
+    dirs = np.stack([along, down], axis=2)                                # (rows, cols, 2, 2)
+    dirs = dirs / np.linalg.norm(dirs, axis=-1, keepdims=True)
+    m = m + rng.normal(0.0, noise, m.shape)
+    return np.round(m, 3), dirs
+
+
+def _grid_case(rng, label, board, ask=None, strays=3, stuck=False, missing=False, square=False, flip_seed=False):
+    m, dirs = _grid_points(rng, board, spin=2.0 if square else 0.5)
+    br, bc = m.shape[:2]
+    pts, ds = m.reshape(-1, 2), dirs.reshape(-1, 2, 2)
+    if missing:
+        k = int((br // 2) * bc + bc // 2)                                 # an interior corner
+        pts, ds = np.delete(pts, k, axis=0), np.delete(ds, k, axis=0)
+    extra_pts, extra_dirs = [], []
+    lo, hi = pts.min(axis=0) - 8, pts.max(axis=0) + 8
+    for _ in range(strays):
+        extra_pts.append(rng.uniform(lo, hi))
+        a = rng.uniform(0, np.pi)
+        extra_dirs.append([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
+    if stuck:                                                             # one step beyond the end of a row
+        r = int(rng.integers(0, br))
+        extra_pts.append(2 * m[r, -1] - m[r, -2] + rng.normal(0, 0.2, 2))
+        extra_dirs.append(dirs[r, -1])
+    order = rng.permutation(len(pts))
+    pts, ds = pts[order], ds[order]
+    signs = rng.choice([-1.0, 1.0], (len(ds), 2, 1))
+    ds = np.where(rng.random(len(ds))[:, None, None] < 0.5, ds, ds[:, ::-1]) * signs
+    if extra_pts:
+        pts = np.vstack([pts[:5], extra_pts, pts[5:]]) if flip_seed else np.vstack([pts, extra_pts])
+        ds = np.vstack([ds[:5], extra_dirs, ds[5:]]) if flip_seed else np.vstack([ds, extra_dirs])
+    cols, rows = ask if ask is not None else board
+    return Case((np.round(pts, 3), np.round(ds, 6), cols, rows), {}, label)
+
+
+def _og_column_major(points, directions, cols, rows):
+    corners = _order_grid_corners(points, directions, cols, rows)
+    return None if corners is None else corners.reshape(rows, cols, 2).transpose(1, 0, 2).reshape(-1, 2)
+
+
+def _og_left_handed(points, directions, cols, rows):
+    corners = _order_grid_corners(points, directions, cols, rows)
+    return None if corners is None else corners.reshape(rows, cols, 2)[::-1].reshape(-1, 2)
+
+
+def _og_bigger_board(points, directions, cols, rows):
+    corners = _order_grid_corners(points, directions, cols, rows)
+    if corners is not None:
+        return corners
+    for c, r in ((cols + 1, rows), (cols, rows + 1), (cols + 1, rows + 1), (cols + 2, rows), (cols, rows + 2)):
+        bigger = _order_grid_corners(points, directions, c, r)
+        if bigger is not None:
+            return bigger.reshape(r, c, 2)[:rows, :cols].reshape(-1, 2)
+    return None
+
+
+def _og_sides_swapped(points, directions, cols, rows):
+    return _order_grid_corners(points, directions, rows, cols)
+
+
+def _og_first_origin(points, directions, cols, rows):
+    corners = _order_grid_corners(points, directions, cols, rows)
+    if corners is None or cols != rows:
+        return corners
+    G = corners.reshape(rows, cols, 2)
+    return G.transpose(1, 0, 2)[::-1].reshape(-1, 2)                    # a right-handed 90° turn of it
+
+
+def _og_public():
+    rng = np.random.default_rng(80312)
+    return [
+        _grid_case(rng, "a 5 × 4 grid, shuffled, with stray points (one stuck to a row's end)", (5, 4),
+                   strays=3, stuck=True),
+        _grid_case(rng, "a square 4 × 4 grid turned by up to 115°, a stray among the first points", (4, 4), square=True,
+                   flip_seed=True),
+        _grid_case(rng, "a 6 × 4 grid, asked for 5 × 4: None", (6, 4), ask=(5, 4)),
+    ]
+
+
+def _og_hidden(rng):
+    return [
+        _grid_case(rng, "5 × 4 grid with strays", (5, 4)),
+        _grid_case(rng, "6 × 4 grid, a stray stuck to a row", (6, 4), stuck=True),
+        _grid_case(rng, "4 × 3 grid, no strays", (4, 3), strays=0),
+        _grid_case(rng, "3 × 5 grid (taller than wide)", (3, 5)),
+        _grid_case(rng, "square 4 × 4 grid, any turn", (4, 4), square=True),
+        _grid_case(rng, "square 3 × 3 grid, any turn, strays first", (3, 3), square=True, flip_seed=True),
+        _grid_case(rng, "5 × 4 grid asked as 4 × 5", (5, 4), ask=(4, 5)),
+        _grid_case(rng, "6 × 5 grid asked for 5 × 5: None", (6, 5), ask=(5, 5)),
+        _grid_case(rng, "5 × 4 grid asked for 4 × 4: None", (5, 4), ask=(4, 4), stuck=True),
+        _grid_case(rng, "an interior corner missing: None", (5, 4), missing=True),
+        _grid_case(rng, "7 × 5 grid, many strays", (7, 5), strays=8, stuck=True),
+    ]
+
+
+order_grid_corners = Check(
+    public=_og_public,
+    hidden=_og_hidden,
+    compare=CornersClose(mean=1e-6, maximum=1e-6),
+    mistakes=[
+        Mistake("column by column (x and y of the board swapped)", _og_column_major,
+                "Corner r·cols + c: go along the side with `cols` corners first (x), then down the `rows` side"),
+        Mistake("left-handed order (mirror image of the board)", _og_left_handed,
+                "The board's x and y axes must turn like the image's (x right, y down): choose the origin and the "
+                "directions so that cross(x direction, y direction) > 0"),
+        Mistake("a larger board accepted (grid size not checked)", _og_bigger_board,
+                "Return None unless the grid you grow is exactly cols × rows corners: a board with more corners is "
+                "another board"),
+        Mistake("x along the side with `rows` corners", _og_sides_swapped,
+                "The board's x axis runs along the side that has `cols` corners (corner r·cols + c is in row r): "
+                "count the corners of each side of your grid and pick the base accordingly"),
+        Mistake("origin not the corner nearest the top-left", _og_first_origin,
+                "Of the admissible orders (x along `cols`, right-handed), take the one whose first corner is "
+                "nearest the pixel (0, 0): on a square board the four 90° turns are all admissible"),
+    ],
+)
+
+
+# calibration.refine_corners ------------------------------------------------------------------
+def _rc_newton(image, corners, sigma, iterations=10, damp=0.5, max_shift=1.5, smooth=True):
+    img = np.asarray(image, dtype=np.float64)
+    grey = _grey01(img @ _LUMA if img.ndim == 3 else img)
+    S = _gaussian(grey, float(sigma)) if smooth else grey
+    first, second = _derivatives(S)
+    start = np.asarray(corners, dtype=np.float64)
+    q = start.copy()
+    ok = np.ones(len(q), dtype=bool)
+    for _ in range(iterations):
+        g = _bilinear(first, q[:, 0], q[:, 1], fill=np.nan)
+        h = _bilinear(second, q[:, 0], q[:, 1], fill=np.nan)
+        a, b, c = h[:, 0], h[:, 1], h[:, 2]
+        det = a * c - b * b
+        saddle = det < 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dx = np.where(saddle, (c * g[:, 0] - b * g[:, 1]) / det, 0.0)
+            dy = np.where(saddle, (a * g[:, 1] - b * g[:, 0]) / det, 0.0)
+        step = np.hypot(dx, dy)
+        scale = np.where(step > damp, damp / np.maximum(step, 1e-300), 1.0) if damp else 1.0
+        q[:, 0] -= dx * scale
+        q[:, 1] -= dy * scale
+        ok &= saddle
+    if max_shift:
+        ok &= np.hypot(*(q - start).T) <= max_shift
+    return np.where(ok[:, None], q, start)
+
+
+def _rc_identity(image, corners, sigma):
+    return np.array(corners, dtype=np.float64)
+
+
+def _rc_one_step(image, corners, sigma):
+    return _rc_newton(image, corners, sigma, iterations=1)
+
+
+def _rc_not_smoothed(image, corners, sigma):
+    return _rc_newton(image, corners, sigma, smooth=False)
+
+
+def _rc_no_shift_limit(image, corners, sigma):
+    return _rc_newton(image, corners, sigma, max_shift=None)
+
+
+def _rc_case(rng, label, cols, rows, sigma, offset=0.6, odd=0, **board):
+    image = _board_image(rng, cols, rows, **board)
+    points, directions = _corner_candidates(image, cols * rows)
+    points = points[:cols * rows]
+    start = np.round(points + rng.uniform(-offset, offset, points.shape), 2)
+    if odd:                          # points 2.2 px from a corner along an edge: they converge too far to count
+        far = points[:odd] + 2.2 * directions[:odd, 0] * rng.choice([-1.0, 1.0], (odd, 1))
+        start = np.vstack([start, np.round(far, 2)])
+    return Case((image, start, sigma), {}, label)
+
+
+def _rc_public():
+    rng = np.random.default_rng(80313)
+    return [
+        _rc_case(rng, "grey 5 × 4 board, corners up to 0.6 px off, 4 points 2.2 px away, sigma = 1.5", 5, 4, 1.5,
+                 odd=4),
+        _rc_case(rng, "RGB uint8 4 × 3 board, sigma = 1.0", 4, 3, 1.0, color=True, dtype="uint8"),
+    ]
+
+
+def _rc_hidden(rng):
+    return [
+        _rc_case(rng, "grey board, sigma = 1.5", 5, 4, 1.5),
+        _rc_case(rng, "sigma = 1", 4, 3, 1.0, offset=0.4),
+        _rc_case(rng, "large sigma", 4, 4, _u(rng, 2.0, 2.5, 2), size=(120, 160), square_fill=(0.8, 0.9)),
+        _rc_case(rng, "RGB float image", 5, 4, 1.5, color=True),
+        _rc_case(rng, "uint8 image", 4, 3, 1.25, dtype="uint8"),
+        _rc_case(rng, "values in [-200, 800]", 5, 4, 1.5, dtype="scaled"),
+        _rc_case(rng, "points 2.2 px from a corner (too far: kept)", 5, 4, 1.5, odd=3),
+        _rc_case(rng, "barrel distortion, strong tilt", 5, 4, 1.5, k=(-0.3, 0.05), tilt=0.6),
+        _rc_case(rng, "starts up to 0.8 px off, points 2.2 px away", 4, 3, 1.5, offset=0.8, odd=3),
+    ]
+
+
+refine_corners = Check(
+    public=_rc_public,
+    hidden=_rc_hidden,
+    compare=PointsClose(mean=0.01, maximum=0.05),
+    mistakes=[
+        Mistake("no refinement (the start returned)", _rc_identity,
+                "Move each point to the saddle of the smoothed image: Newton steps q ← q − H⁻¹∇S with the "
+                "derivatives interpolated at q"),
+        Mistake("a single Newton step", _rc_one_step,
+                "One step is not enough from a pixel away (and steps are shortened to 0.5 px): iterate 10 times"),
+        Mistake("derivatives of the unsmoothed image", _rc_not_smoothed,
+                "Take the derivatives of S = filters.gaussian(grey, sigma): on the raw image the saddle is "
+                "not defined between the pixels of an edge"),
+        Mistake("no 1.5 px limit (a far start may end on the corner)", _rc_no_shift_limit,
+                "A point that ends more than 1.5 px from its start (or leaves the saddle) did not start at a corner: "
+                "return its start unchanged"),
+    ],
+    allowed=("filters.gaussian", "filters.correlate", "filters.convolve", "warp.bilinear_sample"),
 )
 
 
