@@ -3,8 +3,8 @@
 # `cvkit demo` builds the sample student `sample_mistakes` from the solutions of the source
 # notebook, then replaces each answer cell named below (`# %% <grade_id>`) by the code that
 # follows: wrong answers students really write. Every other exercise keeps the correct
-# solution. (The first half of the chapter has three exercises: two typical mistakes and one
-# exercise left unattempted.)
+# solution. Sections 10.1-10.3 (kNN, k-means, bag of words): two typical mistakes and one
+# exercise left unattempted.
 # This file is data for the demo and its tests, not a module to import.
 
 # %% knn_predict_answer
@@ -58,7 +58,7 @@ def bovw_histogram(descriptors, codebook, normalize=True):
     # YOUR CODE HERE
     raise NotImplementedError()
 
-# --- second half of the chapter (§10.4–10.7, neural network layers): five typical mistakes,
+# --- sections 10.5-10.7 (neural network layers): five typical mistakes,
 # --- and the receptive field left unattempted.
 
 # %% relu_backward_answer
