@@ -82,7 +82,13 @@ def test_release_has_stubs_and_no_solutions_or_hidden_tests(demo):
         for path in notebooks:
             text = path.read_text()
             assert "BEGIN SOLUTION" not in text and "BEGIN HIDDEN TESTS" not in text
-            assert "raise NotImplementedError()" in text
+            assert "Model answer." not in text and "MARK SCHEME" not in text
+            source = json.loads((ROOT / "lectures" / assignment / path.name).read_text())
+            kinds = {c["cell_type"] for c in source["cells"] if c.get("metadata", {}).get("nbgrader", {}).get("solution")}
+            if "code" in kinds:
+                assert "raise NotImplementedError()" in text
+            if "markdown" in kinds:
+                assert "YOUR ANSWER HERE" in text
 
 
 MANUAL = ("question_", "task_")  # written questions and open tasks: marked by hand in the formgrader
