@@ -16,6 +16,7 @@ from .checks import FORBIDDEN_LIBRARIES, Case, Check, Mistake, instance_call
 from .compare import Close, Comparator, Mismatch, Statistics, close
 from .diagnose import Diagnosis, diagnose
 from .engine import CheckFailed, check, evaluate, hidden_seed, needs_answer
+from .answers import AnswersUnavailable, load_answers
 from .report import MIME_TYPE, CaseResult, Report
 from .runtime import guard, wire  # noqa: F401  (cvkit.grading.wire, cvkit.grading.guard)
 
@@ -23,5 +24,5 @@ __all__ = [
     "Case", "Check", "Mistake", "FORBIDDEN_LIBRARIES", "instance_call",
     "Comparator", "Close", "Statistics", "Mismatch", "close",
     "check", "evaluate", "hidden_seed", "needs_answer", "CheckFailed", "diagnose", "Diagnosis",
-    "Report", "CaseResult", "MIME_TYPE",
+    "Report", "CaseResult", "MIME_TYPE", "load_answers", "AnswersUnavailable",
 ]
