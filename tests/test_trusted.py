@@ -10,6 +10,7 @@ import dataclasses
 import json
 import os
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -413,3 +414,20 @@ def test_in_the_notebook_a_wrong_building_block_costs_points_once(capsys):
     finally:
         student.functions.clear()
         student.functions.update(saved)
+
+
+LECTURES = sorted((Path(__file__).resolve().parent.parent / "lectures").glob("ch*/*.ipynb"))
+
+
+@pytest.mark.parametrize("path", LECTURES, ids=lambda p: p.parent.name)
+def test_every_lecture_setup_cell_runs_in_the_grading_worker(path):
+    """The locked set-up cells of each chapter run in the sandbox worker before the answers:
+    every name they import from cvkit (check, needs_answer, load_answers, ...) has a stand-in
+    there, or the whole notebook would score zero."""
+    nb = json.loads(path.read_text())
+    setup = ["".join(c["source"]) if isinstance(c["source"], list) else c["source"] for c in nb["cells"]
+             if c["cell_type"] == "code" and c.get("metadata", {}).get("nbgrader", {}).get("locked")
+             and not c["metadata"]["nbgrader"].get("grade") and not c["metadata"]["nbgrader"].get("solution")]
+    assert setup, "a locked set-up cell"
+    result = sandbox.run_calls(setup, [])
+    assert result.cell_errors == [], result.cell_errors
