@@ -431,3 +431,22 @@ def test_every_lecture_setup_cell_runs_in_the_grading_worker(path):
     assert setup, "a locked set-up cell"
     result = sandbox.run_calls(setup, [])
     assert result.cell_errors == [], result.cell_errors
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", LECTURES, ids=lambda p: p.parent.name)
+def test_every_chapters_solutions_get_full_marks_in_the_sandbox(path):
+    """The instructor's solutions, graded as a submission is (every check decided in the
+    sandbox worker, hidden cases of a student's seed): every test cell full marks, no flag,
+    no worker problem. A check whose ``call`` adapter or stand-in the sandbox lacks fails here
+    rather than on the first real submission."""
+    nb = json.loads(path.read_text())
+    graded = grade_notebook(nb, student="honest-student", salt="ci-salt", source_notebook=nb)
+    assert graded.worker_problem is None and graded.cell_errors == [], (graded.worker_problem, graded.cell_errors)
+    assert graded.flags == [], graded.flags
+    tests = [c["metadata"]["nbgrader"]["grade_id"] for c in nb["cells"] if c["cell_type"] == "code"
+             and c.get("metadata", {}).get("nbgrader", {}).get("grade") and not c["metadata"]["nbgrader"].get("solution")]
+    assert sorted(graded.reports) == sorted(tests)
+    lost = {grade_id: [(call.algorithm_id, report.summary()) for call, report in reports if report.score < 1.0]
+            for grade_id, reports in graded.reports.items()}
+    assert not any(lost.values()), {k: v for k, v in lost.items() if v}
