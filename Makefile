@@ -1,5 +1,5 @@
 # Shortcuts; each target calls the stdlib-only scripts, which create and reuse .venv.
-.PHONY: demo test lab bench bench-grading clean
+.PHONY: demo test lab bench bench-notebooks bench-grading clean
 demo:
 	python3 scripts/demo
 test:
@@ -8,6 +8,8 @@ lab:
 	python3 scripts/lab
 bench:
 	python3 scripts/_venv.py && for b in benchmarks/bench_ch*.py; do .venv/bin/python $$b --quick || exit 1; done
+bench-notebooks:
+	python3 scripts/_venv.py && .venv/bin/python benchmarks/bench_notebooks.py --check
 bench-grading:
 	python3 scripts/_venv.py && .venv/bin/python benchmarks/bench_grading.py
 clean:
