@@ -541,3 +541,62 @@ def test_detector_refuses_bad_counts():
         calibration.find_chessboard_corners(np.zeros((20, 20)), 3, 1)
     with pytest.raises(TypeError, match="cols"):
         calibration.find_chessboard_corners(np.zeros((20, 20)), 3.0, 3)
+
+
+# --------------------------------------------------------------------------------------------
+# the four steps of the detector
+# --------------------------------------------------------------------------------------------
+def test_detector_is_the_composition_of_its_steps(views):
+    """find_chessboard_corners = refine_corners(order_grid_corners(corner_candidates(...)))."""
+    for image in views.images[:3]:
+        points, directions = calibration.corner_candidates(image, 54)
+        grid = calibration.order_grid_corners(points, directions, 9, 6)
+        spacing = np.median(np.hypot(*np.diff(grid.reshape(6, 9, 2), axis=1).reshape(-1, 2).T).tolist()
+                            + np.hypot(*np.diff(grid.reshape(6, 9, 2), axis=0).reshape(-1, 2).T).tolist())
+        refined = calibration.refine_corners(image, grid, float(np.clip(spacing / 8, 1, 3)))
+        np.testing.assert_array_equal(refined, calibration.find_chessboard_corners(image, 9, 6))
+
+
+def test_candidates_are_the_inner_corners_and_refinement_is_unbiased(views):
+    for image, truth in zip(views.images[:3], views.image_points[:3]):
+        points, directions = calibration.corner_candidates(image, 54)
+        d = np.hypot(*(points[:, None] - truth[None]).transpose(2, 0, 1))
+        assert np.all(d.min(axis=0) <= 1.0)                     # every inner corner is a candidate
+        assert len(points) <= 54 + 5
+        assert np.allclose(np.linalg.norm(directions, axis=2), 1.0)
+        refined = calibration.refine_corners(image, np.round(truth + 0.4), 1.5)
+        assert np.mean(np.hypot(*(refined - truth).T)) < 0.05
+
+
+def test_response_is_positive_at_x_junctions_only():
+    board = np.kron([[0.0, 1.0], [1.0, 0.0]], np.ones((10, 10)))
+    s = calibration.chessboard_response(board, 1.5)
+    assert np.unravel_index(np.argmax(s), s.shape) in {(9, 9), (9, 10), (10, 9), (10, 10)}
+    assert np.all(calibration.chessboard_response(np.full((9, 9), 3.0)) == 0.0)
+    np.testing.assert_allclose(calibration.chessboard_response(board * 255 + 7), s, atol=1e-12)
+
+
+def test_order_grid_corners_returns_none_for_too_few_points_and_the_input_points_otherwise():
+    x, y = np.meshgrid([10.0, 21.0, 32.0, 43.0], [50.0, 39.0, 28.0])
+    points = np.column_stack([x.ravel(), y.ravel()])
+    directions = np.tile([[2.0, 0.0], [0.0, -3.0]], (12, 1, 1))
+    corners = calibration.order_grid_corners(points, directions, 4, 3)
+    np.testing.assert_array_equal(corners[0], [10.0, 28.0])
+    assert {tuple(p) for p in corners} == {tuple(p) for p in points}
+    assert calibration.order_grid_corners(points[:11], directions[:11], 4, 3) is None
+    assert calibration.order_grid_corners(points, directions, 5, 3) is None
+
+
+def test_detector_steps_refuse_bad_input():
+    with pytest.raises(ValueError, match="sigma"):
+        calibration.chessboard_response(np.zeros((10, 10)), 0.0)
+    with pytest.raises(ValueError, match="count"):
+        calibration.corner_candidates(np.zeros((10, 10)), 0)
+    with pytest.raises(ValueError, match="directions"):
+        calibration.order_grid_corners(np.zeros((5, 2)), np.zeros((4, 2, 2)), 2, 2)
+    with pytest.raises(TypeError, match="cols"):
+        calibration.order_grid_corners(np.zeros((5, 2)), np.zeros((5, 2, 2)), 2.0, 2)
+    with pytest.raises(ValueError, match="corners"):
+        calibration.refine_corners(np.zeros((10, 10)), np.zeros((3, 3)), 1.0)
+    with pytest.raises(ValueError, match="image"):
+        calibration.refine_corners(np.zeros((10, 10, 4)), np.zeros((3, 2)), 1.0)
