@@ -970,13 +970,16 @@ def _headline(message: str, width: int = 90) -> str:
 
 
 def solution_sources(notebook: dict) -> dict[str, str]:
-    """grade_id → source of each solution cell with the solution markers removed."""
+    """grade_id → source of each solution cell with the solution markers removed; for a written
+    answer, the model answer without its rubric (what a student who knows the answer writes)."""
     out = {}
     for cell in notebook.get("cells", []):
         meta = cell.get("metadata", {}).get("nbgrader", {})
         if not meta.get("solution"):
             continue
         source = cell["source"] if isinstance(cell["source"], str) else "".join(cell["source"])
+        if cell.get("cell_type") == "markdown":
+            source = source.split("**Rubric", 1)[0].replace("**Model answer.**", "").strip()
         lines = [line for line in source.splitlines() if line.strip() not in (SOLUTION_BEGIN, SOLUTION_END)]
         out[meta.get("grade_id")] = "\n".join(lines)
     return out

@@ -106,8 +106,8 @@ def _cell_grades(course, assignment, student, manual=False):
 
 def test_written_answers_wait_for_the_instructor(demo):
     """Questions and open tasks are recorded as needing a manual grade (never as a zero the
-    student earned), the table marks them ✎, and no feedback page shows a model answer, rubric
-    or mark scheme."""
+    student earned; an answer left as released is a zero), the table marks them ✎, and no
+    feedback page shows a rubric or a mark scheme."""
     from nbgrader.api import Gradebook
 
     _, course = demo
@@ -115,10 +115,14 @@ def test_written_answers_wait_for_the_instructor(demo):
         with Gradebook(course.db_url) as gb:
             submission = gb.find_submission(assignment, student)
             manual = [g for nb in submission.notebooks for g in nb.grades if g.name.startswith(MANUAL)]
-            assert all(g.needs_manual_grade and g.max_score > 0 for g in manual), [g.name for g in manual]
+            assert all(g.max_score > 0 for g in manual)
+            if student == "sample_blank":  # answers left as released: zero, nothing to mark
+                assert all(g.score == 0 for g in manual if g.name.startswith("question_")), [g.name for g in manual]
+            else:
+                assert all(g.needs_manual_grade for g in manual), [g.name for g in manual if not g.needs_manual_grade]
         for page in (course.root / "feedback" / student / assignment).glob("*.html"):
             text = page.read_text()
-            assert "Model answer." not in text and "Mark scheme" not in text and "Rubric (" not in text, page
+            assert "Mark scheme" not in text and "MARK SCHEME" not in text and "Rubric (" not in text, page
     if any(course.scores(a) and any(e.to_mark for es in course.scores(a).values() for e in es)
            for a in {a for _, a in course.submissions()}):
         assert "✎" in course.table(next(a for _, a in course.submissions()))
