@@ -635,7 +635,9 @@ class Course:
         checks) runs in ``workers`` local processes, or on the workers of the Dask distributed
         ``scheduler`` (they need the project, not this course folder). Results come back to
         this process, which alone writes the gradebook, in batches of ``batch`` submissions
-        (default ``3 * workers``: nbgrader's start-up is paid once per batch). Submissions
+        (default ``max(2, workers)``). Local workers get a few submissions at a time, so that
+        the feedback pages of each recorded batch are written by the workers between grading
+        jobs instead of all at the end. Submissions
         graded before from the same files are skipped unless ``regrade``.
         """
         from .grading import isolation
@@ -648,7 +650,7 @@ class Course:
         jobs = self.submissions(assignments)
         todo = [(s, a) for s, a in jobs if regrade or not self.is_graded(s, a)]
         payloads = [self._payload(s, a) for s, a in todo]
-        batch = max(1, batch if batch is not None else 3 * max(1, workers))
+        batch = max(1, batch if batch is not None else max(2, workers))
         if payloads:
             self.nbgrader_api()  # load nbgrader and the configuration while the workers start
         results: list[JobResult] = []
@@ -656,6 +658,8 @@ class Course:
         finished: list = []
         owners: dict = {}
         recorded_pairs: list = []
+        local_pool: list = []       # the local process pool, once it exists
+        feedback_steps: list = []   # its feedback jobs
 
         def outcome(future) -> ExecutedSubmission:
             try:
@@ -672,7 +676,13 @@ class Course:
                 finished.clear()
                 recorded = self.record_many(written)
                 results.extend(recorded)
-                recorded_pairs.extend((r.student, r.assignment) for r in recorded if r.ok)
+                pairs = [(r.student, r.assignment) for r in recorded if r.ok]
+                recorded_pairs.extend(pairs)
+                if local_pool:  # feedback pages of this batch by the workers, between grading jobs
+                    step = max(1, -(-len(pairs) // max(1, workers)))
+                    for chunk in (pairs[i:i + step] for i in range(0, len(pairs), step)):
+                        feedback_steps.append(local_pool[0].submit(
+                            feedback_submissions, str(self.root), self.db_url, str(self.project), chunk))
                 if bar is not None:
                     bar.update(len(written))
 
@@ -692,19 +702,31 @@ class Course:
 
             context = multiprocessing.get_context("spawn")  # no inherited threads or state
             with concurrent.futures.ProcessPoolExecutor(max_workers=max(1, workers), mp_context=context) as pool:
-                owners.update({pool.submit(grade_submission, *payload): payload[1:3] for payload in payloads})
-                pending = set(owners)
+                local_pool.append(pool)
+                waiting = list(payloads)  # submitted a few at a time, so that feedback jobs queued
+                pending = set()           # by `drain` run before the submissions still waiting
+
+                def submit_next() -> None:
+                    if waiting:
+                        payload = waiting.pop(0)
+                        future = pool.submit(grade_submission, *payload)
+                        owners[future] = payload[1:3]
+                        pending.add(future)
+
+                for _ in range(max(1, workers) + 1):
+                    submit_next()
                 while pending:
-                    done, pending = concurrent.futures.wait(pending, return_when=concurrent.futures.FIRST_COMPLETED)
-                    drain(done, len(pending))
-                # feedback pages (nbconvert, CPU-heavy) by the same workers, now that all is written
-                chunks = [recorded_pairs[i::max(1, workers)] for i in range(max(1, workers))]
-                steps = {pool.submit(feedback_submissions, str(self.root), self.db_url, str(self.project), chunk): chunk
-                         for chunk in chunks if chunk}
-                for step, chunk in steps.items():
+                    done, _ = concurrent.futures.wait(pending, return_when=concurrent.futures.FIRST_COMPLETED)
+                    pending.difference_update(done)
+                    for _ in done:
+                        submit_next()
+                    drain(done, len(pending) + len(waiting))
+                # feedback pages (nbconvert, CPU-heavy) were queued batch by batch behind the
+                # grading jobs, so a worker with no submission left writes them meanwhile
+                for step in feedback_steps:
                     try:
                         step.result()
-                    except Exception:  # a lost worker: this process writes them (below)
+                    except Exception:  # a lost worker or a busy gradebook: this process writes them (below)
                         pass
         if bar is not None:
             bar.close()
