@@ -132,15 +132,16 @@ def _notebook_solutions():
 
     namespace["student"] = student
     for cell in json.loads(NOTEBOOK.read_text())["cells"]:
-        if cell.get("metadata", {}).get("nbgrader", {}).get("solution"):
-            exec("".join(cell["source"]), namespace)
+        if cell["cell_type"] == "code" and cell.get("metadata", {}).get("nbgrader", {}).get("solution"):
+            exec("".join(cell["source"]), namespace)  # written answers (markdown) are graded by hand
     return found
 
 
 @pytest.mark.skipif(not NOTEBOOK.exists(), reason="the notebook is not there")
 def test_notebook_solutions_pass_public_and_hidden_cases():
     solutions = _notebook_solutions()
-    assert set(solutions) == set(CH12)
+    # the chapter's own ids, plus the dropout layer of §12.3.6 (its check lives with the nn layers)
+    assert set(solutions) == set(CH12) | {"nn.dropout_forward", "nn.dropout_backward"}
     for algorithm_id, function in solutions.items():
         harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
 

@@ -45,7 +45,7 @@ EXECUTED_MAX_BYTES = 64 << 20   # an executed notebook larger than this is not r
 
 
 def execute_in_sandbox(files: dict, name: str, wall_seconds: float = EXECUTION_WALL_SECONDS) -> tuple[str | None, str]:
-    """Execute the notebook ``files[name]`` (already :func:`prepare`\ d) in the grading sandbox
+    r"""Execute the notebook ``files[name]`` (already :func:`prepare`\ d) in the grading sandbox
     (:mod:`cvkit.grading.isolation`): a writable copy of ``files`` (this one submission), the
     Python environment and cvkit read-only, a private ``/tmp``, no network, limits on memory,
     CPU, processes and file size, and ``wall_seconds`` for the whole notebook, kept from here.
