@@ -250,6 +250,7 @@ def student_folder(course, tmp_path_factory):
             if meta.get("solution") and meta.get("grade_id") in solutions:
                 cell["source"] = replaced.get(meta["grade_id"], solutions[meta["grade_id"]])
         (folder / name).write_text(json.dumps(nb))
+    (folder / "blank.ipynb").write_text(json.dumps(release))  # the release as a student fetches it
     return folder
 
 
@@ -325,6 +326,41 @@ def test_student_sees_passing_and_failing_reports(browser, student_folder):
         assert "AssertionError" in page.locator(".jp-RenderedText[data-mime-type='application/vnd.jupyter.stderr']").last.text_content()
         failed.screenshot(path=str(ARTEFACTS / "wrong-report.png"))
         page.close()
+
+
+_EXECUTED = """() => {
+    const panel = window.jupyterapp.shell.currentWidget;
+    const cells = panel.content.widgets.filter(c => c.model.type === 'code' && c.model.sharedModel.getSource().trim());
+    const unexecuted = [], errors = [];
+    cells.forEach((cell, i) => {
+        if (cell.model.executionCount === null) unexecuted.push(i);
+        for (const o of cell.model.outputs.toJSON()) {
+            if (o.output_type === 'error') errors.push({index: i, ename: o.ename, evalue: o.evalue,
+                tags: cell.model.getMetadata('tags') || []});
+        }
+    });
+    return {cells: cells.length, unexecuted, errors};
+}"""
+
+
+def test_run_all_on_the_release_reaches_the_end_in_jupyterlab(browser, student_folder):
+    """JupyterLab's own *Run All* on the released notebook, nothing answered yet: every code cell
+    runs (the raises-exception tag lets the run go past an unanswered exercise's test), and the
+    only errors are those tests' one-line "not answered yet"."""
+    with jupyter_lab(student_folder) as (url, token):
+        page = _run_notebook(browser, url, token, "blank.ipynb", "release-run-all")
+        state = page.evaluate(_EXECUTED)
+        deadline = time.monotonic() + 240  # the run helper stops watching at the first error: wait for the rest
+        while state["unexecuted"] and time.monotonic() < deadline:
+            time.sleep(1.0)
+            state = page.evaluate(_EXECUTED)
+        page.screenshot(path=str(ARTEFACTS / "release-run-all-end.png"))
+        page.close()
+    assert state["cells"] > 20 and state["unexecuted"] == [], state["unexecuted"]
+    assert state["errors"], "the unanswered exercises' visible tests fail"
+    for error in state["errors"]:
+        assert "raises-exception" in error["tags"], error
+        assert error["ename"] == "CheckFailed" and "not answered yet" in error["evalue"], error
 
 
 def test_report_is_readable_in_the_dark_theme(browser, student_folder):
