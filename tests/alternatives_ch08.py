@@ -285,6 +285,71 @@ def corner_candidates(image, count, sigma=1.5):
     return np.array(points, dtype=np.float64), np.array(directions, dtype=np.float64)
 
 
+def grow_grid(points, directions, seed=0):
+    """Breadth-first growth with a first-in-first-out queue, sweeping until nothing changes; the
+    first neighbours from the angle of each offset (atan2) rather than a cosine; pruning by a
+    neighbour count array."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    dirs = np.asarray(directions, dtype=np.float64)
+    grid = {(0, 0): seed}
+    offsets = pts - pts[seed]
+    dist = np.linalg.norm(offsets, axis=1)
+    found = [False, False]
+    for axis in (0, 1):
+        u = dirs[seed, axis]
+        for sign in (1, -1):
+            v = sign * u
+            angle = np.abs(np.arctan2(offsets[:, 1] * v[0] - offsets[:, 0] * v[1], offsets @ v))
+            inside = (angle < math.radians(20)) & (dist > 0)
+            inside[seed] = False
+            if inside.any():
+                found[axis] = True
+                k = int(np.flatnonzero(inside)[np.argmin(dist[inside])])
+                if k not in grid.values():
+                    grid[(sign, 0) if axis == 0 else (0, sign)] = k
+    if not all(found):
+        return None
+    changed = True
+    while changed:
+        changed = False
+        for (i, j) in sorted(grid):
+            for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+                if (i + di, j + dj) in grid:
+                    continue
+                here = pts[grid[(i, j)]]
+                guess = None
+                if (i - di, j - dj) in grid:
+                    back = pts[grid[(i - di, j - dj)]]
+                    guess, step = 2 * here - back, np.linalg.norm(here - back)
+                else:
+                    for ei, ej in ((dj, di), (-dj, -di)):
+                        if (i + ei, j + ej) in grid and (i + di + ei, j + dj + ej) in grid:
+                            side, diag = pts[grid[(i + ei, j + ej)]], pts[grid[(i + di + ei, j + dj + ej)]]
+                            guess, step = here + diag - side, np.linalg.norm(diag - side)
+                            break
+                if guess is None:
+                    continue
+                free = np.ones(len(pts), dtype=bool)
+                free[list(grid.values())] = False
+                if not free.any():
+                    continue
+                gaps = np.where(free, np.linalg.norm(pts - guess, axis=1), np.inf)
+                k = int(np.argmin(gaps))
+                if gaps[k] <= 0.35 * step:
+                    grid[(i + di, j + dj)] = k
+                    changed = True
+    while True:
+        keys = list(grid)
+        count = np.array([sum((a + p, b + q) in grid for p, q in ((1, 0), (-1, 0), (0, 1), (0, -1)))
+                          for a, b in keys])
+        if not np.any(count <= 1) or np.all(count <= 1):
+            break
+        for key, c in zip(keys, count):
+            if c <= 1:
+                del grid[key]
+    return np.array(sorted((i, j, k) for (i, j), k in grid.items()), dtype=np.int64).reshape(-1, 3)
+
+
 def order_grid_corners(points, directions, cols, rows):
     """Breadth-first growth that predicts each new node from the mean of the lattice steps it can
     see (rather than from one line or one parallelogram); the order by enumerating the eight
@@ -722,6 +787,7 @@ ALTERNATIVES = {
     "calibration.find_chessboard_corners": find_chessboard_corners,
     "calibration.chessboard_response": chessboard_response,
     "calibration.corner_candidates": corner_candidates,
+    "calibration.grow_grid": grow_grid,
     "calibration.order_grid_corners": order_grid_corners,
     "calibration.refine_corners": refine_corners,
     "calibration.homography_dlt": homography_dlt,

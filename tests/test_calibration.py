@@ -587,6 +587,69 @@ def test_order_grid_corners_returns_none_for_too_few_points_and_the_input_points
     assert calibration.order_grid_corners(points, directions, 5, 3) is None
 
 
+@settings(max_examples=40, deadline=None)
+@given(cols=st.integers(2, 7), rows=st.integers(2, 6), angle=st.floats(-np.pi, np.pi),
+       shear=st.floats(-0.3, 0.3), step=st.floats(6.0, 30.0), data_=st.data())
+def test_grow_grid_labels_an_affine_lattice_by_its_steps_along_the_seed_directions(cols, rows, angle, shear, step,
+                                                                                    data_):
+    """Every node of a clean (affine) lattice is found from any seed; node (i, j, k) sits i steps
+    along directions[seed][0] and j along directions[seed][1]; rows sorted, seed at (0, 0)."""
+    c, s = np.cos(angle), np.sin(angle)
+    a = step * np.array([c, s])                                         # the lattice's two steps
+    b = step * np.array([-s + shear * c, c + shear * s])
+    r, q = np.mgrid[0:rows, 0:cols]
+    points = 200.0 + q.reshape(-1, 1) * a + r.reshape(-1, 1) * b
+    rng = np.random.default_rng(data_.draw(st.integers(0, 2 ** 32 - 1)))
+    order = rng.permutation(len(points))
+    points = points[order]
+    directions = np.tile(np.stack([a, b]), (len(points), 1, 1))
+    directions *= rng.choice([-2.0, 0.5, 1.0, 3.0], (len(points), 2, 1))  # any sign, any length
+    seed = data_.draw(st.integers(0, len(points) - 1))
+    nodes = calibration.grow_grid(points, directions, seed)
+    assert nodes.dtype == np.int64 and nodes.shape == (cols * rows, 3)
+    assert sorted(nodes[:, 2].tolist()) == list(range(cols * rows))
+    np.testing.assert_array_equal(nodes, nodes[np.lexsort((nodes[:, 1], nodes[:, 0]))])
+    assert [0, 0, seed] in nodes.tolist()
+    u = directions[seed] / np.linalg.norm(directions[seed], axis=1, keepdims=True)
+    steps = np.stack([u[0] * np.linalg.norm(a), u[1] * np.linalg.norm(b)])    # ±a and ±b, as u points
+    predicted = points[seed] + nodes[:, :2] @ steps
+    np.testing.assert_allclose(points[nodes[:, 2]], predicted, atol=1e-6)
+
+
+def test_grow_grid_refuses_bad_input_and_returns_none_without_neighbours():
+    points = np.array([[0.0, 0.0], [10.0, 0.0], [20.0, 0.0]])
+    directions = np.tile(np.eye(2), (3, 1, 1))
+    assert calibration.grow_grid(points, directions, 1) is None          # a single row: no step along y
+    with pytest.raises(ValueError, match="seed"):
+        calibration.grow_grid(points, directions, 3)
+    with pytest.raises(ValueError, match="seed"):
+        calibration.grow_grid(points, directions, -1)
+    with pytest.raises(TypeError, match="seed"):
+        calibration.grow_grid(points, directions, 1.0)
+    with pytest.raises(ValueError, match="directions"):
+        calibration.grow_grid(points, directions[:2], 0)
+    with pytest.raises(ValueError, match="points"):
+        calibration.grow_grid(np.zeros((3, 3)), directions, 0)
+
+
+def test_order_grid_corners_orders_the_grid_its_grow_grid_step_finds():
+    """order_grid_corners calls grow_grid through the registry: a provider's version is used."""
+    x, y = np.meshgrid([10.0, 21.0, 32.0, 43.0], [50.0, 39.0, 28.0])
+    points = np.column_stack([x.ravel(), y.ravel()])
+    directions = np.tile([[2.0, 0.0], [0.0, -3.0]], (12, 1, 1))
+    calls = []
+
+    def spy(points, directions, seed=0):
+        calls.append(seed)
+        return calibration.grow_grid(points, directions, seed)
+
+    reference = calibration.order_grid_corners(points, directions, 4, 3)
+    registry.register_provider("ch08-grow-grid-test", {"calibration.grow_grid": spy})
+    with cvkit.use("ch08-grow-grid-test"):
+        np.testing.assert_array_equal(calibration.order_grid_corners(points, directions, 4, 3), reference)
+    assert calls == [0]
+
+
 def test_detector_steps_refuse_bad_input():
     with pytest.raises(ValueError, match="sigma"):
         calibration.chessboard_response(np.zeros((10, 10)), 0.0)

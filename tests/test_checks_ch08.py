@@ -47,7 +47,8 @@ def test_every_catalog_id_of_the_chapter_is_registered_with_its_section():
     sections = {
         "calibration.chessboard_points": "8.3", "calibration.find_chessboard_corners": "8.3",
         "calibration.chessboard_response": "8.3", "calibration.corner_candidates": "8.3",
-        "calibration.order_grid_corners": "8.3", "calibration.refine_corners": "8.3",
+        "calibration.grow_grid": "8.3", "calibration.order_grid_corners": "8.3",
+        "calibration.refine_corners": "8.3",
         "calibration.homography_dlt": "8.3.2", "calibration.levenberg_marquardt": "8.3.4",
         "calibration.refine_homography": "8.3.4", "calibration.intrinsics_from_homographies": "8.3.5",
         "calibration.extrinsics_from_homography": "8.3.6", "calibration.estimate_radial_distortion": "8.3.7",

@@ -9,7 +9,8 @@ step                                 function                                   
 =================================== ============================================= =========
 pattern points and image corners     ``chessboard_points``, ``find_chessboard_corners`` 8.3
 ... saddle response, candidates      ``chessboard_response``, ``corner_candidates``   8.3
-... grid order, sub-pixel position   ``order_grid_corners``, ``refine_corners``       8.3
+... grid, its order                  ``grow_grid``, ``order_grid_corners``          8.3
+... sub-pixel position               ``refine_corners``                             8.3
 homography of each view (linear)     ``homography_dlt``                            8.3.2
 ... refined on the reprojection      ``refine_homography`` (``levenberg_marquardt``) 8.3.4
 intrinsics from B = A⁻ᵀA⁻¹           ``intrinsics_from_homographies``              8.3.5
@@ -34,6 +35,7 @@ from ._pattern import (
     chessboard_response,
     corner_candidates,
     find_chessboard_corners,
+    grow_grid,
     order_grid_corners,
     refine_corners,
 )
@@ -51,6 +53,7 @@ __all__ = [
     "chessboard_points",
     "chessboard_response",
     "corner_candidates",
+    "grow_grid",
     "order_grid_corners",
     "refine_corners",
     "find_chessboard_corners",

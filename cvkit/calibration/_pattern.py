@@ -7,7 +7,7 @@ import numpy as np
 from .._validation import as_float_array, as_image, check_int, check_real
 from ..registry import algorithm, implementation
 
-__all__ = ["chessboard_points", "chessboard_response", "corner_candidates", "order_grid_corners",
+__all__ = ["chessboard_points", "chessboard_response", "corner_candidates", "grow_grid", "order_grid_corners",
            "refine_corners", "find_chessboard_corners"]
 
 _LUMA = np.array([0.299, 0.587, 0.114])
@@ -161,8 +161,12 @@ def _ring_sign_changes(S: np.ndarray, points: np.ndarray, radius: float, samples
     return np.where(valid, changes, 0), np.where(valid, contrast, 0.0)
 
 
-def _grow_grid(seed: int, points: np.ndarray, directions: np.ndarray) -> dict | None:
-    """Assign grid indices (i, j) to candidates, growing from ``seed`` along the edge directions."""
+def _grow_grid(seed: int, points: np.ndarray, directions: np.ndarray, prune: bool = True,
+               parallelogram: bool = True, visit=None) -> dict | None:
+    """Assign grid indices (i, j) to candidates, growing from ``seed`` along the (unit) edge
+    directions. The keyword arguments exist for the check only: its mistakes, and ``visit``
+    (the position in the queue of the next node to visit; default the last) to draw cases whose
+    grid does not depend on the order in which the nodes are visited."""
     d = points - points[seed]
     dist = np.hypot(d[:, 0], d[:, 1])
     dist[seed] = np.inf
@@ -185,7 +189,7 @@ def _grow_grid(seed: int, points: np.ndarray, directions: np.ndarray) -> dict | 
     steps = ((1, 0), (-1, 0), (0, 1), (0, -1))
     queue = list(grid)
     while queue:                                  # a loop over grid nodes (tens), not pixels
-        i, j = queue.pop()
+        i, j = queue.pop() if visit is None else queue.pop(visit(len(queue)))
         for di, dj in steps:
             target = (i + di, j + dj)
             if target in grid:
@@ -194,6 +198,8 @@ def _grow_grid(seed: int, points: np.ndarray, directions: np.ndarray) -> dict | 
             if (i - di, j - dj) in grid:                       # continue the line
                 back = points[grid[(i - di, j - dj)]]
                 prediction, step = 2 * here - back, np.hypot(*(here - back))
+            elif not parallelogram:
+                continue
             else:                                              # complete a parallelogram
                 prediction = None
                 for ei, ej in ((dj, di), (-dj, -di)):
@@ -215,7 +221,7 @@ def _grow_grid(seed: int, points: np.ndarray, directions: np.ndarray) -> dict | 
                 queue.extend(k for k in ((ti + 1, tj), (ti - 1, tj), (ti, tj + 1), (ti, tj - 1)) if k in grid)
     # a stray candidate stuck to the side of the board has a single neighbour: drop such
     # nodes (a true extra row of corners keeps two or more and is not dropped)
-    while True:
+    while prune:
         lonely = [key for key in grid
                   if sum((key[0] + a, key[1] + b) in grid for a, b in steps) <= 1]
         if not lonely or len(lonely) == len(grid):
@@ -408,6 +414,96 @@ def corner_candidates(image, count, sigma=1.5):
     return np.column_stack([xs, ys]).astype(np.float64), _edge_directions(a, b, c)
 
 
+def _candidate_arrays(points, directions) -> tuple[np.ndarray, np.ndarray]:
+    """Validated (K, 2) points and (K, 2, 2) directions as float64 arrays (directions as given)."""
+    pts = as_float_array(points, "points", ndim=2, allow_empty=True)
+    if pts.size and pts.shape[1:] != (2,):
+        raise ValueError(f"points must be (K, 2), got shape {pts.shape}")
+    pts = pts.reshape(-1, 2)
+    dirs = as_float_array(directions, "directions", ndim=3, allow_empty=True)
+    if pts.shape[0] != np.asarray(points).shape[0] or dirs.shape != (len(pts), 2, 2):
+        raise ValueError(f"points must be (K, 2) and directions (K, 2, 2), got {np.shape(points)} and {dirs.shape}")
+    return pts, dirs
+
+
+@algorithm("calibration.grow_grid", section="8.3", check="cvkit.calibration.checks:grow_grid")
+def grow_grid(points, directions, seed=0):
+    """Grow the lattice of chessboard corners that contains candidate ``seed``.
+
+    Parameters
+    ----------
+    points : (K, 2) array_like
+        Candidate corners ``(x, y)``.
+    directions : (K, 2, 2) array_like
+        The two edge directions (unit or not, any sign) at each candidate:
+        ``directions[k, 0]`` and ``directions[k, 1]``.
+    seed : int, optional
+        Index of the candidate the growth starts from (``0 ≤ seed < K``).
+
+    Returns
+    -------
+    (N, 3) int64 ndarray or None
+        One row ``(i, j, k)`` per node of the grid: candidate ``k`` sits ``i`` steps along
+        ``directions[seed, 0]`` and ``j`` steps along ``directions[seed, 1]`` from the seed (in
+        the sense of those vectors: a node at ``i = 1`` lies on the side the vector points to).
+        The seed is ``(0, 0, seed)`` (unless it was pruned). Rows are sorted by ``i``, then ``j``.
+        None when the seed has no first neighbour along one of its two directions.
+
+    Raises
+    ------
+    ValueError, TypeError
+        Malformed points or directions, a seed that is not an index of a candidate.
+
+    Notes
+    -----
+    §8.3, the grid of the detector. With unit directions ``u``:
+
+    1. First neighbours: along each of ``±u1`` (node ``(±1, 0)``) and ``±u2`` (``(0, ±1)``), the
+       nearest other candidate whose direction from the seed is within 20° of it. At least one
+       neighbour along ``u1`` and one along ``u2`` are needed, else None.
+    2. Growth, node by node (tens of nodes: a Python loop): the node next to ``here`` is
+       predicted by continuing a line (``2·here − back``, step ``|here − back|``) or, if no
+       ``back`` node exists, by completing a parallelogram with a side node and the diagonal
+       node (``here + diagonal − side``, step ``|diagonal − side|``). The nearest unused candidate
+       joins the grid if it is within 0.35 × step of the prediction, and its neighbours are
+       revisited. The most recently added node is visited first (a stack). On a clean board
+       the order of the visits does not matter; with stray candidates near a prediction it can
+       (the check's cases avoid such draws).
+    3. Pruning: nodes with at most one neighbour in the grid are removed, repeatedly (a stray
+       candidate stuck to the side of the board), unless every node would go.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x, y = np.meshgrid([10.0, 20.0, 30.0], [50.0, 40.0])           # a 3 × 2 grid
+    >>> points = np.column_stack([x.ravel(), y.ravel()])
+    >>> directions = np.tile([[1.0, 0.0], [0.0, 1.0]], (6, 1, 1))
+    >>> grow_grid(points, directions, seed=0)               # j = -1: the row above (y = 40)
+    array([[ 0, -1,  3],
+           [ 0,  0,  0],
+           [ 1, -1,  4],
+           [ 1,  0,  1],
+           [ 2, -1,  5],
+           [ 2,  0,  2]])
+    >>> grow_grid(points[:3], directions[:3], 0) is None    # a single row: no neighbour along y
+    True
+    """
+    pts, dirs = _candidate_arrays(points, directions)
+    seed = check_int(seed, "seed", minimum=0)
+    if seed >= len(pts):
+        raise ValueError(f"seed must be the index of a candidate (0 ≤ seed < {len(pts)}), got {seed}")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dirs = dirs / np.linalg.norm(dirs, axis=2, keepdims=True)
+    grid = _grow_grid(seed, pts, dirs)
+    return None if grid is None else _grid_rows(grid)
+
+
+def _grid_rows(grid: dict) -> np.ndarray:
+    """A grid dict {(i, j): k} as the (N, 3) int64 rows (i, j, k) sorted by i, then j."""
+    rows = np.array([(i, j, k) for (i, j), k in grid.items()], dtype=np.int64).reshape(-1, 3)
+    return rows[np.lexsort((rows[:, 1], rows[:, 0]))]
+
+
 @algorithm("calibration.order_grid_corners", section="8.3",
            check="cvkit.calibration.checks:order_grid_corners")
 def order_grid_corners(points, directions, cols, rows):
@@ -436,7 +532,8 @@ def order_grid_corners(points, directions, cols, rows):
 
     Notes
     -----
-    From a seed, the first neighbour along each of the ± edge directions is the nearest
+    The candidates ``0 … 7`` are tried as seeds in turn; each seed's lattice comes from
+    :func:`grow_grid` (called through the registry). From a seed, the first neighbour along each of the ± edge directions is the nearest
     candidate within 20° of it. The grid then grows node by node: the next corner is predicted
     by continuing a line (2·here − back) or by completing a parallelogram
     (here + diagonal − side), and the nearest unused candidate is taken if it is within 35 % of
@@ -461,17 +558,16 @@ def order_grid_corners(points, directions, cols, rows):
     """
     cols = check_int(cols, "cols", minimum=2)
     rows = check_int(rows, "rows", minimum=2)
-    pts = as_float_array(points, "points", ndim=2, allow_empty=True).reshape(-1, 2)
-    dirs = as_float_array(directions, "directions", ndim=3, allow_empty=True)
-    if pts.shape[0] != np.asarray(points).shape[0] or dirs.shape != (len(pts), 2, 2):
-        raise ValueError(f"points must be (K, 2) and directions (K, 2, 2), got {np.shape(points)} and {dirs.shape}")
-    with np.errstate(invalid="ignore", divide="ignore"):
-        dirs = dirs / np.linalg.norm(dirs, axis=2, keepdims=True)
+    pts, dirs = _candidate_arrays(points, directions)
     if len(pts) < cols * rows:
         return None
+    grow = implementation("calibration.grow_grid")
     for seed in range(min(8, len(pts))):
-        grid = _grow_grid(seed, pts, dirs)
-        if grid is not None and len(grid) == cols * rows:
+        nodes = grow(pts, dirs, seed)
+        if nodes is None or len(nodes) != cols * rows:
+            continue
+        grid = {(int(i), int(j)): int(k) for i, j, k in np.asarray(nodes).reshape(-1, 3)}
+        if len(grid) == cols * rows:
             corners = _ordered(grid, pts, cols, rows)
             if corners is not None:
                 return corners

@@ -18,6 +18,8 @@ Comparators (subclasses of :class:`cvkit.grading.Comparator`, numpy.testing-styl
 - :class:`HomographyClose` — a 3×3 H with H[2, 2] = 1 that maps the case's points where the
   reference does, within a tolerance in pixels (so entries of very different magnitudes are
   judged by their effect, and an unscaled H is told to divide by H[2, 2]);
+- :class:`GridEqual` — the nodes ``(i, j, candidate)`` of a grown grid, exactly (any row order),
+  or None where the seed grows no grid;
 - :class:`CornersClose` — a corner list in the catalog's order (or its 180° rotation) within a
   mean and a maximal distance, or None where no board is expected;
 - :class:`MinimumClose` — the ``(x, info)`` of an optimiser: the same minimum, a truthful
@@ -46,6 +48,8 @@ from ._pattern import find_chessboard_corners as _find_chessboard_corners
 from ._pattern import chessboard_response as _chessboard_response
 from ._pattern import corner_candidates as _corner_candidates
 from ._pattern import order_grid_corners as _order_grid_corners
+from ._pattern import grow_grid as _grow_grid_reference
+from ._pattern import _grid_rows, _grow_grid
 from ._pattern import _LUMA, _derivatives, _edge_directions, _grey01, _hessian_map, _local_maxima
 from ..filters import gaussian as _gaussian
 from ..warp import bilinear_sample as _bilinear
@@ -56,8 +60,9 @@ from ._zhang import intrinsics_from_homographies as _intrinsics_from_homographie
 
 __all__ = [
     "HomographyClose", "CornersClose", "MinimumClose", "CalibrationClose",
-    "MapClose", "CandidatesClose", "PointsClose",
-    "chessboard_points", "chessboard_response", "corner_candidates", "order_grid_corners", "refine_corners",
+    "MapClose", "CandidatesClose", "PointsClose", "GridEqual",
+    "chessboard_points", "chessboard_response", "corner_candidates", "grow_grid", "order_grid_corners",
+    "refine_corners",
     "find_chessboard_corners", "homography_dlt", "levenberg_marquardt",
     "refine_homography", "intrinsics_from_homographies", "extrinsics_from_homography",
     "estimate_radial_distortion", "calibrate",
@@ -584,7 +589,8 @@ find_chessboard_corners = Check(
                 "Return None unless the grid you grow is exactly cols × rows corners: a board with more corners is "
                 "another board"),
     ],
-    allowed=("calibration.chessboard_response", "calibration.corner_candidates", "calibration.order_grid_corners",
+    allowed=("calibration.chessboard_response", "calibration.corner_candidates", "calibration.grow_grid",
+             "calibration.order_grid_corners",
              "calibration.refine_corners", "filters.gaussian", "filters.correlate", "filters.convolve",
              "warp.bilinear_sample"),
     time_limit=30.0,
@@ -975,6 +981,185 @@ def _grid_case(rng, label, board, ask=None, strays=3, stuck=False, missing=False
     return Case((np.round(pts, 3), np.round(ds, 6), cols, rows), {}, label)
 
 
+# calibration.grow_grid -----------------------------------------------------------------------
+@dataclass
+class GridEqual(Comparator):
+    """The nodes ``(i, j, k)`` of a grid grown from a seed, exactly: the same set of rows (any
+    row order), or None where the seed has no neighbour along one of its directions."""
+
+    def describe(self) -> str:
+        return "the same grid nodes (i, j, candidate index), exactly"
+
+    def __call__(self, got, expected, case=None):
+        if expected is None:
+            if got is None:
+                return None
+            return Mismatch("expected None: this seed has no first neighbour along one of its two directions "
+                            "(nearest candidate within 20° of ±d1 and of ±d2)")
+        exp = np.asarray(expected, dtype=np.int64).reshape(-1, 3)
+        if got is None:
+            return Mismatch(f"you returned None, but this seed grows a grid of {len(exp)} nodes")
+        try:
+            arr = np.asarray(got)
+            rows = arr.astype(np.int64)
+        except (TypeError, ValueError) as exc:
+            return Mismatch(f"your output could not be turned into an integer array ({exc})")
+        if arr.ndim != 2 or arr.shape[1:] != (3,):
+            return Mismatch(f"expected an (N, 3) array of rows (i, j, candidate index), got shape {arr.shape}")
+        if arr.dtype.kind == "f" and not np.array_equal(arr, rows):
+            return Mismatch("your rows (i, j, candidate index) are not whole numbers")
+        mine = {tuple(int(v) for v in r) for r in rows}
+        if len(mine) != len(rows):
+            return Mismatch("some of your rows appear twice")
+        theirs = {tuple(int(v) for v in r) for r in exp}
+        if mine == theirs:
+            return None
+        missing, extra = sorted(theirs - mine), sorted(mine - theirs)
+        parts = []
+        if missing:
+            parts.append(f"{len(missing)} expected node(s) missing, e.g. (i, j, k) = {missing[0]}")
+        if extra:
+            parts.append(f"{len(extra)} node(s) not expected, e.g. (i, j, k) = {extra[0]}")
+        return Mismatch(f"Not the same grid ({len(mine)} nodes yours, {len(theirs)} expected): " + "; ".join(parts),
+                        mismatched=len(missing) + len(extra), total=len(theirs))
+
+
+def _gg_relabelled(points, directions, seed=0, swap=False, negate=False):
+    rows = _grow_grid_reference(points, directions, seed)
+    if rows is None:
+        return None
+    rows = rows.copy()
+    if swap:
+        rows[:, [0, 1]] = rows[:, [1, 0]]
+    if negate:
+        rows[:, :2] *= -1
+    return rows[np.lexsort((rows[:, 1], rows[:, 0]))]
+
+
+def _gg_variant(points, directions, seed=0, **options):
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    dirs = np.asarray(directions, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dirs = dirs / np.linalg.norm(dirs, axis=2, keepdims=True)
+    grid = _grow_grid(int(seed), pts, dirs, **options)
+    return None if grid is None else _grid_rows(grid)
+
+
+def _gg_swapped(points, directions, seed=0):
+    return _gg_relabelled(points, directions, seed, swap=True)
+
+
+def _gg_negated(points, directions, seed=0):
+    return _gg_relabelled(points, directions, seed, negate=True)
+
+
+def _gg_no_pruning(points, directions, seed=0):
+    return _gg_variant(points, directions, seed, prune=False)
+
+
+def _gg_lines_only(points, directions, seed=0):
+    return _gg_variant(points, directions, seed, parallelogram=False)
+
+
+def _gg_case(rng, label, board, seed="board", scale=False, as_list=False, **options):
+    """:func:`_gg_draw`, drawn again (up to 30 times) until the grid does not depend on the order
+    in which the nodes are visited (last-in-first-out, first-in-first-out and random orders of
+    growth agree)."""
+    for _ in range(30):
+        case = _gg_draw(rng, label, board, seed, scale, as_list, **options)
+        if _gg_order_free(*case.args):
+            break
+    return case
+
+
+def _gg_order_free(points, directions, seed):
+    pts = np.asarray(points, dtype=np.float64)
+    dirs = np.asarray(directions, dtype=np.float64)
+    dirs = dirs / np.linalg.norm(dirs, axis=2, keepdims=True)
+    shuffle = np.random.default_rng(8)
+    orders = [lambda n: 0] + [lambda n: int(shuffle.integers(n)) for _ in range(4)]
+    grid = _grow_grid(seed, pts, dirs)
+    return all(_grow_grid(seed, pts, dirs, visit=order) == grid for order in orders)
+
+
+def _gg_draw(rng, label, board, seed="board", scale=False, as_list=False, **options):
+    """A case of :func:`_grid_case` with a seed (a candidate's index): a random board corner
+    ('board'), the board corner farthest from the centre ('edge'), the first stray ('stray') or a
+    lone point added away from the board, which has no neighbours ('far')."""
+    points, directions, _, _ = _grid_case(rng, label, board, **options).args
+    n_board = board[0] * board[1] - (1 if options.get("missing") else 0)
+    n_extra = len(points) - n_board
+    first = 5 if options.get("flip_seed") else n_board                   # where the strays start
+    on_board = [k for k in range(len(points)) if not first <= k < first + n_extra]
+    if seed == "stray":
+        index = first
+    elif seed == "edge":                                                  # the board point farthest out
+        centre = points[on_board].mean(axis=0)
+        index = max(on_board, key=lambda k: float(np.hypot(*(points[k] - centre))))
+    else:
+        index = int(rng.choice(on_board))
+    if seed == "far":                    # a lone point below-right of the board, edges at ±45°: None
+        corner = points.max(axis=0) + rng.uniform(35.0, 45.0, 2)
+        points = np.vstack([points, np.round(corner, 3)])
+        directions = np.vstack([directions, np.round([[[0.7071068, 0.7071068], [0.7071068, -0.7071068]]], 6)])
+        index = len(points) - 1
+    if scale:
+        directions = np.round(directions * rng.uniform(0.2, 5.0, (len(directions), 2, 1)), 6)
+    if as_list:
+        points, directions = points.tolist(), directions.tolist()
+    return Case((points, directions, int(index)), {}, label)
+
+
+def _gg_public():
+    rng = np.random.default_rng(80314)
+    return [
+        _gg_case(rng, "a 5 × 4 grid with strays (one stuck to a row's end), seed on the board", (5, 4),
+                 strays=3, stuck=True),
+        _gg_case(rng, "a square 4 × 4 grid turned by up to 115°, seed at an outer corner, directions not unit",
+                 (4, 4), square=True, seed="edge", scale=True),
+        _gg_case(rng, "seed on a stray point among the board's corners", (4, 3), strays=2, seed="stray"),
+        _gg_case(rng, "seed on a lone point away from the board: None", (4, 3), strays=0, seed="far"),
+    ]
+
+
+def _gg_hidden(rng):
+    return [
+        _gg_case(rng, "5 × 4 grid with strays", (5, 4)),
+        _gg_case(rng, "6 × 4 grid, a stray stuck to a row", (6, 4), stuck=True),
+        _gg_case(rng, "4 × 3 grid, no strays, seed at an outer corner", (4, 3), strays=0, seed="edge"),
+        _gg_case(rng, "3 × 5 grid, a stray stuck to a row, directions not unit", (3, 5), stuck=True, scale=True),
+        _gg_case(rng, "square 4 × 4 grid, any turn", (4, 4), square=True),
+        _gg_case(rng, "square 3 × 3 grid, strays first, lists", (3, 3), square=True, flip_seed=True,
+                 as_list=True),
+        _gg_case(rng, "an interior corner missing", (5, 4), missing=True, stuck=True),
+        _gg_case(rng, "7 × 5 grid, many strays", (7, 5), strays=8, stuck=True),
+        _gg_case(rng, "seed on a stray point", (5, 4), strays=3, seed="stray"),
+        _gg_case(rng, "6 × 5 grid, seed at an outer corner", (6, 5), seed="edge", stuck=True),
+        _gg_case(rng, "a lone point away from the board: None", (5, 3), seed="far"),
+    ]
+
+
+grow_grid = Check(
+    public=_gg_public,
+    hidden=_gg_hidden,
+    compare=GridEqual(),
+    mistakes=[
+        Mistake("i and j swapped (i along the second direction)", _gg_swapped,
+                "i counts steps along directions[seed][0], j along directions[seed][1]: the first neighbour along "
+                "+d1 is node (1, 0)"),
+        Mistake("steps counted against the directions (signs flipped)", _gg_negated,
+                "Node (1, 0) is the neighbour on the side directions[seed][0] points to (positive projection), "
+                "node (-1, 0) the one on the other side"),
+        Mistake("no pruning of nodes with a single neighbour", _gg_no_pruning,
+                "After growing, remove the nodes with at most one neighbour in the grid, repeatedly: a stray "
+                "candidate stuck to the end of a row is not a corner of the board"),
+        Mistake("lines only (no parallelogram completion)", _gg_lines_only,
+                "Where no node lies behind `here`, predict the next node by completing a parallelogram: "
+                "here + diagonal − side; continuing lines alone only grows the cross through the seed"),
+    ],
+)
+
+
 def _og_column_major(points, directions, cols, rows):
     corners = _order_grid_corners(points, directions, cols, rows)
     return None if corners is None else corners.reshape(rows, cols, 2).transpose(1, 0, 2).reshape(-1, 2)
@@ -1054,7 +1239,7 @@ order_grid_corners = Check(
         Mistake("origin not the corner nearest the top-left", _og_first_origin,
                 "Of the admissible orders (x along `cols`, right-handed), take the one whose first corner is "
                 "nearest the pixel (0, 0): on a square board the four 90° turns are all admissible"),
-    ],
+    ],    allowed=("calibration.grow_grid",),
 )
 
 
