@@ -392,17 +392,9 @@ def corner_candidates(image, count, sigma=1.5):
     response = np.array(implementation("calibration.chessboard_response")(img, sigma), dtype=np.float64)
     S = implementation("filters.gaussian")(_grey01(img), sigma)
     empty = np.zeros((0, 2)), np.zeros((0, 2, 2))
-    border = 5
-    response[:border] = response[-border:] = 0.0
-    response[:, :border] = response[:, -border:] = 0.0
-    if response.max() <= 0:
+    xs, ys = _strongest_peaks(response, count)
+    if xs.size == 0:
         return empty
-    ys, xs = np.nonzero(_local_maxima(response, 2) & (response > 1e-3 * response.max()))
-    strength = response[ys, xs]
-    order = np.argsort(-strength, kind="stable")
-    typical = float(np.median(strength[order[:count]]))
-    keep = order[strength[order] > 0.05 * typical][: 4 * count + 50]
-    xs, ys = xs[keep], ys[keep]
     changes, contrast = _ring_sign_changes(S, np.column_stack([xs, ys]).astype(np.float64), 3.0)
     junction = (changes == 4) & (contrast >= 0.15)
     xs, ys = xs[junction], ys[junction]
@@ -412,6 +404,22 @@ def corner_candidates(image, count, sigma=1.5):
     c = S[ys + 1, xs] + S[ys - 1, xs] - 2.0 * S[ys, xs]
     b = 0.25 * (S[ys + 1, xs + 1] - S[ys + 1, xs - 1] - S[ys - 1, xs + 1] + S[ys - 1, xs - 1])
     return np.column_stack([xs, ys]).astype(np.float64), _edge_directions(a, b, c)
+
+
+def _strongest_peaks(response, count, border=5):
+    """Columns and rows of the local maxima of ``response`` (changed in place: a ``border``-pixel
+    frame is zeroed) above 1e-3 of its maximum and 5 % of the typical strength of the ``count``
+    strongest, strongest first, at most ``4 count + 50`` of them."""
+    response[:border] = response[-border:] = 0.0
+    response[:, :border] = response[:, -border:] = 0.0
+    if response.max() <= 0:
+        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
+    ys, xs = np.nonzero(_local_maxima(response, 2) & (response > 1e-3 * response.max()))
+    strength = response[ys, xs]
+    order = np.argsort(-strength, kind="stable")
+    typical = float(np.median(strength[order[:count]]))
+    keep = order[strength[order] > 0.05 * typical][: 4 * count + 50]
+    return xs[keep], ys[keep]
 
 
 def _candidate_arrays(points, directions) -> tuple[np.ndarray, np.ndarray]:

@@ -50,7 +50,7 @@ from ._pattern import corner_candidates as _corner_candidates
 from ._pattern import order_grid_corners as _order_grid_corners
 from ._pattern import grow_grid as _grow_grid_reference
 from ._pattern import _grid_rows, _grow_grid
-from ._pattern import _LUMA, _derivatives, _edge_directions, _grey01, _hessian_map, _local_maxima
+from ._pattern import _LUMA, _derivatives, _edge_directions, _grey01, _hessian_map, _strongest_peaks
 from ..filters import gaussian as _gaussian
 from ..warp import bilinear_sample as _bilinear
 from ..grading.runtime.problems import Jacobian, Residuals, least_squares_call
@@ -857,16 +857,9 @@ def _cc_no_ring_test(image, count, sigma=1.5):
     img = np.asarray(image, dtype=np.float64)
     response = _chessboard_response(img, sigma)
     S = _cr_parts(img, sigma)
-    response[:5] = response[-5:] = 0.0
-    response[:, :5] = response[:, -5:] = 0.0
-    if response.max() <= 0:
+    xs, ys = _strongest_peaks(response, count)
+    if xs.size == 0:
         return np.zeros((0, 2)), np.zeros((0, 2, 2))
-    ys, xs = np.nonzero(_local_maxima(response, 2) & (response > 1e-3 * response.max()))
-    strength = response[ys, xs]
-    order = np.argsort(-strength, kind="stable")
-    typical = float(np.median(strength[order[:count]]))
-    keep = order[strength[order] > 0.05 * typical][: 4 * count + 50]
-    xs, ys = xs[keep], ys[keep]
     gxx, gxy, gyy = _hessian_map(S)
     return np.column_stack([xs, ys]).astype(np.float64), _edge_directions(gxx[ys, xs], gxy[ys, xs], gyy[ys, xs])
 
