@@ -83,3 +83,31 @@ def as_rng(rng) -> np.random.Generator:
     if isinstance(rng, np.random.Generator):
         return rng
     raise TypeError(f"rng must be a numpy.random.Generator, an int seed or None, got {type(rng).__name__}")
+
+
+# ---------------------------------------------------------------------------------- bounded work
+#: The most memory (bytes) one array a cvkit function allocates may take: a call that would need
+#: more raises ``ValueError`` naming the argument responsible, instead of letting the kernel die.
+MAX_ARRAY_BYTES = 2 * 1024**3
+
+
+def check_size(value, name: str, *, minimum: int = 1, maximum: int) -> int:
+    """An integer count or length in ``[minimum, maximum]`` (a documented bound of the caller)."""
+    value = check_int(value, name, minimum=minimum)
+    if value > maximum:
+        raise ValueError(f"{name} must be <= {maximum}, got {value}")
+    return value
+
+
+def check_allocation(shape, name: str, *, itemsize: int = 8, what: str = "the result") -> tuple[int, ...]:
+    """Raise ``ValueError`` naming ``name`` if an array of ``shape`` would exceed
+    :data:`MAX_ARRAY_BYTES`; return the shape as a tuple of ints."""
+    dims = tuple(int(n) for n in shape)
+    nbytes = itemsize
+    for n in dims:
+        nbytes *= max(n, 0)
+    if nbytes > MAX_ARRAY_BYTES:
+        raise ValueError(
+            f"{name} asks for {what} of shape {dims} ({nbytes / 1024**3:.1f} GiB), more than the "
+            f"{MAX_ARRAY_BYTES / 1024**3:.0f} GiB cvkit allows for one array; use a smaller {name}")
+    return dims

@@ -15,38 +15,49 @@ ROOT = Path(__file__).resolve().parent.parent
 VENV = ROOT / ".venv"
 BIN = VENV / ("Scripts" if os.name == "nt" else "bin")
 STAMP = VENV / ".cvkit-installed"
-EXTRAS = "test,learn"
+# What each extra brings along (pyproject.toml): ``test`` includes ``course``, ``learn`` and ``data``.
+_INCLUDES = {"test": {"test", "course", "learn", "data", "distributed"}, "course": {"course", "data"}}
 
 
-def _needs_install() -> bool:
+def _covered(extras: str) -> set[str]:
+    names: set[str] = set()
+    for extra in filter(None, extras.split(",")):
+        names |= _INCLUDES.get(extra, {extra})
+    return names
+
+
+def _needs_install(extras: str) -> bool:
+    """True unless the stamp shows this pyproject.toml installed with at least ``extras``."""
     if not STAMP.exists():
         return True
-    installed = STAMP.read_text().strip()
-    return installed != _fingerprint()
+    installed, _, mtime = STAMP.read_text().strip().rpartition(":")
+    if mtime != str((ROOT / "pyproject.toml").stat().st_mtime_ns):
+        return True
+    return not _covered(extras) <= _covered(installed)
 
 
-def _fingerprint() -> str:
-    return f"{EXTRAS}:{(ROOT / 'pyproject.toml').stat().st_mtime_ns}"
+def ensure(extras: str = "test") -> Path:
+    """Make sure ``.venv`` exists with cvkit installed (editable) with ``extras``; return bin/.
 
-
-def ensure() -> Path:
-    """Make sure ``.venv`` exists with cvkit installed (editable) and its extras; return bin/."""
+    ``scripts/demo`` asks for ``course`` (what a course needs), ``scripts/test`` for ``test``
+    (which adds the test tools and oracles on top of it).
+    """
     python = BIN / "python"
     if not python.exists():
         print(f"[cvkit] creating virtual environment in {VENV}", flush=True)
         venv.EnvBuilder(with_pip=True, clear=False).create(VENV)
-    if _needs_install():
-        print("[cvkit] installing cvkit and its dependencies (first run only)", flush=True)
+    if _needs_install(extras):
+        print(f"[cvkit] installing cvkit[{extras}] and its dependencies (first run only)", flush=True)
         pip = [str(python), "-m", "pip", "--disable-pip-version-check"]
         subprocess.run(pip + ["install", "-q", "--upgrade", "pip"], check=True)
-        subprocess.run(pip + ["install", "-q", "-e", f".[{EXTRAS}]"], cwd=ROOT, check=True)
-        STAMP.write_text(_fingerprint())
+        subprocess.run(pip + ["install", "-q", "-e", f".[{extras}]"], cwd=ROOT, check=True)
+        STAMP.write_text(f"{extras}:{(ROOT / 'pyproject.toml').stat().st_mtime_ns}")
     return BIN
 
 
-def run(program: str, *args: str) -> int:
+def run(program: str, *args: str, extras: str = "test") -> int:
     """Run ``program`` from the virtual environment's bin/ in the project root."""
-    bin_dir = ensure()
+    bin_dir = ensure(extras)
     env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}", VIRTUAL_ENV=str(VENV))
     env.setdefault("MPLBACKEND", "Agg")
     return subprocess.call([str(bin_dir / program), *args], cwd=ROOT, env=env)
