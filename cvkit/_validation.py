@@ -111,3 +111,28 @@ def check_allocation(shape, name: str, *, itemsize: int = 8, what: str = "the re
             f"{name} asks for {what} of shape {dims} ({nbytes / 1024**3:.1f} GiB), more than the "
             f"{MAX_ARRAY_BYTES / 1024**3:.0f} GiB cvkit allows for one array; use a smaller {name}")
     return dims
+
+
+#: The most elementary steps one cvkit call may plan, counted as pixels visited once per window
+#: offset, kernel tap or candidate (about a minute of NumPy work on one core): a call that would
+#: need more raises ``ValueError`` naming the argument responsible instead of running for hours.
+MAX_WORK = 2**32
+
+
+def check_work(steps: int, name: str, *, what: str) -> int:
+    """Raise ``ValueError`` naming ``name`` if ``what`` needs more than :data:`MAX_WORK` steps.
+
+    ``steps`` counts pixel visits (one pixel for one window offset, tap or candidate); the
+    message says how many were asked for and which argument to reduce. Returns ``steps``.
+    """
+    if steps > MAX_WORK:
+        raise ValueError(
+            f"{name}: {what} needs about {steps:.2g} pixel steps, more than the {MAX_WORK:.2g} "
+            f"(2**32, about a minute of work) cvkit allows for one call; use a smaller {name}")
+    return steps
+
+
+from typing import Literal  # noqa: E402  (type aliases for the annotations of the topics)
+
+#: The ``border`` names of :data:`BORDERS`, for type hints.
+Border = Literal["zero", "replicate", "reflect", "reflect101"]
