@@ -113,23 +113,25 @@ def check_allocation(shape, name: str, *, itemsize: int = 8, what: str = "the re
     return dims
 
 
-#: The most elementary steps one cvkit call may plan, counted as pixels visited once per window
-#: offset, kernel tap or candidate (about a minute of NumPy work on one core): a call that would
-#: need more raises ``ValueError`` naming the argument responsible instead of running for hours.
-MAX_WORK = 2**32
+#: The most elementary operations (one arithmetic operation on one array element, about a
+#: nanosecond) one cvkit call may plan: about a minute of NumPy work on one core. A call whose
+#: estimated cost is higher raises ``ValueError`` naming the argument responsible instead of
+#: running for hours.
+MAX_WORK = 2**36
 
 
-def check_work(steps: int, name: str, *, what: str) -> int:
-    """Raise ``ValueError`` naming ``name`` if ``what`` needs more than :data:`MAX_WORK` steps.
+def check_work(operations: int, name: str, *, what: str) -> int:
+    """Raise ``ValueError`` naming ``name`` if ``what`` needs more than :data:`MAX_WORK`
+    elementary operations (an estimate: whole-array element operations of the algorithm).
 
-    ``steps`` counts pixel visits (one pixel for one window offset, tap or candidate); the
-    message says how many were asked for and which argument to reduce. Returns ``steps``.
+    The message says how many were asked for and which argument to reduce. Returns
+    ``operations``.
     """
-    if steps > MAX_WORK:
+    if operations > MAX_WORK:
         raise ValueError(
-            f"{name}: {what} needs about {steps:.2g} pixel steps, more than the {MAX_WORK:.2g} "
-            f"(2**32, about a minute of work) cvkit allows for one call; use a smaller {name}")
-    return steps
+            f"{name}: {what} needs about {operations:.2g} elementary operations, more than the "
+            f"{MAX_WORK:.2g} (2**36, about a minute of work) cvkit allows for one call; use a smaller {name}")
+    return operations
 
 
 from typing import Literal  # noqa: E402  (type aliases for the annotations of the topics)
