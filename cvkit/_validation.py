@@ -134,6 +134,13 @@ def check_work(operations: int, name: str, *, what: str) -> int:
     return operations
 
 
+def check_padded(shape: tuple[int, ...], radius: int, name: str) -> tuple[int, ...]:
+    """The image ``shape`` grown by ``radius`` pixels on both sides of its first two axes;
+    ``ValueError`` naming ``name`` if that padded image would exceed :data:`MAX_ARRAY_BYTES`."""
+    grown = (shape[0] + 2 * radius, shape[1] + 2 * radius) + tuple(shape[2:])
+    return check_allocation(grown, name, what="a padded image")
+
+
 from typing import Literal  # noqa: E402  (type aliases for the annotations of the topics)
 
 #: The ``border`` names of :data:`BORDERS`, for type hints.
