@@ -8,11 +8,22 @@ is one whole-image multiply-add (large kernels go through the FFT instead).
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 import numpy as np
-import scipy.fft
+from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, as_image, check_border, check_int, check_real
+from .._validation import (
+    Border,
+    as_float_array,
+    as_image,
+    check_allocation,
+    check_border,
+    check_padded,
+    check_int,
+    check_real,
+    check_work,
+)
 from ..registry import algorithm, implementation
 
 __all__ = ["temporal_mean", "correlate", "convolve", "mean_kernel", "mean", "gaussian_kernel", "gaussian"]
@@ -25,7 +36,7 @@ _BLOCK_ELEMENTS = 1 << 15
 # --------------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------------
-def _check_output(output) -> str:
+def _check_output(output: str) -> str:
     if not isinstance(output, str) or output not in _OUTPUTS:
         raise ValueError(f"output must be one of {', '.join(map(repr, _OUTPUTS))}, got {output!r}")
     return output
@@ -53,6 +64,16 @@ def _use_fft(taps: int, out_shape: tuple[int, int], padded_shape: tuple[int, int
     return taps > 30 and taps * n_out > 2.5 * n_fft * math.log2(max(n_fft, 2))
 
 
+def gaussian_radius(sigma: float) -> int:
+    """The default half-width ``ceil(3σ − 1e-9)`` of :func:`gaussian_kernel` (the notes' k = 3σ).
+
+    A σ so large that the radius would not fit in an int64 gives ``2**62``: any allocation
+    check refuses it.
+    """
+    reach = 3.0 * sigma - 1e-9
+    return max(0, int(math.ceil(reach))) if reach < 2.0**62 else 2**62
+
+
 def _correlate_direct(padded: np.ndarray, kernel: np.ndarray, out_shape: tuple[int, int]) -> np.ndarray:
     """``O[i, j] = sum K[m, n] P[i + m, j + n]`` by a loop over the kernel's non-zero taps."""
     ho, wo = out_shape
@@ -76,6 +97,8 @@ def _correlate_direct(padded: np.ndarray, kernel: np.ndarray, out_shape: tuple[i
 def _correlate_fft(padded: np.ndarray, kernel: np.ndarray, out_shape: tuple[int, int]) -> np.ndarray:
     """Same as :func:`_correlate_direct` through the FFT (linear convolution with the flipped
     kernel; the circular wrap-around only touches the first ``kh - 1`` rows/cols, dropped)."""
+    import scipy.fft
+
     kh, kw = kernel.shape
     shape = tuple(scipy.fft.next_fast_len(int(n), real=True) for n in padded.shape[:2])
     spectrum = scipy.fft.rfft2(padded, shape, axes=(0, 1))
@@ -91,6 +114,8 @@ def _correlate(img: np.ndarray, kernel: np.ndarray, anchor: tuple[int, int], bor
     """Correlation with the kernel tap ``anchor`` placed on the output pixel."""
     kh, kw = kernel.shape
     h, w = img.shape[:2]
+    if output == "same":
+        check_allocation((h + kh - 1, w + kw - 1) + img.shape[2:], "kernel", what="a padded image")
     if output == "valid":
         if kh > h or kw > w:
             raise ValueError(
@@ -115,7 +140,7 @@ def _filter_1d(padded: np.ndarray, weights: np.ndarray, axis: int, out: np.ndarr
     """
     n = out.shape[axis]
 
-    def tap(k):
+    def tap(k: int) -> np.ndarray:
         return padded[k : k + n] if axis == 0 else padded[:, k : k + n]
 
     length = weights.size
@@ -139,7 +164,7 @@ def _filter_1d(padded: np.ndarray, weights: np.ndarray, axis: int, out: np.ndarr
 # §3.1 temporal mean
 # --------------------------------------------------------------------------------------------
 @algorithm("filters.temporal_mean", section="3.1", check="cvkit.filters.checks:temporal_mean")
-def temporal_mean(frames):
+def temporal_mean(frames: ArrayLike) -> np.ndarray:
     """Average of T frames of the same static scene.
 
     Parameters
@@ -176,7 +201,8 @@ def temporal_mean(frames):
 # §3.6–3.7 correlation and convolution
 # --------------------------------------------------------------------------------------------
 @algorithm("filters.correlate", section="3.6", check="cvkit.filters.checks:correlate")
-def correlate(image, kernel, border="reflect101", output="same"):
+def correlate(image: ArrayLike, kernel: ArrayLike, border: Border = "reflect101",
+              output: Literal["same", "valid"] = "same") -> np.ndarray:
     """Correlate an image with a 2-D kernel (the kernel is *not* flipped).
 
     Parameters
@@ -186,7 +212,9 @@ def correlate(image, kernel, border="reflect101", output="same"):
         channel by channel with the same kernel.
     kernel : (kh, kw) array_like
         Finite real kernel of any size, odd or even. Its anchor (the tap placed on the
-        output pixel) is ``(kh // 2, kw // 2)``.
+        output pixel) is ``(kh // 2, kw // 2)``. With ``output="same"`` the image padded by
+        the kernel, ``(H + kh - 1, W + kw - 1)``, may take at most 2 GiB (``ValueError``
+        naming ``kernel`` otherwise); this also bounds the time (at most one FFT of that size).
     border : {"reflect101", "reflect", "replicate", "zero"}
         How pixels outside the image are made up (§3.7, see :func:`cvkit.filters.pad`). Any
         kernel size works, also one larger than the image. Ignored for ``output="valid"``.
@@ -240,7 +268,8 @@ def correlate(image, kernel, border="reflect101", output="same"):
 
 
 @algorithm("filters.convolve", section="3.7", check="cvkit.filters.checks:convolve")
-def convolve(image, kernel, border="reflect101", output="same"):
+def convolve(image: ArrayLike, kernel: ArrayLike, border: Border = "reflect101",
+             output: Literal["same", "valid"] = "same") -> np.ndarray:
     """Convolve an image with a 2-D kernel (correlation with the kernel flipped).
 
     Parameters
@@ -250,6 +279,7 @@ def convolve(image, kernel, border="reflect101", output="same"):
         channel by channel with the same kernel.
     kernel : (kh, kw) array_like
         Finite real kernel of any size, odd or even; its centre is ``(kh // 2, kw // 2)``.
+        Bounded as for :func:`correlate`.
     border : {"reflect101", "reflect", "replicate", "zero"}
         How pixels outside the image are made up (§3.7). Ignored for ``output="valid"``.
     output : {"same", "valid"}
@@ -297,13 +327,14 @@ def convolve(image, kernel, border="reflect101", output="same"):
 # §3.8 mean filter
 # --------------------------------------------------------------------------------------------
 @algorithm("filters.mean_kernel", section="3.8", check="cvkit.filters.checks:mean_kernel")
-def mean_kernel(size):
+def mean_kernel(size: int) -> np.ndarray:
     """The ``size`` x ``size`` box kernel: every tap equals ``1 / size**2``.
 
     Parameters
     ----------
     size : int
-        Side of the square kernel, >= 1 (even sizes are allowed here).
+        Side of the square kernel, >= 1 (even sizes are allowed here); the kernel may take at
+        most 2 GiB (``size`` <= 16384).
 
     Returns
     -------
@@ -322,11 +353,12 @@ def mean_kernel(size):
            [0.25, 0.25]])
     """
     size = check_int(size, "size", minimum=1)
-    return np.full((size, size), 1.0 / (size * size))
+    shape = check_allocation((size, size), "size", what="a box kernel")
+    return np.full(shape, 1.0 / (size * size))
 
 
 @algorithm("filters.mean", section="3.8", check="cvkit.filters.checks:mean")
-def mean(image, size, border="reflect101"):
+def mean(image: ArrayLike, size: int, border: Border = "reflect101") -> np.ndarray:
     """Box (mean) filter: each pixel becomes the average of its ``size`` x ``size`` window.
 
     Parameters
@@ -334,7 +366,8 @@ def mean(image, size, border="reflect101"):
     image : (H, W) or (H, W, 3) array_like
         Grayscale or colour image, any real dtype, finite values.
     size : int
-        Odd window side, >= 1.
+        Odd window side, >= 1. The kernel and the image padded by ``size // 2`` may each take
+        at most 2 GiB (``ValueError`` naming ``size`` otherwise).
     border : {"reflect101", "reflect", "replicate", "zero"}
         How pixels outside the image are made up (§3.7).
 
@@ -365,6 +398,8 @@ def mean(image, size, border="reflect101"):
     img = as_image(image)
     size = check_int(size, "size", minimum=1, odd=True)
     check_border(border)
+    check_allocation((size, size), "size", what="a box kernel")
+    check_padded(img.shape, size // 2, "size")
     kernel = implementation("filters.mean_kernel")(size)
     return implementation("filters.correlate")(img, kernel, border=border)
 
@@ -373,16 +408,19 @@ def mean(image, size, border="reflect101"):
 # §3.9 Gaussian filter
 # --------------------------------------------------------------------------------------------
 @algorithm("filters.gaussian_kernel", section="3.9", check="cvkit.filters.checks:gaussian_kernel")
-def gaussian_kernel(sigma, radius=None):
+def gaussian_kernel(sigma: float, radius: int | None = None) -> np.ndarray:
     """Sampled, normalised 1-D Gaussian kernel.
 
     Parameters
     ----------
     sigma : float
-        Standard deviation in pixels, > 0.
+        Standard deviation in pixels, > 0. A σ so small that ``2σ²`` underflows to 0
+        (σ < about 1e-162) gives the exact limit, the unit impulse (1 at offset 0).
     radius : int, optional
         Half-width r >= 0 of the kernel. Default ``ceil(3 * sigma - 1e-9)``, the notes'
         k = 3σ (the tiny guard keeps e.g. 3 · 0.1 · 10 from rounding up a whole pixel).
+        The kernel may take at most 2 GiB, r < 2**27 (``ValueError`` naming ``radius``, or
+        ``sigma`` for the default radius).
 
     Returns
     -------
@@ -407,17 +445,31 @@ def gaussian_kernel(sigma, radius=None):
     """
     sigma = check_real(sigma, "sigma", positive=True)
     if radius is None:
-        radius = max(0, int(math.ceil(3.0 * sigma - 1e-9)))
+        radius, name = gaussian_radius(sigma), "sigma"
     else:
-        radius = check_int(radius, "radius", minimum=0)
+        radius, name = check_int(radius, "radius", minimum=0), "radius"
+    check_allocation((2 * radius + 1,), name, what="a Gaussian kernel")
     x = np.arange(-radius, radius + 1, dtype=np.float64)
-    weights = np.exp(-(x * x) / (2.0 * sigma * sigma))
+    spread = 2.0 * sigma * sigma
+    if spread == 0.0:  # σ² underflows: exp(-x²/2σ²) is 1 at x = 0 and 0 elsewhere, exactly
+        return (x == 0.0).astype(np.float64)
+    weights = np.exp(-(x * x) / spread)
     weights /= weights.sum()
     return weights
 
 
+def _check_separable(shape: tuple[int, ...], radius: int, name: str) -> None:
+    """Refuse (naming ``name``) a separable filter of half-width ``radius`` on an image of
+    ``shape`` whose padded copy or whose two passes would exceed cvkit's bounds."""
+    check_padded(shape, radius, name)
+    h, w = shape[0], shape[1]
+    channels = shape[2] if len(shape) > 2 else 1
+    work = 3 * (radius + 1) * (2 * h + 2 * radius) * w * channels
+    check_work(work, name, what=f"a separable filter of radius {radius} on a {h}×{w} image")
+
+
 @algorithm("filters.gaussian", section="3.9.1", check="cvkit.filters.checks:gaussian")
-def gaussian(image, sigma, border="reflect101"):
+def gaussian(image: ArrayLike, sigma: float, border: Border = "reflect101") -> np.ndarray:
     """Gaussian smoothing, computed separably (rows, then columns).
 
     Parameters
@@ -426,7 +478,9 @@ def gaussian(image, sigma, border="reflect101"):
         Grayscale or colour image, any real dtype, finite values (colour: per channel).
     sigma : float
         Standard deviation in pixels, > 0. The kernel radius is that of
-        :func:`gaussian_kernel`, ``ceil(3σ − 1e-9)``.
+        :func:`gaussian_kernel`, ``ceil(3σ − 1e-9)``. Bounded: the image padded by r may
+        take at most 2 GiB and the two passes, about ``3(r + 1)(2H + 2r)·W·C`` operations,
+        at most 2**36 (about a minute); otherwise ``ValueError`` naming ``sigma``.
     border : {"reflect101", "reflect", "replicate", "zero"}
         How pixels outside the image are made up (§3.7).
 
@@ -461,6 +515,7 @@ def gaussian(image, sigma, border="reflect101"):
     img = as_image(image)
     sigma = check_real(sigma, "sigma", positive=True)
     check_border(border)
+    _check_separable(img.shape, gaussian_radius(sigma), "sigma")
     weights = implementation("filters.gaussian_kernel")(sigma)
     weights = as_float_array(weights, "the kernel returned by filters.gaussian_kernel", ndim=1)
     if weights.size % 2 == 0:
@@ -469,6 +524,7 @@ def gaussian(image, sigma, border="reflect101"):
             f"got length {weights.size}"
         )
     r = weights.size // 2
+    _check_separable(img.shape, r, "the kernel returned by filters.gaussian_kernel")
     padded = implementation("filters.pad")(img, r, border=border)  # (H + 2r, W + 2r[, 3])
     h, w = img.shape[:2]
     out = np.empty(img.shape)

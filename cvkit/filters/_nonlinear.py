@@ -33,11 +33,22 @@ combination of values of the padded image, so the result is finally clipped to t
 from __future__ import annotations
 
 import math
+from typing import Callable, Iterator
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+from numpy.typing import ArrayLike
 
-from .._validation import as_image, check_border, check_int, check_real
+from .._validation import (
+    Border,
+    as_image,
+    check_allocation,
+    check_border,
+    check_int,
+    check_padded,
+    check_real,
+    check_work,
+)
 from ..registry import algorithm, implementation
 
 __all__ = ["median", "bilateral", "nl_means"]
@@ -66,7 +77,7 @@ def _median_plane(padded: np.ndarray, size: int, out: np.ndarray) -> None:
 
 
 @algorithm("filters.median", section="3.11", check="cvkit.filters.checks:median")
-def median(image, size, border="reflect101"):
+def median(image: ArrayLike, size: int, border: Border = "reflect101") -> np.ndarray:
     r"""Median filter: each pixel becomes the median of its ``size × size`` neighbourhood.
 
     .. math:: O(p) = \operatorname{median}\{\, I(q) : \|q - p\|_\infty \le r \,\},
@@ -83,7 +94,10 @@ def median(image, size, border="reflect101"):
         rescaled (a uint8 image stays in 0..255). Colour images are filtered channel by
         channel.
     size : int
-        Side of the square window, odd, ≥ 1 (``size=1`` returns a copy).
+        Side of the square window, odd, ≥ 1 (``size=1`` returns a copy). Bounded: the padded
+        image and the windows of one band of rows may each take at most 2 GiB, and the
+        selection, about ``10·H·W·C·size²`` operations, at most 2**36 (about a minute);
+        otherwise ``ValueError`` naming ``size``.
     border : {"reflect101", "reflect", "replicate", "zero"}
         How pixels outside the image are read (§3.7, :func:`cvkit.filters.pad`).
 
@@ -114,8 +128,14 @@ def median(image, size, border="reflect101"):
     """
     img = as_image(image)
     size = check_int(size, "size", minimum=1, odd=True)
-    border = check_border(border)
+    check_border(border)
     radius = size // 2
+    height, width = img.shape[:2]
+    channels = img.shape[2] if img.ndim == 3 else 1
+    check_padded(img.shape, radius, "size")
+    check_allocation((width, size * size), "size", what="the windows of one row")
+    check_work(10 * height * width * channels * size * size, "size",
+               what=f"a {size}×{size} median on a {height}×{width} image")
     padded = implementation("filters.pad")(img, radius, border)
     out = np.empty(img.shape, dtype=np.float64)
     if img.ndim == 2:
@@ -129,7 +149,7 @@ def median(image, size, border="reflect101"):
 # --------------------------------------------------------------------------------------------
 # Shared machinery of the two weighted means
 # --------------------------------------------------------------------------------------------
-def _half_offsets(radius: int):
+def _half_offsets(radius: int) -> Iterator[tuple[int, int]]:
     """Offsets ``(dy, dx)`` of the square ``|dy|, |dx| ≤ radius`` that come after ``(0, 0)``
     in row-major order: one of each pair ``±δ``."""
     for dy in range(0, radius + 1):
@@ -155,7 +175,26 @@ class _Buffers:
         return buf[:n]
 
 
-def _symmetric_weighted_mean(img, border, pad_r, radius, reach, unit, weight_of):
+#: ``weight_of(diff, unit, dy, dx, buffers)`` of :func:`_symmetric_weighted_mean`
+WeightFunction = Callable[[np.ndarray, float, int, int, "_Buffers"], np.ndarray]
+
+
+def _check_weighted_mean(shape: tuple[int, ...], pad_r: int, radius: int, per_offset: int, name: str,
+                         what: str) -> None:
+    """Refuse (naming ``name``) a weighted mean over the offsets ``‖δ‖∞ ≤ radius`` on an image
+    of ``shape`` padded by ``pad_r`` whose padded copy exceeds 2 GiB or whose loop, about
+    ``per_offset·C`` operations per padded pixel for each of the ``((2r+1)² − 1)/2`` half
+    offsets, exceeds 2**36."""
+    height, width = shape[0], shape[1]
+    channels = shape[2] if len(shape) > 2 else 1
+    check_padded(shape, pad_r, name)
+    half = ((2 * radius + 1) ** 2 - 1) // 2
+    work = half * (height + 2 * pad_r) * (width + 2 * pad_r) * channels * per_offset
+    check_work(work, name, what=f"{what} on a {height}×{width} image")
+
+
+def _symmetric_weighted_mean(img: np.ndarray, border: str, pad_r: int, radius: int, reach: int, unit: float,
+                             weight_of: WeightFunction) -> np.ndarray:
     """``O(p) = I(p) + Σ_δ w_δ(p) (I(p+δ) − I(p)) / (1 + Σ_δ w_δ(p))`` over the offsets
     ``0 < ‖δ‖∞ ≤ radius``, for weights symmetric in ``p`` and ``q = p + δ``.
 
@@ -221,7 +260,7 @@ def _symmetric_weighted_mean(img, border, pad_r, radius, reach, unit, weight_of)
     return np.ascontiguousarray(out[0] if img.ndim == 2 else np.moveaxis(out, 0, -1))
 
 
-def _sum_of_squares(diff: np.ndarray, unit: float, out: np.ndarray, tmp) -> np.ndarray:
+def _sum_of_squares(diff: np.ndarray, unit: float, out: np.ndarray, tmp: Callable[[], np.ndarray]) -> np.ndarray:
     """``Σ_c (diff[c] / unit)²`` into ``out``; ``tmp()`` gives a scratch array for colour.
 
     Dividing before squaring keeps ``(d / σ)²`` finite wherever it matters, even when ``d²``
@@ -238,7 +277,8 @@ def _sum_of_squares(diff: np.ndarray, unit: float, out: np.ndarray, tmp) -> np.n
 
 
 @algorithm("filters.bilateral", section="3.12", check="cvkit.filters.checks:bilateral")
-def bilateral(image, sigma_space, sigma_range, radius=None, border="reflect101"):
+def bilateral(image: ArrayLike, sigma_space: float, sigma_range: float, radius: int | None = None,
+              border: Border = "reflect101") -> np.ndarray:
     r"""Bilateral filter: a Gaussian mean whose weights also fall with the intensity difference.
 
     .. math::
@@ -264,7 +304,10 @@ def bilateral(image, sigma_space, sigma_range, radius=None, border="reflect101")
     radius : int, optional
         Window radius r ≥ 0 (window ``(2r+1)²``). Default ``ceil(3·sigma_space)`` as the
         catalog states (literally: round-off such as ``3 · (7/3) = 7.000000000000001``
-        gives 8).
+        gives 8). Bounded: the image padded by r may take at most 2 GiB, and the loop over
+        the window, about ``16·C·(2r+1)²/2·(H + 2r)(W + 2r)`` operations, at most 2**36
+        (about a minute); otherwise ``ValueError`` naming ``radius`` (or ``sigma_space`` for
+        the default radius). E.g. ``sigma_space=255`` on a 10×10 image (r = 765) is refused.
     border : {"reflect101", "reflect", "replicate", "zero"}
         How pixels outside the image are read (§3.7).
 
@@ -306,14 +349,18 @@ def bilateral(image, sigma_space, sigma_range, radius=None, border="reflect101")
     sigma_space = check_real(sigma_space, "sigma_space", positive=True)
     sigma_range = check_real(sigma_range, "sigma_range", positive=True)
     if radius is None:
-        radius = max(0, math.ceil(3.0 * sigma_space))
+        reach = 3.0 * sigma_space
+        radius, name = (max(0, math.ceil(reach)) if reach < 2.0**62 else 2**62), "sigma_space"
+        what = f"a bilateral window of radius {radius} (ceil(3·sigma_space))"
     else:
-        radius = check_int(radius, "radius", minimum=0)
-    border = check_border(border)
+        radius, name = check_int(radius, "radius", minimum=0), "radius"
+        what = f"a bilateral window of radius {radius}"
+    check_border(border)
+    _check_weighted_mean(img.shape, radius, radius, 16, name, what)
 
     space_scale = -0.5 / sigma_space / sigma_space  # no overflow for huge σ_s: 0
 
-    def weight_of(diff, unit, dy, dx, buffers):
+    def weight_of(diff: np.ndarray, unit: float, dy: int, dx: int, buffers: _Buffers) -> np.ndarray:
         n = diff.shape[1]
         arg = _sum_of_squares(diff, unit, buffers("w", n), lambda: buffers("tmp", n))
         arg *= -0.5
@@ -326,7 +373,8 @@ def bilateral(image, sigma_space, sigma_range, radius=None, border="reflect101")
 # --------------------------------------------------------------------------------------------
 # Non-local means (§3.13)
 # --------------------------------------------------------------------------------------------
-def _box_sum(values: np.ndarray, size: int, step: int, out: np.ndarray, tmp1, tmp2) -> np.ndarray:
+def _box_sum(values: np.ndarray, size: int, step: int, out: np.ndarray, tmp1: np.ndarray,
+             tmp2: np.ndarray) -> np.ndarray:
     """``out[i] = Σ_{t < size} values[i + t·step]`` for a 1-D array; ``out`` is
     ``(size − 1)·step`` shorter than ``values``; ``tmp1``, ``tmp2`` scratch arrays as long as
     ``values`` (none of them may be ``values``).
@@ -360,7 +408,8 @@ def _box_sum(values: np.ndarray, size: int, step: int, out: np.ndarray, tmp1, tm
 
 
 @algorithm("filters.nl_means", section="3.13", check="cvkit.filters.checks:nl_means")
-def nl_means(image, h, patch_size=7, search_size=21, border="reflect101"):
+def nl_means(image: ArrayLike, h: float, patch_size: int = 7, search_size: int = 21,
+             border: Border = "reflect101") -> np.ndarray:
     r"""Non-local means: average the pixels whose surrounding *patches* look alike.
 
     .. math::
@@ -393,6 +442,11 @@ def nl_means(image, h, patch_size=7, search_size=21, border="reflect101"):
         How pixels outside the image are read, for patches and search windows alike (§3.7):
         the image is padded once by ``search_size//2 + patch_size//2``.
 
+    ``patch_size`` and ``search_size`` are bounded: the padded image may take at most 2 GiB,
+    and the loop over the search window, about ``(16 + 4·log2(patch_size))·C`` operations
+    per padded pixel for each of the ``(search_size² − 1)/2`` half offsets, at most 2**36
+    (about a minute); otherwise ``ValueError`` naming the larger of the two.
+
     Returns
     -------
     ndarray, float64, same shape as ``image``
@@ -424,14 +478,17 @@ def nl_means(image, h, patch_size=7, search_size=21, border="reflect101"):
     h = check_real(h, "h", positive=True)
     patch_size = check_int(patch_size, "patch_size", minimum=1, odd=True)
     search_size = check_int(search_size, "search_size", minimum=1, odd=True)
-    border = check_border(border)
+    check_border(border)
 
     sr, pr = search_size // 2, patch_size // 2
+    _check_weighted_mean(img.shape, sr + pr, sr, 16 + 4 * patch_size.bit_length(),
+                         "search_size" if search_size >= patch_size else "patch_size",
+                         f"non-local means with patch_size={patch_size}, search_size={search_size}")
     channels = 1 if img.ndim == 2 else img.shape[2]
     scale = -1.0 / (patch_size * patch_size * channels)
     wp = img.shape[1] + 2 * (sr + pr)
 
-    def weight_of(diff, unit, dy, dx, buffers):
+    def weight_of(diff: np.ndarray, unit: float, dy: int, dx: int, buffers: _Buffers) -> np.ndarray:
         # squared differences around every q, summed over each patch: along rows, then columns
         n = diff.shape[1]
         n_rows = n - (patch_size - 1)

@@ -2,8 +2,9 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .._validation import as_image, check_border, check_int
+from .._validation import Border, as_image, check_allocation, check_border, check_int
 from ..registry import algorithm
 
 
@@ -27,7 +28,7 @@ def border_indices(n: int, radius: int, border: str) -> np.ndarray:
     return np.where((idx >= 0) & (idx < n), idx, -1)
 
 
-def _radii(radius) -> tuple[int, int]:
+def _radii(radius: int | tuple[int, int] | list[int] | np.ndarray) -> tuple[int, int]:
     if isinstance(radius, (tuple, list, np.ndarray)):
         if len(radius) != 2:
             raise ValueError(f"radius must be an int or a pair (ry, rx), got {radius!r}")
@@ -37,7 +38,7 @@ def _radii(radius) -> tuple[int, int]:
 
 
 @algorithm("filters.pad", section="3.7", check="cvkit.filters.checks:pad")
-def pad(image, radius, border="reflect101"):
+def pad(image: ArrayLike, radius: int | tuple[int, int], border: Border = "reflect101") -> np.ndarray:
     """Pad an image by ``radius`` pixels on every side.
 
     Parameters
@@ -45,7 +46,8 @@ def pad(image, radius, border="reflect101"):
     image : (H, W) or (H, W, 3) array
         Grayscale or colour image, any real dtype.
     radius : int or (int, int)
-        Pixels added above/below and left/right; a pair is ``(ry, rx)``.
+        Pixels added above/below and left/right; a pair is ``(ry, rx)``. Bounded by memory:
+        the padded image may take at most 2 GiB (``ValueError`` naming ``radius`` otherwise).
     border : {"reflect101", "reflect", "replicate", "zero"}
         How values outside the image are made up (§3.7). Radii larger than the image repeat
         the rule (reflections bounce back and forth, as in ``numpy.pad``).
@@ -64,7 +66,8 @@ def pad(image, radius, border="reflect101"):
     check_border(border)
     ry, rx = _radii(radius)
     h, w = img.shape[:2]
-    out = np.empty((h + 2 * ry, w + 2 * rx) + img.shape[2:])
+    shape = check_allocation((h + 2 * ry, w + 2 * rx) + img.shape[2:], "radius", what="a padded image")
+    out = np.empty(shape)
     out[ry : ry + h, rx : rx + w] = img
     if border == "zero":
         out[:ry] = 0.0
