@@ -39,7 +39,7 @@ from ._projection import (
     projection_matrix,
     rotation_matrix,
 )
-from ._distortion import distort, project_full, undistort_points
+from ._distortion import ConvergenceWarning, distort, project_full, undistort_points
 
 __all__ = [
     "to_homogeneous",

@@ -5,7 +5,10 @@ value) with a message that names the argument, like :mod:`cvkit._validation`.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import as_float_array
 
@@ -13,7 +16,8 @@ from .._validation import as_float_array
 ROTATION_TOLERANCE = 1e-6
 
 
-def as_points(points, name: str, dims=None, *, min_dim: int = 1, allow_single: bool = False) -> np.ndarray:
+def as_points(points: ArrayLike, name: str, dims: int | Sequence[int] | None = None, *, min_dim: int = 1,
+              allow_single: bool = False) -> np.ndarray:
     """``points`` as a float64 ``(N, d)`` array (N = 0 allowed), with ``d`` in ``dims`` or, when
     ``dims`` is None, ``d >= min_dim``. With ``allow_single`` a single point of shape ``(d,)``
     is accepted too (and kept 1-D)."""
@@ -32,7 +36,7 @@ def as_points(points, name: str, dims=None, *, min_dim: int = 1, allow_single: b
     return array
 
 
-def as_matrix(value, name: str, shape: tuple) -> np.ndarray:
+def as_matrix(value: ArrayLike, name: str, shape: tuple[int, int]) -> np.ndarray:
     """A finite float64 matrix of exactly ``shape``."""
     array = as_float_array(value, name)
     if array.shape != shape:
@@ -40,7 +44,7 @@ def as_matrix(value, name: str, shape: tuple) -> np.ndarray:
     return array
 
 
-def as_rotation(value, name: str = "R") -> np.ndarray:
+def as_rotation(value: ArrayLike, name: str = "R") -> np.ndarray:
     """A 3×3 rotation matrix: RᵀR = I within :data:`ROTATION_TOLERANCE` and det R = +1."""
     R = as_matrix(value, name, (3, 3))
     error = float(np.abs(R.T @ R - np.eye(3)).max())
@@ -53,7 +57,7 @@ def as_rotation(value, name: str = "R") -> np.ndarray:
     return R
 
 
-def as_translation(value, name: str = "t") -> np.ndarray:
+def as_translation(value: ArrayLike, name: str = "t") -> np.ndarray:
     """A translation vector of shape (3,) (a (3, 1) column or (1, 3) row is flattened)."""
     array = as_float_array(value, name)
     if array.size != 3 or array.ndim > 2 or (array.ndim == 2 and 1 not in array.shape):
@@ -61,7 +65,7 @@ def as_translation(value, name: str = "t") -> np.ndarray:
     return array.reshape(3)
 
 
-def as_intrinsics(value, name: str = "A") -> np.ndarray:
+def as_intrinsics(value: ArrayLike, name: str = "A") -> np.ndarray:
     """A 3×3 intrinsic matrix: upper triangular with a non-zero diagonal."""
     A = as_matrix(value, name, (3, 3))
     scale = float(np.abs(A).max())
@@ -76,7 +80,7 @@ def as_intrinsics(value, name: str = "A") -> np.ndarray:
     return A
 
 
-def distortion_coefficients(k, p) -> tuple[np.ndarray, np.ndarray]:
+def distortion_coefficients(k: ArrayLike, p: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """``k`` as (k1, k2, k3) (1–3 entries given, the rest 0) and ``p`` as (p1, p2)."""
     k_arr = as_float_array(k, "k", ndim=(0, 1))
     k_arr = k_arr.reshape(-1)
@@ -88,7 +92,8 @@ def distortion_coefficients(k, p) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate([k_arr, np.zeros(3 - k_arr.size)]), p_arr
 
 
-def radial_tangential(x: np.ndarray, y: np.ndarray, k: np.ndarray, p: np.ndarray):
+def radial_tangential(x: np.ndarray, y: np.ndarray, k: np.ndarray,
+                      p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Radial factor L(r) = 1 + k1 r² + k2 r⁴ + k3 r⁶ and tangential shifts (dx, dy) of OpenCV's
     model at normalised coordinates (x, y)."""
     r2 = x * x + y * y

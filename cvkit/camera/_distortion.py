@@ -2,9 +2,12 @@
 four-step image formation pipeline."""
 from __future__ import annotations
 
-import numpy as np
+import warnings
 
-from .._validation import check_int
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import check_size
 from ..registry import algorithm, implementation
 from ._common import (
     as_intrinsics,
@@ -15,11 +18,26 @@ from ._common import (
     radial_tangential,
 )
 
-__all__ = ["distort", "undistort_points", "project_full"]
+__all__ = ["distort", "undistort_points", "project_full", "ConvergenceWarning", "TOLERANCE", "MAX_ITERATIONS"]
+
+#: ``undistort_points(iterations=None)``: a point is undistorted when ``distort`` of the result is
+#: within TOLERANCE·max(1, |x_d|, |y_d|) of x_d, in each coordinate
+TOLERANCE = 1e-12
+#: the fixed-point steps taken before Newton's method (OpenCV's count, the notes' default)
+DEFAULT_ITERATIONS = 20
+#: the largest ``iterations`` accepted (each step is one pass over the points)
+MAX_ITERATIONS = 1000
+_NEWTON_STEPS = 50     # Newton converges quadratically: a handful of steps where it converges at all
+_HALVINGS = 30         # step halvings tried before a point is left where it is
+
+
+class ConvergenceWarning(RuntimeWarning):
+    """:func:`undistort_points` could not invert the distortion at some points to
+    :data:`TOLERANCE` (the message names how many, and the worst)."""
 
 
 @algorithm("camera.distort", section="7.7.2", check="cvkit.camera.checks:distort")
-def distort(xy_normalized, k=(0.0, 0.0, 0.0), p=(0.0, 0.0)):
+def distort(xy_normalized: ArrayLike, k: ArrayLike = (0.0, 0.0, 0.0), p: ArrayLike = (0.0, 0.0)) -> np.ndarray:
     """Apply radial and tangential lens distortion to normalised image coordinates.
 
     Parameters
@@ -75,7 +93,8 @@ def distort(xy_normalized, k=(0.0, 0.0, 0.0), p=(0.0, 0.0)):
 
 
 @algorithm("camera.undistort_points", section="7.7", check="cvkit.camera.checks:undistort_points")
-def undistort_points(xy_distorted, k, p, iterations=20):
+def undistort_points(xy_distorted: ArrayLike, k: ArrayLike, p: ArrayLike, iterations: int | None = None, *,
+                     strict: bool = False) -> np.ndarray:
     """Invert :func:`distort`: ideal normalised coordinates from distorted ones.
 
     Parameters
@@ -86,18 +105,36 @@ def undistort_points(xy_distorted, k, p, iterations=20):
         Radial coefficients ``(k1[, k2[, k3]])``, as for :func:`distort`.
     p : sequence of 2 floats
         Tangential coefficients ``(p1, p2)``.
-    iterations : int
-        Number of fixed-point steps (>= 0; 0 returns the input as float64).
+    iterations : int or None
+        ``None`` (the default): the inverse, to :data:`TOLERANCE` — 20 fixed-point steps
+        (OpenCV's), then Newton steps for the points not yet within the tolerance, and a report
+        of those that still are not (see ``strict``). An int ``0 ≤ n ≤ 1000``
+        (:data:`MAX_ITERATIONS`): exactly ``n`` fixed-point steps and nothing else — the
+        iterate of the notes, whatever its accuracy (0 returns the input as float64).
+    strict : bool, keyword-only
+        What to do with points that do not converge. False (default): with
+        ``iterations=None``, warn with :class:`ConvergenceWarning` (a ``RuntimeWarning``) and
+        return the best estimate found; with an int ``iterations``, nothing. True: raise
+        ``ValueError`` naming ``xy_distorted`` and the worst point, in both modes (with an int
+        ``iterations``: when the ``n``-step iterate is not within the tolerance).
 
     Returns
     -------
     (N, 2) float64 ndarray
-        The undistorted normalised coordinates after ``iterations`` steps.
+        The undistorted normalised coordinates.
 
     Raises
     ------
     ValueError, TypeError
-        As for :func:`distort`, or a negative / non-integer ``iterations``.
+        As for :func:`distort`; a negative, non-integer or too large ``iterations``; with
+        ``strict=True``, points that do not converge.
+
+    Warns
+    -----
+    ConvergenceWarning
+        ``iterations=None`` and ``strict=False``: some points could not be undistorted to
+        :data:`TOLERANCE` (typically beyond the fold of a strong barrel distortion, where
+        ``distort`` has no inverse: no x gives that x_d).
 
     Notes
     -----
@@ -112,14 +149,26 @@ def undistort_points(xy_distorted, k, p, iterations=20):
     :math:`2|k_1| r^2`): the iteration converges linearly, fast near the centre and slowly
     for strong distortion far from it (it diverges where that factor exceeds 1). With
     :math:`|k_1| \\le 0.3`, :math:`|k_2| \\le 0.1`, :math:`|k_3| \\le 0.02`,
-    :math:`|p_1|, |p_2| \\le 0.002` and ideal points with :math:`|x|, |y| \\le 0.4`, the default
-    20 steps recover them to better than 1e-12 (measured worst case 2.5e-13, i.e. 1e-9 px for
-    focal lengths up to 4000 px). If instead the *distorted* points fill that square, strong
+    :math:`|p_1|, |p_2| \\le 0.002` and ideal points with :math:`|x|, |y| \\le 0.4`, 20 steps
+    recover them to better than 1e-12 (measured worst case 2.5e-13, i.e. 1e-9 px for focal
+    lengths up to 4000 px). If instead the *distorted* points fill that square, strong
     barrel distortion (all :math:`k_i < 0`) moves the ideal corners out to
-    :math:`r^2 \\approx 0.4`, the factor grows to 0.36 and 20 steps leave up to 1e-8: pass
-    more ``iterations`` there (40 steps reach 2e-15).
-    Equals ``cv2.undistortPointsIter`` with an identity camera matrix, distCoeffs
-    ``(k1, k2, p1, p2, k3)`` and the criteria ``(COUNT, iterations, 0)``.
+    :math:`r^2 \\approx 0.4`, the factor grows to 0.36 and 20 steps leave up to 1e-8.
+
+    With ``iterations=None`` a point is done when ``distort`` of the estimate is within
+    ``TOLERANCE·max(1, |x_d|, |y_d|)`` of ``x_d`` (each coordinate); the points the 20
+    fixed-point steps leave farther (or at inf/nan) are solved by Newton's method on
+    :math:`F(x) = \\text{distort}(x) - x_d` with the analytic 2×2 Jacobian, from the better of
+    the fixed-point estimate and ``x_d``, each step halved until the residual decreases and
+    the Jacobian stays orientation-preserving (det > 0: the branch of the inverse that
+    contains the centre), at most 50 steps. Points the fixed-point steps already solved keep
+    exactly their fixed-point value. A point still not within the tolerance has no inverse on
+    that branch — ``x_d`` beyond the fold where ``d(r L(r))/dr = 0`` (for ``k = (−0.5,)``,
+    distorted radii above 0.544) — and is reported; its value is the estimate with the
+    smallest residual.
+
+    ``iterations=n`` equals ``cv2.undistortPointsIter`` with an identity camera matrix,
+    distCoeffs ``(k1, k2, p1, p2, k3)`` and the criteria ``(COUNT, n, 0)``.
 
     Examples
     --------
@@ -127,21 +176,107 @@ def undistort_points(xy_distorted, k, p, iterations=20):
     >>> xd = distort([[0.3, -0.2]], k=(-0.25, 0.05), p=(0.001, -0.002))
     >>> np.round(undistort_points(xd, k=(-0.25, 0.05), p=(0.001, -0.002)), 12)
     array([[ 0.3, -0.2]])
+    >>> # beyond the fold of k1 = -0.5 (distorted radii above 0.544) there is no inverse
+    >>> undistort_points([[0.6, 0.0]], k=(-0.5,), p=(0, 0), strict=True)   # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: xy_distorted: 1 of 1 points could not be undistorted to 1e-12 ...
     """
     xy = as_points(xy_distorted, "xy_distorted", 2)
     kk, pp = distortion_coefficients(k, p)
-    steps = check_int(iterations, "iterations", minimum=0)
+    converge = iterations is None
+    steps = DEFAULT_ITERATIONS if iterations is None else check_size(
+        iterations, "iterations", minimum=0, maximum=MAX_ITERATIONS)
+    if not isinstance(strict, (bool, np.bool_)):
+        raise TypeError(f"strict must be True or False, got {type(strict).__name__} {strict!r}")
     xd, yd = xy[:, 0], xy[:, 1]
     x, y = xd.copy(), yd.copy()
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for _ in range(steps):
             radial, dx, dy = radial_tangential(x, y, kk, pp)
             x, y = (xd - dx) / radial, (yd - dy) / radial
+        if not (converge or strict) or xy.shape[0] == 0:
+            return np.stack([x, y], axis=1)
+        scale = TOLERANCE * np.maximum(1.0, np.maximum(np.abs(xd), np.abs(yd)))
+        error = _residual_norm(x, y, xd, yd, kk, pp)
+        if converge:
+            todo = np.flatnonzero(~(error <= scale))          # NaN counts as not converged
+            if todo.size:
+                nx, ny, n_error = _newton(xd[todo], yd[todo], x[todo], y[todo], error[todo], kk, pp)
+                better = (n_error < error[todo]) | ~np.isfinite(error[todo])
+                x[todo[better]], y[todo[better]], error[todo[better]] = nx[better], ny[better], n_error[better]
+    failed = np.flatnonzero(~(error <= scale))
+    if failed.size:
+        worst = failed[int(np.argmax(np.where(np.isfinite(error[failed]), error[failed], np.inf)))]
+        message = (
+            f"xy_distorted: {failed.size} of {xy.shape[0]} points could not be undistorted to {TOLERANCE:g} "
+            f"(worst: row {worst}, x_d = ({xd[worst]:.6g}, {yd[worst]:.6g}), distort(result) is {error[worst]:.3g} "
+            + ("away after the Newton steps; beyond the fold of the distortion model there is no inverse)"
+               if converge else f"away after {steps} fixed-point steps; pass iterations=None)"))
+        if strict:
+            raise ValueError(message)
+        warnings.warn(message, ConvergenceWarning, stacklevel=2)
     return np.stack([x, y], axis=1)
 
 
+def _residual_norm(x: np.ndarray, y: np.ndarray, xd: np.ndarray, yd: np.ndarray, k: np.ndarray,
+                   p: np.ndarray) -> np.ndarray:
+    """max(|distort(x, y) − (x_d, y_d)|) per point (NaN where the estimate is not finite)."""
+    radial, dx, dy = radial_tangential(x, y, k, p)
+    return np.maximum(np.abs(x * radial + dx - xd), np.abs(y * radial + dy - yd))
+
+
+def _jacobian(x: np.ndarray, y: np.ndarray, k: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Entries (a, b, d) of the symmetric Jacobian [[a, b], [b, d]] of distort at (x, y)."""
+    r2 = x * x + y * y
+    radial = 1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[2]))
+    slope = 2.0 * (k[0] + r2 * (2.0 * k[1] + 3.0 * k[2] * r2))      # 2·dL/d(r²)
+    a = radial + slope * x * x + 2.0 * p[0] * y + 6.0 * p[1] * x
+    b = slope * x * y + 2.0 * p[0] * x + 2.0 * p[1] * y
+    d = radial + slope * y * y + 6.0 * p[0] * y + 2.0 * p[1] * x
+    return a, b, d
+
+
+def _newton(xd: np.ndarray, yd: np.ndarray, x: np.ndarray, y: np.ndarray, error: np.ndarray, k: np.ndarray,
+            p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Newton's method on distort(x) = x_d for the given points, from the better of (x, y) and
+    x_d; each step halved until the residual decreases with det J > 0. Returns x, y, residual."""
+    a, b, d = _jacobian(xd, yd, k, p)
+    from_xd = _residual_norm(xd, yd, xd, yd, k, p)
+    a0, b0, d0 = _jacobian(x, y, k, p)
+    keep = (error <= from_xd) & (a0 * d0 - b0 * b0 > 0)               # False for NaN
+    x, y = np.where(keep, x, xd), np.where(keep, y, yd)
+    error = np.where(keep, error, from_xd)
+    usable = keep | (a * d - b * b > 0)
+    active = np.flatnonzero(usable & (error > 0))
+    for _ in range(_NEWTON_STEPS):
+        if active.size == 0:
+            break
+        xa, ya = x[active], y[active]
+        radial, dx, dy = radial_tangential(xa, ya, k, p)
+        fx, fy = xa * radial + dx - xd[active], ya * radial + dy - yd[active]
+        a, b, d = _jacobian(xa, ya, k, p)
+        det = a * d - b * b
+        sx, sy = (b * fy - d * fx) / det, (b * fx - a * fy) / det
+        moved = np.zeros(active.size, dtype=bool)
+        t = 1.0
+        for _ in range(_HALVINGS):
+            pending = np.flatnonzero(~moved)
+            if pending.size == 0:
+                break
+            tx, ty = xa[pending] + t * sx[pending], ya[pending] + t * sy[pending]
+            trial = _residual_norm(tx, ty, xd[active[pending]], yd[active[pending]], k, p)
+            ta, tb, td = _jacobian(tx, ty, k, p)
+            ok = (trial < error[active[pending]]) & (ta * td - tb * tb > 0)
+            chosen = active[pending[ok]]
+            x[chosen], y[chosen], error[chosen] = tx[ok], ty[ok], trial[ok]
+            moved[pending[ok]] = True
+            t *= 0.5
+        active = active[moved & (error[active] > 0)]
+    return x, y, error
 @algorithm("camera.project_full", section="7.7.3", check="cvkit.camera.checks:project_full")
-def project_full(points_world, A, R, t, k=(0.0, 0.0, 0.0), p=(0.0, 0.0)):
+def project_full(points_world: ArrayLike, A: ArrayLike, R: ArrayLike, t: ArrayLike, k: ArrayLike = (0.0, 0.0, 0.0),
+                 p: ArrayLike = (0.0, 0.0)) -> np.ndarray:
     """Project world points to pixels through the complete camera model, lens included.
 
     Parameters

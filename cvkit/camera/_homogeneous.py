@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..registry import algorithm
 from ._common import as_points
@@ -10,7 +11,7 @@ __all__ = ["to_homogeneous", "from_homogeneous"]
 
 
 @algorithm("camera.to_homogeneous", section="7.4.1", check="cvkit.camera.checks:to_homogeneous")
-def to_homogeneous(points):
+def to_homogeneous(points: ArrayLike) -> np.ndarray:
     """Append a homogeneous coordinate equal to 1 to every point.
 
     Parameters
@@ -56,7 +57,7 @@ def to_homogeneous(points):
 
 
 @algorithm("camera.from_homogeneous", section="7.4.1", check="cvkit.camera.checks:from_homogeneous")
-def from_homogeneous(points_h):
+def from_homogeneous(points_h: ArrayLike) -> np.ndarray:
     """Divide every homogeneous point by its last coordinate and drop it.
 
     Parameters

@@ -3,6 +3,7 @@ perspective projection matrix P = A[R|t], projecting with it, and factorising it
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import check_real
 from ..registry import algorithm, implementation
@@ -25,7 +26,7 @@ _SINGULAR = 1e-12
 # §7.2, §7.5.2 intrinsic parameters
 # --------------------------------------------------------------------------------------------
 @algorithm("camera.intrinsic_matrix", section="7.5.2", check="cvkit.camera.checks:intrinsic_matrix")
-def intrinsic_matrix(fu, fv, u0, v0, skew=0.0):
+def intrinsic_matrix(fu: float, fv: float, u0: float, v0: float, skew: float = 0.0) -> np.ndarray:
     """The intrinsic parameter matrix A of a pinhole camera.
 
     Parameters
@@ -78,7 +79,7 @@ def intrinsic_matrix(fu, fv, u0, v0, skew=0.0):
 # §7.3 extrinsic parameters
 # --------------------------------------------------------------------------------------------
 @algorithm("camera.rotation_matrix", section="7.3", check="cvkit.camera.checks:rotation_matrix")
-def rotation_matrix(roll, pitch, yaw):
+def rotation_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """Rotation matrix from roll, pitch and yaw angles: R = Rz(yaw)·Ry(pitch)·Rx(roll).
 
     Parameters
@@ -136,7 +137,7 @@ def rotation_matrix(roll, pitch, yaw):
 
 
 @algorithm("camera.extrinsic_matrix", section="7.5.3", check="cvkit.camera.checks:extrinsic_matrix")
-def extrinsic_matrix(R, t):
+def extrinsic_matrix(R: ArrayLike, t: ArrayLike) -> np.ndarray:
     """The 4×4 extrinsic matrix G = [[R, t], [0ᵀ, 1]] (world → camera reference frame).
 
     Parameters
@@ -186,7 +187,7 @@ def extrinsic_matrix(R, t):
 # §7.6 the perspective projection matrix
 # --------------------------------------------------------------------------------------------
 @algorithm("camera.projection_matrix", section="7.6", check="cvkit.camera.checks:projection_matrix")
-def projection_matrix(A, R, t):
+def projection_matrix(A: ArrayLike, R: ArrayLike, t: ArrayLike) -> np.ndarray:
     """The perspective projection matrix P = A[R|t] (3×4).
 
     Parameters
@@ -236,7 +237,7 @@ def projection_matrix(A, R, t):
 
 
 @algorithm("camera.project", section="7.6", check="cvkit.camera.checks:project")
-def project(P, points_world):
+def project(P: ArrayLike, points_world: ArrayLike) -> np.ndarray:
     """Project world points (or directions) to pixels with a perspective projection matrix.
 
     Parameters
@@ -306,7 +307,7 @@ def _rq(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @algorithm("camera.decompose_projection", section="7.6.1", check="cvkit.camera.checks:decompose_projection")
-def decompose_projection(P):
+def decompose_projection(P: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Factorise a perspective projection matrix into intrinsics and pose: P ≃ A[R|t].
 
     Parameters
