@@ -34,7 +34,7 @@ from ..data._synthetic import disk_image, square_image
 from ..edges._canny import canny as _canny
 from ..edges._gradient import sobel as _sobel
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
-from ..grading.compare import _as_numeric, _shape_advice
+from ..grading.compare import as_numeric, shape_advice
 from . import _hough
 from ._shape import NO_GRADIENT
 from ._ght import ght_build as _ght_build
@@ -68,7 +68,7 @@ def _dict_problem(got, keys) -> str | None:
 
 
 def _rows(value, name: str) -> tuple[np.ndarray | None, str | None]:
-    arr, problem = _as_numeric(value, name)
+    arr, problem = as_numeric(value, name)
     if problem:
         return None, problem
     if arr.size == 0:
@@ -154,7 +154,7 @@ class RTableClose(Comparator):
             return Mismatch(problem)
         if not isinstance(got["bins"], (int, np.integer)) or int(got["bins"]) != expected["bins"]:
             return Mismatch(f"rtable['bins']: expected {expected['bins']}, got {got['bins']!r}")
-        ref, problem = _as_numeric(got["reference"], "rtable['reference']")
+        ref, problem = as_numeric(got["reference"], "rtable['reference']")
         if problem:
             return Mismatch(problem)
         if ref.shape != (2,):
@@ -219,7 +219,7 @@ class HoughVotes(Comparator):
             return Mismatch(f"expected a tuple (accumulator, thetas, rhos), got {n}")
         acc_e, th_e, rh_e = expected
         for name, value, exp in (("thetas", got[1], th_e), ("rhos", got[2], rh_e)):
-            arr, problem = _as_numeric(value, name)
+            arr, problem = as_numeric(value, name)
             if problem:
                 return Mismatch(problem)
             if arr.shape != exp.shape:
@@ -231,14 +231,14 @@ class HoughVotes(Comparator):
                 k = int(np.argmax(np.where(np.isnan(diff), np.inf, diff)))
                 return Mismatch(f"{name} differ: sample {k} is {float(arr.flat[k]):.6g}, expected {float(exp[k]):.6g}"
                                 + (" (radians, not degrees)" if name == "thetas" else ""))
-        acc, problem = _as_numeric(got[0], "accumulator")
+        acc, problem = as_numeric(got[0], "accumulator")
         if problem:
             return Mismatch(problem)
         if acc.dtype.kind not in "iu":
             return Mismatch(f"dtype mismatch: the accumulator counts votes, expected an integer array, got {acc.dtype}")
         if acc.shape != acc_e.shape:
             return Mismatch(f"accumulator shape mismatch: expected {acc_e.shape} = (len(rhos), len(thetas)), "
-                            f"got {acc.shape}{_shape_advice(acc.shape, acc_e.shape)}")
+                            f"got {acc.shape}{shape_advice(acc.shape, acc_e.shape)}")
         if np.array_equal(acc, acc_e):
             return None
         moved = moved_votes(acc, acc_e, axis=0)
@@ -271,12 +271,12 @@ class VotesAndBest(Comparator):
             n = len(got) if isinstance(got, (tuple, list)) else type(got).__name__
             return Mismatch(f"expected a tuple (accumulator, best), got {n}")
         acc_e, best_e = expected
-        acc, problem = _as_numeric(got[0], "accumulator")
+        acc, problem = as_numeric(got[0], "accumulator")
         if problem:
             return Mismatch(problem)
         if acc.shape != acc_e.shape:
             return Mismatch(f"accumulator shape mismatch: expected {acc_e.shape} = (len(scales), len(angles), H, W), "
-                            f"got {acc.shape}{_shape_advice(acc.shape, acc_e.shape)}")
+                            f"got {acc.shape}{shape_advice(acc.shape, acc_e.shape)}")
         acc = acc.astype(np.float64)
         exact = np.array_equal(acc, acc_e)
         moved = 0.0

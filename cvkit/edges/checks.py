@@ -31,7 +31,7 @@ from ..data._synthetic import disk_image, oriented_step_image, square_image
 from ..filters._linear import correlate as _correlate
 from ..filters._linear import gaussian as _gaussian
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
-from ..grading.compare import _as_numeric, _shape_advice
+from ..grading.compare import as_numeric, shape_advice
 from ._canny import _components
 from ._canny import hysteresis as _hysteresis
 from ._canny import non_max_suppression as _nms
@@ -118,14 +118,14 @@ class EdgeF1(Comparator):
 
     def __call__(self, got, expected, case=None):
         exp = np.asarray(expected)
-        arr, problem = _as_numeric(got)
+        arr, problem = as_numeric(got)
         if problem:
             return Mismatch(problem)
         if arr.dtype.kind != "b":
             return Mismatch(f"dtype mismatch: expected a bool edge map, got {arr.dtype} "
                             "(return a comparison such as `strength > threshold`, or use .astype(bool))")
         if arr.shape != exp.shape:
-            return Mismatch(f"shape mismatch: expected {exp.shape}, got {arr.shape}{_shape_advice(arr.shape, exp.shape)}")
+            return Mismatch(f"shape mismatch: expected {exp.shape}, got {arr.shape}{shape_advice(arr.shape, exp.shape)}")
         f1, precision, recall = edge_f1(arr, exp, self.radius)
         if f1 >= self.min_f1:
             return None
@@ -164,13 +164,13 @@ class Angles(Comparator):
 
     def __call__(self, got, expected, case=None):
         exp = np.asarray(expected, dtype=np.float64)
-        arr, problem = _as_numeric(got)
+        arr, problem = as_numeric(got)
         if problem:
             return Mismatch(problem)
         if arr.dtype.kind != "f":
             return Mismatch(f"dtype mismatch: expected a float array, got {arr.dtype}")
         if arr.shape != exp.shape:
-            return Mismatch(f"shape mismatch: expected {exp.shape}, got {arr.shape}{_shape_advice(arr.shape, exp.shape)}")
+            return Mismatch(f"shape mismatch: expected {exp.shape}, got {arr.shape}{shape_advice(arr.shape, exp.shape)}")
         a = arr.astype(np.float64)
         with np.errstate(all="ignore"):
             wrapped = np.mod(a - exp + np.pi, 2 * np.pi) - np.pi

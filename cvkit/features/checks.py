@@ -42,7 +42,7 @@ from ..edges.checks import Angles
 from ..filters._linear import gaussian as _gaussian
 from ..filters._padding import pad as _pad
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close, instance_call
-from ..grading.compare import _as_numeric
+from ..grading.compare import as_numeric
 from ._common import box_sum, window_max
 from ._corners import SHIFTS
 from ._corners import harris as _harris
@@ -79,7 +79,7 @@ def _fmt(row) -> str:
 
 def _rows_of(got, columns: int, kinds: str, what: str):
     """``got`` as an (N, columns) array of dtype kind in ``kinds``, or a Mismatch."""
-    arr, problem = _as_numeric(got)
+    arr, problem = as_numeric(got)
     if problem:
         return None, Mismatch(problem)
     if arr.dtype.kind not in kinds:
@@ -313,10 +313,10 @@ class NeighbourSearch(Comparator):
         if not isinstance(got, (tuple, list)) or len(got) != 2:
             return Mismatch("expected a tuple (distances, indices), got "
                             + (f"a {type(got).__name__} of {len(got)}" if isinstance(got, (tuple, list)) else type(got).__name__))
-        dist, problem = _as_numeric(got[0], "your distances")
+        dist, problem = as_numeric(got[0], "your distances")
         if problem:
             return Mismatch(problem)
-        idx, problem = _as_numeric(got[1], "your indices")
+        idx, problem = as_numeric(got[1], "your indices")
         if problem:
             return Mismatch(problem)
         if idx.dtype.kind not in "iu":

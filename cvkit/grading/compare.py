@@ -8,7 +8,7 @@ tolerances go to ``Mismatch.details``, shown on demand.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, ClassVar, Mapping, Sequence
 
 import numpy as np
 
@@ -74,7 +74,35 @@ class Comparator:
         return type(self).normalise is not Comparator.normalise
 
 
-def _as_numeric(got: Any, what: str = "your output") -> tuple[np.ndarray | None, str | None]:
+#: words for NumPy dtype kinds in messages ("expected a float array")
+KIND_NAMES = {"f": "float", "b": "bool", "i": "integer", "u": "unsigned integer"}
+
+
+def kind_words(kinds: str) -> str:
+    """``"float or integer"`` for the dtype kinds ``"fi"`` (see :data:`KIND_NAMES`).
+
+    >>> kind_words("fi")
+    'float or integer'
+    """
+    return " or ".join(KIND_NAMES.get(k, k) for k in kinds)
+
+
+def as_numeric(got: Any, what: str = "your output") -> tuple[np.ndarray | None, str | None]:
+    """A candidate's output as a numeric (bool, integer or float) array, or why it is not one.
+
+    Parameters
+    ----------
+    got : object
+        The output (or one part of it) to judge.
+    what : str
+        How messages name it (``"your output"``, ``"your indices"``, ...).
+
+    Returns
+    -------
+    (array, None) or (None, problem)
+        ``problem`` is a message for the student: the output is ``None`` (a forgotten
+        ``return``), cannot be turned into an array (ragged lists), or is not numeric.
+    """
     if got is None:
         return None, f"{what} is None: did you forget to `return` the result?"
     try:
@@ -87,7 +115,64 @@ def _as_numeric(got: Any, what: str = "your output") -> tuple[np.ndarray | None,
     return arr, None
 
 
-def _shape_advice(got: tuple, expected: tuple) -> str:
+def as_float_array(got: Any, what: str = "your output", shape: tuple | None = None, layout: str = "",
+                   nonfinite: str | None = None) -> tuple[np.ndarray | None, str | None]:
+    """A candidate's output as a float64 array of the expected shape, or why it is not one.
+
+    Parameters
+    ----------
+    got : object
+        The output to judge.
+    what : str
+        How messages name it.
+    shape : tuple, optional
+        The shape it must have (not checked when None).
+    layout : str
+        Words after the expected shape in the message, e.g. ``" (one value per pixel)"``.
+    nonfinite : str, optional
+        When given, NaN or ±inf anywhere is a problem and this is its message.
+
+    Returns
+    -------
+    (array, None) or (None, problem)
+        ``problem``, a message for the student, in this order: ``got`` is None, cannot be
+        converted to float, has another shape, has NaN or inf.
+    """
+    if got is None:
+        return None, f"{what} is None: did you forget to `return` the result?"
+    try:
+        with np.errstate(all="ignore"):
+            arr = np.asarray(got, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        return None, f"{what} could not be turned into a float array ({exc})"
+    if shape is not None and arr.shape != tuple(shape):
+        return None, f"shape mismatch: expected {tuple(shape)}{layout}, got {arr.shape}"
+    if nonfinite is not None and not np.all(np.isfinite(arr)):
+        return None, nonfinite
+    return arr, None
+
+
+def tuple_problem(got: Any, names: Sequence[str]) -> str | None:
+    """Why ``got`` is not a tuple (or list) of ``len(names)`` results, or None when it is.
+
+    >>> tuple_problem((1, 2), ("x", "info")) is None
+    True
+    >>> tuple_problem(3.0, ("x", "info"))
+    'expected a tuple (x, info), got float'
+    """
+    if isinstance(got, np.ndarray) or not isinstance(got, (tuple, list)) or len(got) != len(names):
+        what = f"a tuple of {len(got)}" if isinstance(got, (tuple, list)) else type(got).__name__
+        return f"expected a tuple ({', '.join(names)}), got {what}"
+    return None
+
+
+def shape_advice(got: tuple, expected: tuple) -> str:
+    """Words after a shape mismatch that guess its cause: rows and columns swapped, padding
+    kept or missing, another number of dimensions (empty when nothing fits).
+
+    >>> shape_advice((6, 4), (4, 6))
+    ' (rows and columns swapped? images are indexed [row, col])'
+    """
     if len(got) == len(expected) >= 2 and got[:2] == expected[:2][::-1] and got != expected:
         return " (rows and columns swapped? images are indexed [row, col])"
     if len(got) == len(expected) and len(got) >= 2:
@@ -99,6 +184,11 @@ def _shape_advice(got: tuple, expected: tuple) -> str:
     if len(got) != len(expected):
         return f" (yours has {len(got)} dimensions, expected {len(expected)})"
     return ""
+
+
+def shape_mismatch(got: tuple, expected: tuple) -> str:
+    """``"shape mismatch: expected (4, 6), got (6, 4) (rows and columns swapped? ...)"``."""
+    return f"shape mismatch: expected {expected}, got {got}{shape_advice(got, expected)}"
 
 
 def _index(flat: int, shape: tuple) -> tuple:
@@ -136,7 +226,7 @@ class Close(Comparator):
                     return mismatch
             return None
         exp = np.asarray(expected)
-        arr, problem = _as_numeric(got)
+        arr, problem = as_numeric(got)
         if problem:
             return Mismatch(problem)
         atol = self.atol
@@ -147,11 +237,9 @@ class Close(Comparator):
                 magnitudes = np.abs(exp[np.isfinite(exp)].astype(np.float64))
             atol *= max(1.0, float(magnitudes.max())) if magnitudes.size else 1.0
         if self.kind is not None and arr.dtype.kind not in self.kind:
-            names = {"f": "float", "b": "bool", "i": "integer", "u": "unsigned integer"}
-            want = " or ".join(names.get(k, k) for k in self.kind)
-            return Mismatch(f"dtype mismatch: expected a {want} array, got {arr.dtype}")
+            return Mismatch(f"dtype mismatch: expected a {kind_words(self.kind)} array, got {arr.dtype}")
         if arr.shape != exp.shape:
-            return Mismatch(f"shape mismatch: expected {exp.shape}, got {arr.shape}{_shape_advice(arr.shape, exp.shape)}")
+            return Mismatch(shape_mismatch(arr.shape, exp.shape))
         if exp.dtype.kind == "b" or arr.dtype.kind == "b":
             bad = arr.astype(bool) != exp.astype(bool)
             n = int(bad.sum())
@@ -223,25 +311,30 @@ class Statistics(Comparator):
     statistics: Callable[[Any, Any], Mapping[str, float]]
     tolerance: Callable[[Any], Mapping[str, float]]
     dtype_kind: str | None = None
+    #: the first line of the message when statistics differ
+    heading: ClassVar[str] = "Statistics differ from the expected distribution"
 
     def describe(self) -> str:
         return "statistics of the output (two correct versions may draw differently)"
 
     def __call__(self, got, expected, case=None):
-        arr, problem = _as_numeric(got)
+        arr, problem = as_numeric(got)
         if problem:
             return Mismatch(problem)
         exp = np.asarray(expected)
         if arr.shape != exp.shape:
-            return Mismatch(f"shape mismatch: expected {exp.shape}, got {arr.shape}{_shape_advice(arr.shape, exp.shape)}")
+            return Mismatch(shape_mismatch(arr.shape, exp.shape))
         if self.dtype_kind is not None and arr.dtype.kind not in self.dtype_kind:
-            names = {"f": "float", "b": "bool", "i": "integer", "u": "unsigned integer"}
-            want = " or ".join(names.get(k, k) for k in self.dtype_kind)
-            return Mismatch(f"dtype mismatch: expected a {want} array, got {arr.dtype}"
+            return Mismatch(f"dtype mismatch: expected a {kind_words(self.dtype_kind)} array, got {arr.dtype}"
                             + (" (do not cast back to the input's integer type)" if "f" in self.dtype_kind else ""))
+        return self.judge(arr, exp, case)
+
+    def judge(self, got: Any, expected: Any, case: Any = None) -> Mismatch | None:
+        """Compare the :attr:`statistics` of ``got`` with those of ``expected`` within
+        :attr:`tolerance` (NaN matches NaN); a :class:`Mismatch` lists every one that differs."""
         with np.errstate(all="ignore"):
-            got_stats = dict(self.statistics(arr, case))
-            exp_stats = dict(self.statistics(exp, case))
+            got_stats = dict(self.statistics(got, case))
+            exp_stats = dict(self.statistics(expected, case))
         tolerances = self.tolerance(case)
         wrong = []
         for name, expected_value in exp_stats.items():
@@ -250,5 +343,5 @@ class Statistics(Comparator):
             if not (abs(value - expected_value) <= tol) and not (np.isnan(value) and np.isnan(expected_value)):
                 wrong.append(f"{name}: yours {value:.6g}, expected {expected_value:.6g} ± {tol:.3g}")
         if wrong:
-            return Mismatch("Statistics differ from the expected distribution:\n" + "\n".join(wrong))
+            return Mismatch(f"{self.heading}:\n" + "\n".join(wrong))
         return None

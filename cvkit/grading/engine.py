@@ -39,7 +39,21 @@ def hidden_seed(algorithm_id: str, student: str | None = None, salt: str | None 
     return int.from_bytes(digest[:8], "little")
 
 
-def _arg_names(function: Callable, check: Check) -> tuple:
+def arg_names(function: Callable, check: Check) -> tuple:
+    """The names of a case's positional arguments, as reports show them.
+
+    Parameters
+    ----------
+    function : callable
+        The function whose signature names the arguments (the reference implementation).
+    check : Check
+        Its :attr:`Check.arg_names`, when given, win over the signature.
+
+    Returns
+    -------
+    tuple of str
+        One name per positional parameter; empty when ``function`` has no readable signature.
+    """
     if check.arg_names:
         return tuple(check.arg_names)
     try:
@@ -49,6 +63,10 @@ def _arg_names(function: Callable, check: Check) -> tuple:
         )
     except (TypeError, ValueError):
         return ()
+
+
+#: the former private name, still imported by :mod:`cvkit.grading.trusted`
+_arg_names = arg_names
 
 
 def _reference_output(function: Callable, case, call: Callable | None = None) -> Any:
@@ -346,7 +364,7 @@ def evaluate(
         report.problem = f"expected a function to grade, got {type(candidate).__name__}"
         return report
 
-    names = _arg_names(record.reference, spec)
+    names = arg_names(record.reference, spec)
     mistake_votes: dict[str, int] = {}
     matching: list[list[Mistake]] = []  # per counted case, the known mistakes that reproduce its output
     runs_here = runner is None  # the candidate is called in this process (it can run other cases)
@@ -419,8 +437,8 @@ def evaluate(
             )
         elif outcome.modified:
             result.message = (
-                f"modified its input {', '.join(map(repr, outcome.modified))}: do not overwrite the "
-                "input image (§3.7); work on a copy or write the result to a new array"
+                f"modified its input {', '.join(map(repr, outcome.modified))}: do not overwrite an "
+                "input; work on a copy or write the result to a new array"
             )
         else:
             result.got = outcome.value
@@ -429,7 +447,7 @@ def evaluate(
             if mismatch is None and spec.seeded:
                 again = runner(index, case, 1)
                 if again is None or again.error is not None or spec.compare(again.value, outcome.value, case) is not None \
-                        or not _identical(again.value, outcome.value):
+                        or not identical(again.value, outcome.value):
                     result.message = (
                         "two calls with the same rng seed gave different results: draw every random "
                         "number from np.random.default_rng(rng), never from np.random.* directly"
@@ -495,15 +513,23 @@ def _nothing_counted(report: Report, algorithm_id: str, candidate: Callable, spe
     return report
 
 
-def _identical(a, b) -> bool:
-    """Exactly the same result (for the seeded re-run): arrays, numbers, strings, and tuples,
-    lists and dicts of them, compared element by element."""
+def identical(a: Any, b: Any) -> bool:
+    """Exactly the same result (the seeded re-run of a random function must reproduce it).
+
+    Arrays, numbers and strings are compared by value (NaN equals NaN); tuples, lists and dicts
+    of them element by element, their types and lengths (keys) included.
+
+    >>> identical((np.zeros(2), [{"k": 1.5}]), (np.zeros(2), [{"k": 1.5}]))
+    True
+    >>> identical((1, 2), [1, 2])
+    False
+    """
     if isinstance(a, (tuple, list)) or isinstance(b, (tuple, list)):
         return (type(a) is type(b) and len(a) == len(b)
-                and all(_identical(x, y) for x, y in zip(a, b)))
+                and all(identical(x, y) for x, y in zip(a, b)))
     if isinstance(a, dict) or isinstance(b, dict):
         return isinstance(a, dict) and isinstance(b, dict) and a.keys() == b.keys() \
-            and all(_identical(a[k], b[k]) for k in a)
+            and all(identical(a[k], b[k]) for k in a)
     if isinstance(a, str) or isinstance(b, str) or a is None or b is None:
         return a == b
     try:

@@ -20,26 +20,14 @@ import math
 import numpy as np
 
 from ..grading import Case, Check, Mistake, Statistics
+from ..grading.casekit import argument as _arg
+from ..grading.casekit import seed as _seed
+from ..grading.casekit import size as _size
+from ..grading.casekit import uniform as _u
 
 __all__ = ["add_gaussian", "add_salt_and_pepper"]
 
 _SQRT2 = math.sqrt(2.0)
-
-
-def _arg(case: Case, index: int, name: str, default=None):
-    if name in case.kwargs:
-        return case.kwargs[name]
-    if len(case.args) > index:
-        return case.args[index]
-    return default
-
-
-def _seed(rng: np.random.Generator) -> int:
-    return int(rng.integers(0, 2**32))
-
-
-def _size(rng: np.random.Generator, lo: int, hi: int) -> int:
-    return int(rng.integers(lo, hi + 1))
 
 
 # --------------------------------------------------------------------------------------------
@@ -123,22 +111,22 @@ def _unit_image(rng, h, w, channels=None):
 
 
 def _gaussian_hidden(rng):
-    sigma_small = float(np.round(rng.uniform(0.1, 0.25), 3))
+    sigma_small = _u(rng, 0.1, 0.25)
     return [
         Case((_unit_image(rng, 64, _size(rng, 64, 80)), sigma_small), {"rng": _seed(rng)},
              "image in [0, 1], σ = 0.1..0.25"),
         Case((rng.integers(0, 256, (_size(rng, 64, 80), _size(rng, 64, 80)), dtype=np.uint8),
               float(rng.integers(5, 30))), {"rng": _seed(rng)}, "uint8 image, σ in 0..255 units (not rescaled)"),
-        Case((_unit_image(rng, 48, _size(rng, 40, 56), 3), float(np.round(rng.uniform(0.1, 0.2), 3))),
+        Case((_unit_image(rng, 48, _size(rng, 40, 56), 3), _u(rng, 0.1, 0.2)),
              {"rng": _seed(rng)}, "colour image in [0, 1]"),
         Case((rng.integers(0, 256, (40, _size(rng, 40, 56), 3), dtype=np.uint8), float(rng.integers(10, 25))),
              {"rng": _seed(rng)}, "colour uint8 image"),
         Case((rng.uniform(-1e6, 1e6, (64, 64)), float(np.round(rng.uniform(1e5, 5e5), 0))), {"rng": _seed(rng)},
              "±1e6 values, σ = 1e5..5e5"),
-        Case((rng.normal(0, 3, (_size(rng, 64, 72), 64)), float(np.round(rng.uniform(1.5, 3.0), 3))),
+        Case((rng.normal(0, 3, (_size(rng, 64, 72), 64)), _u(rng, 1.5, 3.0)),
              {"rng": _seed(rng)}, "negative values, σ > 1"),
         Case((np.full((96, 96), 0.5), 0.3), {"rng": _seed(rng)}, "constant image 0.5, σ = 0.3"),
-        Case((_unit_image(rng, 1, 4096), float(np.round(rng.uniform(0.3, 0.7), 3))), {"rng": _seed(rng)},
+        Case((_unit_image(rng, 1, 4096), _u(rng, 0.3, 0.7)), {"rng": _seed(rng)},
              "single-row 1×4096 image"),
         Case((_unit_image(rng, 64, 64), sigma_small), {"rng": np.random.default_rng(_seed(rng))},
              "rng given as a numpy Generator"),
@@ -274,19 +262,19 @@ def _inner_image(rng, h, w, channels=None, lo=0.05, hi=0.95):
 
 def _sp_hidden(rng):
     return [
-        Case((_inner_image(rng, 64, _size(rng, 64, 80)), float(np.round(rng.uniform(0.06, 0.15), 3))),
+        Case((_inner_image(rng, 64, _size(rng, 64, 80)), _u(rng, 0.06, 0.15)),
              {"rng": _seed(rng)}, "image in [0, 1], default low = 0 and high = 1"),
         Case((_inner_image(rng, _size(rng, 64, 80), 72), 0.2), {"rng": _seed(rng), "low": -1.0, "high": 2.0},
              "low = −1, high = 2"),
-        Case((rng.integers(1, 255, (64, _size(rng, 64, 80)), dtype=np.uint8), float(np.round(rng.uniform(0.06, 0.12), 3))),
+        Case((rng.integers(1, 255, (64, _size(rng, 64, 80)), dtype=np.uint8), _u(rng, 0.06, 0.12)),
              {"rng": _seed(rng), "low": 0.0, "high": 255.0}, "uint8 image, low = 0, high = 255"),
-        Case((_inner_image(rng, 48, _size(rng, 48, 56), 3), float(np.round(rng.uniform(0.1, 0.2), 3))),
+        Case((_inner_image(rng, 48, _size(rng, 48, 56), 3), _u(rng, 0.1, 0.2)),
              {"rng": _seed(rng)}, "colour image (a pixel turns black or white in all channels)"),
         Case((rng.integers(1, 255, (40, _size(rng, 48, 56), 3), dtype=np.uint8), 0.25),
              {"rng": _seed(rng), "low": 0.0, "high": 255.0}, "colour uint8 image"),
         Case((_inner_image(rng, 32, 32), 0.0), {"rng": _seed(rng)}, "amount 0 (nothing changes)"),
         Case((_inner_image(rng, 48, 48), 1.0), {"rng": _seed(rng)}, "amount 1 (every pixel replaced)"),
-        Case((_inner_image(rng, 64, 64), float(np.round(rng.uniform(0.08, 0.15), 3))),
+        Case((_inner_image(rng, 64, 64), _u(rng, 0.08, 0.15)),
              {"rng": np.random.default_rng(_seed(rng))}, "rng given as a numpy Generator"),
         Case((rng.uniform(-1e6, 1e6, (64, 64)), 0.1), {"rng": _seed(rng), "low": -2e6, "high": 2e6},
              "±1e6 values, low = −2e6, high = 2e6"),
