@@ -10,17 +10,18 @@ pairs), so the work grows with the number of candidates, not with the length of 
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import as_float_array, as_image, check_real
 from ..registry import algorithm, implementation
 
 __all__ = ["non_max_suppression", "hysteresis", "canny"]
 
-def _image2d(value, name: str) -> np.ndarray:
+def _image2d(value: ArrayLike, name: str) -> np.ndarray:
     return as_float_array(value, name, ndim=2)
 
 
-def _check_flag(value, name: str) -> bool:
+def _check_flag(value: object, name: str) -> bool:
     if not isinstance(value, (bool, np.bool_)):
         raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
     return bool(value)
@@ -30,7 +31,7 @@ def _check_flag(value, name: str) -> bool:
 # §4.8 non-maximum suppression
 # --------------------------------------------------------------------------------------------
 @algorithm("edges.non_max_suppression", section="4.8", check="cvkit.edges.checks:non_max_suppression")
-def non_max_suppression(magnitude, ix, iy, interpolate=True):
+def non_max_suppression(magnitude: ArrayLike, ix: ArrayLike, iy: ArrayLike, interpolate: bool = True) -> np.ndarray:
     """Keep only the pixels whose magnitude is a maximum across the edge (along the gradient).
 
     Parameters
@@ -103,7 +104,8 @@ def non_max_suppression(magnitude, ix, iy, interpolate=True):
 _BLOCK_ELEMENTS = 1 << 15
 
 
-def _maxima(padded, mag, gx, gy, r0: int, interpolate: bool) -> np.ndarray:
+def _maxima(padded: np.ndarray, mag: np.ndarray, gx: np.ndarray, gy: np.ndarray, r0: int,
+            interpolate: bool) -> np.ndarray:
     """Which pixels of rows ``r0 .. r0 + len(mag)`` are maxima along their gradient."""
     n, w = mag.shape
 
@@ -159,10 +161,11 @@ def _components(mask: np.ndarray, connectivity: int = 8) -> tuple[np.ndarray, np
     h, w = mask.shape
     flat = np.flatnonzero(mask)
     n = flat.size
-    number = np.full(mask.size, -1, dtype=np.int64)
-    number[flat] = np.arange(n)
-    number = number.reshape(h, w)
-    us, vs = [], []
+    numbers = np.full(mask.size, -1, dtype=np.int64)
+    numbers[flat] = np.arange(n)
+    number = numbers.reshape(h, w)
+    us: list[np.ndarray] = []
+    vs: list[np.ndarray] = []
     for a, b in _PAIRS_8 if connectivity == 8 else _PAIRS_4:  # each neighbouring pair once
         both = mask[a] & mask[b]
         if both.any():
@@ -191,7 +194,7 @@ def _components(mask: np.ndarray, connectivity: int = 8) -> tuple[np.ndarray, np
 
 
 @algorithm("edges.hysteresis", section="4.10", check="cvkit.edges.checks:hysteresis")
-def hysteresis(magnitude, low, high):
+def hysteresis(magnitude: ArrayLike, low: float, high: float) -> np.ndarray:
     """Hysteresis (double) thresholding: strong pixels, and weak pixels linked to them.
 
     Parameters
@@ -255,7 +258,7 @@ def hysteresis(magnitude, low, high):
 # §4.10 Canny
 # --------------------------------------------------------------------------------------------
 @algorithm("edges.canny", section="4.10", check="cvkit.edges.checks:canny")
-def canny(image, sigma=1.4, low=0.1, high=0.2, relative=True):
+def canny(image: ArrayLike, sigma: float = 1.4, low: float = 0.1, high: float = 0.2, relative: bool = True) -> np.ndarray:
     """The Canny edge detector.
 
     Parameters
@@ -264,7 +267,8 @@ def canny(image, sigma=1.4, low=0.1, high=0.2, relative=True):
         Grayscale image, any real dtype, finite values (not rescaled).
     sigma : float
         Standard deviation of the Gaussian smoothing, > 0 (kernel radius ceil(3σ), border
-        reflect101, as :func:`cvkit.filters.gaussian`).
+        reflect101, as :func:`cvkit.filters.gaussian`, whose bounds on σ apply: the padded
+        image at most 2 GiB, the smoothing at most 2**36 operations).
     low, high : float
         Hysteresis thresholds, ``0 <= low <= high``.
     relative : bool

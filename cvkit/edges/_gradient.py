@@ -11,9 +11,12 @@ through ``border`` (see :func:`cvkit.filters.pad`), which the filters obtain fro
 """
 from __future__ import annotations
 
-import numpy as np
+from typing import Literal
 
-from .._validation import as_float_array, as_image, check_border
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import Border, as_float_array, as_image, check_border
 from ..registry import algorithm, implementation
 
 __all__ = ["gradient", "magnitude", "direction", "prewitt", "sobel"]
@@ -22,7 +25,7 @@ SCHEMES = ("central", "forward", "backward")
 NORMS = ("l2", "l1", "max")
 
 
-def _pair(ix, iy) -> tuple[np.ndarray, np.ndarray]:
+def _pair(ix: ArrayLike, iy: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     gx = as_float_array(ix, "ix")
     gy = as_float_array(iy, "iy")
     if gx.shape != gy.shape:
@@ -30,7 +33,7 @@ def _pair(ix, iy) -> tuple[np.ndarray, np.ndarray]:
     return gx, gy
 
 
-def _padded(img: np.ndarray, radius, border: str) -> np.ndarray:
+def _padded(img: np.ndarray, radius: int | tuple[int, int], border: str) -> np.ndarray:
     return np.asarray(implementation("filters.pad")(img, radius, border=border), dtype=np.float64)
 
 
@@ -48,7 +51,8 @@ def _hypot(gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
 # §4.5 finite differences
 # --------------------------------------------------------------------------------------------
 @algorithm("edges.gradient", section="4.5", check="cvkit.edges.checks:gradient")
-def gradient(image, scheme="central", border="reflect101"):
+def gradient(image: ArrayLike, scheme: Literal["central", "forward", "backward"] = "central",
+             border: Border = "reflect101") -> tuple[np.ndarray, np.ndarray]:
     """Image gradient ``(Ix, Iy)`` by finite differences.
 
     Parameters
@@ -110,7 +114,7 @@ def gradient(image, scheme="central", border="reflect101"):
 # §4.4–4.5 magnitude and direction
 # --------------------------------------------------------------------------------------------
 @algorithm("edges.magnitude", section="4.5", check="cvkit.edges.checks:magnitude")
-def magnitude(ix, iy, norm="l2"):
+def magnitude(ix: ArrayLike, iy: ArrayLike, norm: Literal["l2", "l1", "max"] = "l2") -> np.ndarray:
     """Gradient magnitude ``|∇I|`` in one of three norms.
 
     Parameters
@@ -151,7 +155,7 @@ def magnitude(ix, iy, norm="l2"):
 
 
 @algorithm("edges.direction", section="4.3", check="cvkit.edges.checks:direction")
-def direction(ix, iy):
+def direction(ix: ArrayLike, iy: ArrayLike) -> np.ndarray:
     """Gradient direction ``atan2(Iy, Ix)`` in radians, in (−π, π].
 
     Parameters
@@ -187,7 +191,7 @@ def direction(ix, iy):
 # --------------------------------------------------------------------------------------------
 # §4.7 Prewitt and Sobel
 # --------------------------------------------------------------------------------------------
-def _smoothed_differences(image, border: str, centre_weight: float) -> tuple[np.ndarray, np.ndarray]:
+def _smoothed_differences(image: np.ndarray, border: str, centre_weight: float) -> tuple[np.ndarray, np.ndarray]:
     """Correlation with ``[1, c, 1]ᵀ ⊗ [-1, 0, 1]`` (gx) and its transpose (gy), separably."""
     p = _padded(image, 1, border)  # (H + 2, W + 2[, 3])
     # gx: smooth down the columns, then difference along the rows
@@ -208,7 +212,7 @@ def _smoothed_differences(image, border: str, centre_weight: float) -> tuple[np.
 
 
 @algorithm("edges.prewitt", section="4.7", check="cvkit.edges.checks:prewitt")
-def prewitt(image, border="reflect101"):
+def prewitt(image: ArrayLike, border: Border = "reflect101") -> tuple[np.ndarray, np.ndarray]:
     """Prewitt derivatives ``(gx, gy)``: central differences smoothed by a box across them.
 
     Parameters
@@ -251,7 +255,7 @@ def prewitt(image, border="reflect101"):
 
 
 @algorithm("edges.sobel", section="4.7", check="cvkit.edges.checks:sobel")
-def sobel(image, border="reflect101"):
+def sobel(image: ArrayLike, border: Border = "reflect101") -> tuple[np.ndarray, np.ndarray]:
     """Sobel derivatives ``(gx, gy)`` with OpenCV's signs and scale.
 
     Parameters

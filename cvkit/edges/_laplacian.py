@@ -10,15 +10,25 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, as_image, check_border, check_int, check_real
+from .._validation import (
+    Border,
+    as_float_array,
+    as_image,
+    check_allocation,
+    check_border,
+    check_int,
+    check_padded,
+    check_real,
+)
 from ..registry import algorithm, implementation
 
 __all__ = ["laplacian", "log_kernel", "log", "zero_crossings", "dog"]
 
 
 @algorithm("edges.laplacian", section="4.12", check="cvkit.edges.checks:laplacian")
-def laplacian(image, border="reflect101"):
+def laplacian(image: ArrayLike, border: Border = "reflect101") -> np.ndarray:
     """The 4-neighbour discrete Laplacian ``Ixx + Iyy``.
 
     Parameters
@@ -61,17 +71,27 @@ def laplacian(image, border="reflect101"):
     return out
 
 
+def _radius(sigma: float) -> int:
+    """``ceil(3σ)``, the default LoG radius (``2**62`` for a σ beyond any allocation)."""
+    reach = 3.0 * sigma
+    return max(0, int(math.ceil(reach))) if reach < 2.0**62 else 2**62
+
+
 @algorithm("edges.log_kernel", section="4.12", check="cvkit.edges.checks:log_kernel")
-def log_kernel(sigma, radius=None):
+def log_kernel(sigma: float, radius: int | None = None) -> np.ndarray:
     """The Laplacian of Gaussian sampled on a square, shifted to sum to zero.
 
     Parameters
     ----------
     sigma : float
-        Standard deviation of the Gaussian, > 0.
+        Standard deviation of the Gaussian, > 0. A σ so small that the samples overflow
+        float64 (below about 1e-50) is refused (``ValueError`` naming ``sigma``): the LoG
+        has no finite limit as σ → 0.
     radius : int, optional
         Half-width r >= 0; default ``ceil(3σ)``, literally as the catalog states (unlike
-        :func:`cvkit.filters.gaussian_kernel`, no guard against round-off in 3σ).
+        :func:`cvkit.filters.gaussian_kernel`, no guard against round-off in 3σ). The kernel
+        may take at most 2 GiB, r <= 8191 (``ValueError`` naming ``radius``, or ``sigma``
+        for the default radius).
 
     Returns
     -------
@@ -98,19 +118,25 @@ def log_kernel(sigma, radius=None):
     """
     sigma = check_real(sigma, "sigma", positive=True)
     if radius is None:
-        radius = max(0, int(math.ceil(3.0 * sigma)))
+        radius, name = _radius(sigma), "sigma"
     else:
-        radius = check_int(radius, "radius", minimum=0)
+        radius, name = check_int(radius, "radius", minimum=0), "radius"
+    check_allocation((2 * radius + 1, 2 * radius + 1), name, what="a LoG kernel")
     x = np.arange(-radius, radius + 1, dtype=np.float64)
     r2 = x[:, None] ** 2 + x[None, :] ** 2
     s2 = sigma * sigma
-    kernel = (r2 - 2.0 * s2) / (2.0 * math.pi * s2 ** 3) * np.exp(-r2 / (2.0 * s2))
-    kernel -= kernel.mean()
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        kernel = (r2 - 2.0 * s2) / (2.0 * math.pi * s2 ** 3) * np.exp(-r2 / (2.0 * s2))
+        kernel -= kernel.mean()
+    if not np.isfinite(kernel).all():
+        raise ValueError(
+            f"sigma={sigma!r} is too small for a sampled LoG of radius {radius}: its samples "
+            f"(about r²/σ⁶) overflow float64; use a larger sigma (1e-50 or more)")
     return kernel
 
 
 @algorithm("edges.log", section="4.12", check="cvkit.edges.checks:log")
-def log(image, sigma, border="reflect101"):
+def log(image: ArrayLike, sigma: float, border: Border = "reflect101") -> np.ndarray:
     """Laplacian of Gaussian response: the image correlated with :func:`log_kernel`.
 
     Parameters
@@ -118,7 +144,9 @@ def log(image, sigma, border="reflect101"):
     image : (H, W) or (H, W, 3) array_like
         Grayscale or colour image, any real dtype, finite values (colour: per channel).
     sigma : float
-        Standard deviation of the Gaussian, > 0; the kernel radius is ceil(3σ).
+        Standard deviation of the Gaussian, > 0; the kernel radius is ceil(3σ). The kernel and
+        the image padded by the radius may each take at most 2 GiB (``ValueError`` naming
+        ``sigma`` otherwise), which also bounds the time (at most one FFT of that size).
     border : {"reflect101", "reflect", "replicate", "zero"}
         How pixels outside the image are made up (§3.7).
 
@@ -148,12 +176,15 @@ def log(image, sigma, border="reflect101"):
     img = as_image(image)
     sigma = check_real(sigma, "sigma", positive=True)
     check_border(border)
+    radius = _radius(sigma)
+    check_allocation((2 * radius + 1, 2 * radius + 1), "sigma", what="a LoG kernel")
+    check_padded(img.shape, radius, "sigma")
     kernel = as_float_array(implementation("edges.log_kernel")(sigma), "the kernel returned by edges.log_kernel", ndim=2)
     return np.asarray(implementation("filters.correlate")(img, kernel, border=border), dtype=np.float64)
 
 
 @algorithm("edges.zero_crossings", section="4.11", check="cvkit.edges.checks:zero_crossings")
-def zero_crossings(response, threshold=0.0):
+def zero_crossings(response: ArrayLike, threshold: float = 0.0) -> np.ndarray:
     """Mark the zero crossings of a second-derivative response (LoG, DoG, Laplacian).
 
     Parameters
@@ -202,7 +233,7 @@ def zero_crossings(response, threshold=0.0):
 
 
 @algorithm("edges.dog", section="4.12", check="cvkit.edges.checks:dog")
-def dog(image, sigma, k=1.6, border="reflect101"):
+def dog(image: ArrayLike, sigma: float, k: float = 1.6, border: Border = "reflect101") -> np.ndarray:
     """Difference of Gaussians ``G_{kσ} ∗ I − G_σ ∗ I``, an approximation of the LoG.
 
     Parameters
@@ -213,7 +244,9 @@ def dog(image, sigma, k=1.6, border="reflect101"):
         The smaller standard deviation, > 0.
     k : float
         Ratio of the two standard deviations, > 0 (1.6 in Marr–Hildreth, √2 or 2^(1/s) in
-        SIFT's scale space).
+        SIFT's scale space). Both σ and kσ must be finite and > 0 in float64, and each
+        smoothing is bounded as :func:`cvkit.filters.gaussian` (``ValueError`` naming
+        ``sigma`` and ``k`` otherwise).
     border : {"reflect101", "reflect", "replicate", "zero"}
         How pixels outside the image are made up (§3.7).
 
@@ -240,6 +273,12 @@ def dog(image, sigma, k=1.6, border="reflect101"):
     sigma = check_real(sigma, "sigma", positive=True)
     k = check_real(k, "k", positive=True)
     check_border(border)
+    wider = k * sigma
+    if not 0.0 < wider < math.inf:
+        raise ValueError(f"k·sigma must be finite and > 0 in float64, got k={k!r}, sigma={sigma!r}: {wider!r}")
     gaussian = implementation("filters.gaussian")
-    wide = np.asarray(gaussian(img, k * sigma, border=border), dtype=np.float64)
+    try:
+        wide = np.asarray(gaussian(img, wider, border=border), dtype=np.float64)
+    except ValueError as error:  # said of filters.gaussian's sigma: here it is k·sigma
+        raise ValueError(f"k·sigma = {wider!r} (k={k!r}, sigma={sigma!r}): {error}") from None
     return wide - np.asarray(gaussian(img, sigma, border=border), dtype=np.float64)
