@@ -7,7 +7,10 @@ own names (``x``, and ``alpha`` for the leaky ReLU) plus, for the sigmoid, its o
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import as_float_array, check_real
 from ..registry import algorithm
@@ -19,7 +22,7 @@ __all__ = [
 ]
 
 
-def _x(x) -> np.ndarray:
+def _x(x: ArrayLike) -> np.ndarray:
     return as_float_array(x, "x", allow_empty=True)
 
 
@@ -27,7 +30,7 @@ def _x(x) -> np.ndarray:
 # ReLU
 # --------------------------------------------------------------------------------------------
 @algorithm("nn.relu_forward", section="10.5.3–10.5.4", check="cvkit.nn.checks:relu_forward")
-def relu_forward(x):
+def relu_forward(x: ArrayLike) -> tuple[np.ndarray, dict[str, Any]]:
     """Rectified linear unit, element by element: ``max(0, x)``.
 
     Parameters
@@ -60,7 +63,7 @@ def relu_forward(x):
 
 
 @algorithm("nn.relu_backward", section="10.5.3–10.5.4", check="cvkit.nn.checks:relu_backward")
-def relu_backward(dout, cache):
+def relu_backward(dout: ArrayLike, cache: dict[str, Any]) -> np.ndarray:
     """Gradient of :func:`relu_forward`: ``dout`` where ``x ≥ 0``, 0 elsewhere.
 
     Parameters
@@ -106,7 +109,7 @@ def _sigmoid(x: np.ndarray) -> np.ndarray:
 
 
 @algorithm("nn.sigmoid_forward", section="10.5.3–10.5.4", check="cvkit.nn.checks:sigmoid_forward")
-def sigmoid_forward(x):
+def sigmoid_forward(x: ArrayLike) -> tuple[np.ndarray, dict[str, Any]]:
     """Logistic sigmoid, element by element: ``1 / (1 + exp(−x))``.
 
     Parameters
@@ -142,7 +145,7 @@ def sigmoid_forward(x):
 
 
 @algorithm("nn.sigmoid_backward", section="10.5.3–10.5.4", check="cvkit.nn.checks:sigmoid_backward")
-def sigmoid_backward(dout, cache):
+def sigmoid_backward(dout: ArrayLike, cache: dict[str, Any]) -> np.ndarray:
     """Gradient of :func:`sigmoid_forward`: ``dout · σ(x)(1 − σ(x))``.
 
     Parameters
@@ -179,7 +182,7 @@ def sigmoid_backward(dout, cache):
 # leaky ReLU
 # --------------------------------------------------------------------------------------------
 @algorithm("nn.leaky_relu_forward", section="10.5.3–10.5.4", check="cvkit.nn.checks:leaky_relu_forward")
-def leaky_relu_forward(x, alpha=0.01):
+def leaky_relu_forward(x: ArrayLike, alpha: float = 0.01) -> tuple[np.ndarray, dict[str, Any]]:
     """Leaky ReLU: ``x`` where ``x ≥ 0``, ``alpha·x`` elsewhere.
 
     Parameters
@@ -214,7 +217,7 @@ def leaky_relu_forward(x, alpha=0.01):
 
 
 @algorithm("nn.leaky_relu_backward", section="10.5.3–10.5.4", check="cvkit.nn.checks:leaky_relu_backward")
-def leaky_relu_backward(dout, cache):
+def leaky_relu_backward(dout: ArrayLike, cache: dict[str, Any]) -> np.ndarray:
     """Gradient of :func:`leaky_relu_forward`: ``dout`` where ``x ≥ 0``, ``alpha·dout`` elsewhere.
 
     Parameters

@@ -31,7 +31,9 @@ residual sums are left out, as in the usual tables).
 from __future__ import annotations
 
 import copy
+import math
 import numbers
+from typing import Any
 
 import numpy as np
 
@@ -46,22 +48,27 @@ _TYPES = ("conv", "bn", "relu", "maxpool", "avgpool", "gap", "flatten", "linear"
 # --------------------------------------------------------------------------------------------
 # building blocks of the specs
 # --------------------------------------------------------------------------------------------
-def _conv(cin, cout, kernel, stride=1, padding=0, bias=False):
+Layer = dict[str, Any]
+Spec = list[Layer]
+
+
+def _conv(cin: int, cout: int, kernel: int, stride: int = 1, padding: int = 0, bias: bool = False) -> Layer:
     return {"type": "conv", "in": cin, "out": cout, "kernel": kernel, "stride": stride,
             "padding": padding, "bias": bias}
 
 
-def _bn(c):
+def _bn(c: int) -> Layer:
     return {"type": "bn", "channels": c}
 
 
-_RELU = {"type": "relu"}
+_RELU: Layer = {"type": "relu"}
 
 
-def _vgg(config, num_classes):
-    spec, cin = [], 3
+def _vgg(config: list[int | str], num_classes: int) -> Spec:
+    spec: Spec = []
+    cin = 3
     for v in config:
-        if v == "M":
+        if isinstance(v, str):  # "M"
             spec.append({"type": "maxpool", "kernel": 2, "stride": 2, "padding": 0})
         else:
             spec += [_conv(cin, v, 3, 1, 1, bias=True), dict(_RELU)]
@@ -75,7 +82,7 @@ def _vgg(config, num_classes):
     return spec
 
 
-def _stem(kind):
+def _stem(kind: str) -> Spec:
     if kind == "c":  # ResNet-C: three 3×3 convolutions instead of the 7×7
         return [_conv(3, 32, 3, 2, 1), _bn(32), dict(_RELU), _conv(32, 32, 3, 1, 1), _bn(32), dict(_RELU),
                 _conv(32, 64, 3, 1, 1), _bn(64), dict(_RELU),
@@ -83,7 +90,7 @@ def _stem(kind):
     return [_conv(3, 64, 7, 2, 3), _bn(64), dict(_RELU), {"type": "maxpool", "kernel": 3, "stride": 2, "padding": 1}]
 
 
-def _shortcut(cin, cout, stride, avg_down):
+def _shortcut(cin: int, cout: int, stride: int, avg_down: bool) -> Spec:
     if stride == 1 and cin == cout:
         return []
     if avg_down and stride != 1:  # ResNet-D: average pooling, then a stride-1 projection
@@ -92,12 +99,12 @@ def _shortcut(cin, cout, stride, avg_down):
     return [_conv(cin, cout, 1, stride, 0), _bn(cout)]
 
 
-def _basic_block(cin, cout, stride, avg_down=False):
+def _basic_block(cin: int, cout: int, stride: int, avg_down: bool = False) -> Spec:
     body = [_conv(cin, cout, 3, stride, 1), _bn(cout), dict(_RELU), _conv(cout, cout, 3, 1, 1), _bn(cout)]
     return [{"type": "residual", "body": body, "shortcut": _shortcut(cin, cout, stride, avg_down)}, dict(_RELU)]
 
 
-def _bottleneck(cin, width, stride, stride_in_3x3=True, avg_down=False):
+def _bottleneck(cin: int, width: int, stride: int, stride_in_3x3: bool = True, avg_down: bool = False) -> Spec:
     cout = 4 * width
     s1, s3 = (1, stride) if stride_in_3x3 else (stride, 1)
     body = [_conv(cin, width, 1, s1, 0), _bn(width), dict(_RELU),
@@ -106,7 +113,8 @@ def _bottleneck(cin, width, stride, stride_in_3x3=True, avg_down=False):
     return [{"type": "residual", "body": body, "shortcut": _shortcut(cin, cout, stride, avg_down)}, dict(_RELU)]
 
 
-def _resnet(blocks, bottleneck, num_classes, stem="b", stride_in_3x3=True, avg_down=False):
+def _resnet(blocks: tuple[int, ...], bottleneck: bool, num_classes: int, stem: str = "b", stride_in_3x3: bool = True,
+            avg_down: bool = False) -> Spec:
     spec = _stem(stem)
     cin = 64
     for stage, (count, width) in enumerate(zip(blocks, (64, 128, 256, 512))):
@@ -122,9 +130,9 @@ def _resnet(blocks, bottleneck, num_classes, stem="b", stride_in_3x3=True, avg_d
     return spec
 
 
-def _inception(cin, n1, r3, n3, r5, n5, pool_proj, reduce=True):
+def _inception(cin: int, n1: int, r3: int, n3: int, r5: int, n5: int, pool_proj: int, reduce: bool = True) -> Spec:
     """GoogLeNet's Inception module (2014: convolutions with bias and ReLU, no batch norm)."""
-    def conv(a, b, k):
+    def conv(a: int, b: int, k: int) -> Spec:
         return [_conv(a, b, k, 1, k // 2, bias=True), dict(_RELU)]
 
     pool = {"type": "maxpool", "kernel": 3, "stride": 1, "padding": 1}
@@ -136,11 +144,11 @@ def _inception(cin, n1, r3, n3, r5, n5, pool_proj, reduce=True):
     return [{"type": "concat", "branches": branches}]
 
 
-_VGG16 = [64, 64, "M", 128, 128, "M", 256, 256, 256, "M", 512, 512, 512, "M", 512, 512, 512, "M"]
-_VGG19 = [64, 64, "M", 128, 128, "M", 256, 256, 256, 256, "M", 512, 512, 512, 512, "M", 512, 512, 512, 512, "M"]
+_VGG16: list[int | str] = [64, 64, "M", 128, 128, "M", 256, 256, 256, "M", 512, 512, 512, "M", 512, 512, 512, "M"]
+_VGG19: list[int | str] = [64, 64, "M", 128, 128, "M", 256, 256, 256, 256, "M", 512, 512, 512, 512, "M", 512, 512, 512, 512, "M"]
 
 #: names accepted by :func:`architecture_spec` → (input shape, what it is)
-ARCHITECTURES = {
+ARCHITECTURES: dict[str, tuple[tuple[int, int, int], str]] = {
     "vgg16": ((3, 224, 224), "VGG-16 (configuration D), as torchvision's vgg16"),
     "vgg19": ((3, 224, 224), "VGG-19 (configuration E)"),
     "resnet18": ((3, 224, 224), "ResNet-18, basic blocks [2, 2, 2, 2]"),
@@ -155,7 +163,7 @@ ARCHITECTURES = {
 
 
 @algorithm("nn.architecture_spec", section="11.2–11.5", check="cvkit.nn.checks:architecture_spec")
-def architecture_spec(name, num_classes=1000):
+def architecture_spec(name: str, num_classes: int = 1000) -> Spec:
     """The layers of a classic architecture as a list of layer dicts.
 
     Parameters
@@ -223,7 +231,7 @@ def architecture_spec(name, num_classes=1000):
 # --------------------------------------------------------------------------------------------
 # accounting
 # --------------------------------------------------------------------------------------------
-def _int(value, what: str, minimum: int) -> int:
+def _int(value: object, what: str, minimum: int) -> int:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)):
         raise TypeError(f"{what} must be an integer, got {type(value).__name__} {value!r}")
     if int(value) < minimum:
@@ -231,7 +239,7 @@ def _int(value, what: str, minimum: int) -> int:
     return int(value)
 
 
-def _pair(value, what: str, minimum: int) -> tuple[int, int]:
+def _pair(value: object, what: str, minimum: int) -> tuple[int, int]:
     if isinstance(value, (tuple, list)):
         if len(value) != 2:
             raise ValueError(f"{what} must be an int or a pair (rows, cols), got {value!r}")
@@ -240,7 +248,7 @@ def _pair(value, what: str, minimum: int) -> tuple[int, int]:
     return v, v
 
 
-def _layers(spec, where: str) -> list:
+def _layers(spec: object, where: str) -> Spec:
     if not isinstance(spec, (list, tuple)):
         raise TypeError(f"{where} must be a list of layer dicts, got {type(spec).__name__}")
     for i, layer in enumerate(spec):
@@ -251,13 +259,13 @@ def _layers(spec, where: str) -> list:
     return list(spec)
 
 
-def _key(layer: dict, key: str, where: str):
+def _key(layer: Layer, key: str, where: str) -> Any:
     if key not in layer:
         raise ValueError(f"{where} ({layer['type']}) lacks {key!r}")
     return layer[key]
 
 
-def _parameters(spec, where: str = "spec") -> int:
+def _parameters(spec: object, where: str = "spec") -> int:
     total = 0
     for i, layer in enumerate(_layers(spec, where)):
         at, kind = f"{where}[{i}]", layer["type"]
@@ -281,7 +289,8 @@ def _parameters(spec, where: str = "spec") -> int:
     return total
 
 
-def _walk(spec, shape: tuple, where: str = "spec", rows: list | None = None, depth: int = 0):
+def _walk(spec: object, shape: tuple[int, ...], where: str = "spec", rows: list[tuple[Any, ...]] | None = None,
+          depth: int = 0) -> tuple[tuple[int, ...], int]:
     """Output shape and 2·MACs of ``spec`` applied to one input of ``shape``; optionally the
     per-layer rows ``(depth, where, type, output shape, parameters, flops)``."""
     flops = 0
@@ -318,7 +327,7 @@ def _walk(spec, shape: tuple, where: str = "spec", rows: list | None = None, dep
                 raise ValueError(f"{at} (gap) needs a (C, H, W) input, got shape {shape}")
             shape = (shape[0],)
         elif kind == "flatten":
-            shape = (int(np.prod(shape)),)
+            shape = (math.prod(shape),)
         elif kind == "linear":
             cin = _int(_key(layer, "in", at), f"{at} in", 1)
             cout = _int(_key(layer, "out", at), f"{at} out", 1)
@@ -355,14 +364,14 @@ def _out(size: int, kernel: int, padding: int, stride: int, at: str) -> int:
     return span // stride + 1
 
 
-def _input_shape(input_shape) -> tuple:
+def _input_shape(input_shape: object) -> tuple[int, ...]:
     if not isinstance(input_shape, (tuple, list)) or len(input_shape) not in (1, 3):
         raise ValueError(f"input_shape must be (C, H, W) (or (D,) for a vector), got {input_shape!r}")
     return tuple(_int(v, "input_shape", 1) for v in input_shape)
 
 
 @algorithm("nn.count_parameters", section="11.2–11.5", check="cvkit.nn.checks:count_parameters")
-def count_parameters(spec):
+def count_parameters(spec: Spec) -> int:
     """Number of learnable parameters of a spec.
 
     Parameters
@@ -396,7 +405,7 @@ def count_parameters(spec):
 
 
 @algorithm("nn.count_flops", section="11.2–11.3", check="cvkit.nn.checks:count_flops")
-def count_flops(spec, input_shape):
+def count_flops(spec: Spec, input_shape: tuple[int, ...]) -> int:
     """Floating-point operations of one forward pass of one image: 2 × multiply-adds.
 
     Parameters
@@ -434,10 +443,10 @@ def count_flops(spec, input_shape):
     return int(flops)
 
 
-def layer_table(spec, input_shape):
+def layer_table(spec: Spec, input_shape: tuple[int, ...]) -> list[tuple[Any, ...]]:
     """Rows ``(depth, where, type, output shape, parameters, flops)`` of every layer, for tables
     in the notebooks: the layers nested in a residual or concat layer (``depth`` > 0) come just
     before the row of that layer, whose parameters and FLOPs include theirs."""
-    rows: list = []
+    rows: list[tuple[Any, ...]] = []
     _walk(copy.deepcopy(spec), _input_shape(input_shape), "spec", rows)
     return rows

@@ -2,20 +2,23 @@
 from __future__ import annotations
 
 import numbers
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import as_float_array, check_int, check_real
 
 __all__ = ["as_batch", "as_gradient", "pair", "check_bool", "cache_value", "check_cache"]
 
 
-def as_batch(x, name: str = "x") -> np.ndarray:
+def as_batch(x: ArrayLike, name: str = "x") -> np.ndarray:
     """A batch of feature maps ``(N, C, H, W)`` as float64 (any real dtype accepted)."""
     return as_float_array(x, name, ndim=4)
 
 
-def as_gradient(dout, name: str, shape: tuple) -> np.ndarray:
+def as_gradient(dout: ArrayLike, name: str, shape: tuple[int, ...]) -> np.ndarray:
     """An upstream gradient of exactly ``shape``."""
     g = as_float_array(dout, name, ndim=len(shape), allow_empty=True)
     if g.shape != tuple(shape):
@@ -23,7 +26,7 @@ def as_gradient(dout, name: str, shape: tuple) -> np.ndarray:
     return g
 
 
-def pair(value, name: str, *, minimum: int) -> tuple[int, int]:
+def pair(value: int | Sequence[int] | np.ndarray, name: str, *, minimum: int) -> tuple[int, int]:
     """An int or a pair of ints ``(for rows, for columns)``, each at least ``minimum``."""
     if isinstance(value, (tuple, list, np.ndarray)):
         items = list(np.asarray(value).ravel()) if isinstance(value, np.ndarray) else list(value)
@@ -34,13 +37,13 @@ def pair(value, name: str, *, minimum: int) -> tuple[int, int]:
     return (v, v)
 
 
-def check_bool(value, name: str) -> bool:
+def check_bool(value: object, name: str) -> bool:
     if not isinstance(value, (bool, np.bool_)):
         raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
     return bool(value)
 
 
-def check_cache(cache, keys: tuple, layer: str) -> dict:
+def check_cache(cache: object, keys: tuple[str, ...], layer: str) -> dict[str, Any]:
     """``cache`` must be the dict of ``<layer>_forward`` holding ``keys``."""
     if not isinstance(cache, dict):
         raise TypeError(f"cache must be the dict returned by {layer}_forward, got {type(cache).__name__}")
@@ -50,13 +53,13 @@ def check_cache(cache, keys: tuple, layer: str) -> dict:
     return cache
 
 
-def cache_value(cache: dict, key: str):
+def cache_value(cache: dict[str, Any], key: str) -> Any:
     return cache[key]
 
 
-def real(value, name: str, **kw) -> float:
+def real(value: float, name: str, **kw: bool) -> float:
     return check_real(value, name, **kw)
 
 
-def is_int(value) -> bool:
+def is_int(value: object) -> bool:
     return isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, (bool, np.bool_))

@@ -7,27 +7,36 @@ padding and a stride (§10.7.4). It is vectorised through a strided view of ever
 """
 from __future__ import annotations
 
+import math
+from collections.abc import Iterable, Sequence
+from typing import Any, TypeAlias
+
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, check_int
+from .._validation import MAX_ARRAY_BYTES, as_float_array, check_allocation, check_int
 from ..registry import algorithm
 from ._common import as_batch, as_gradient, check_cache, pair
 
 __all__ = ["conv_output_size", "receptive_field", "conv2d_forward", "conv2d_backward"]
 
+#: ``stride`` and ``padding`` of the convolution: an int or a pair (rows, cols)
+IntOrPair: TypeAlias = int | Sequence[int]
 
-def _output_size(size: int, kernel: int, padding: int, stride: int, what: str = "input") -> int:
+
+def _output_size(size: int, kernel: int, padding: int, stride: int, what: str = "input",
+                 kernel_name: str = "kernel") -> int:
     span = size + 2 * padding - kernel
     if span < 0:
         raise ValueError(
-            f"kernel {kernel} is larger than the padded {what} ({size} + 2·{padding} = {size + 2 * padding})"
+            f"{kernel_name} {kernel} is larger than the padded {what} ({size} + 2·{padding} = {size + 2 * padding})"
         )
     return span // stride + 1
 
 
 @algorithm("nn.conv_output_size", section="10.7.4", check="cvkit.nn.checks:conv_output_size")
-def conv_output_size(size, kernel, padding=0, stride=1):
+def conv_output_size(size: int, kernel: int, padding: int = 0, stride: int = 1) -> int:
     """Spatial size of the output of a convolution (or pooling) layer along one axis.
 
     Parameters
@@ -69,7 +78,7 @@ def conv_output_size(size, kernel, padding=0, stride=1):
 
 
 @algorithm("nn.receptive_field", section="10.7.4", check="cvkit.nn.checks:receptive_field")
-def receptive_field(layers):
+def receptive_field(layers: Iterable[tuple[int, int]]) -> int:
     """Side of the receptive field of one unit of the last layer of a stack.
 
     Parameters
@@ -117,33 +126,77 @@ def receptive_field(layers):
 # --------------------------------------------------------------------------------------------
 # the convolution layer
 # --------------------------------------------------------------------------------------------
-def _conv_arguments(x, w, b, stride, padding):
-    x = as_batch(x, "x")
-    w = as_float_array(w, "w", ndim=4)
-    b = as_float_array(b, "b", ndim=1)
+def _conv_arguments(x: ArrayLike, w: ArrayLike, b: ArrayLike, stride: IntOrPair, padding: IntOrPair,
+                    prefix: str = "") -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[int, int], tuple[int, int]]:
+    """The arguments of the layer checked; ``prefix`` (``"cache"``) names them as entries of a
+    cache: ``cache['x']``."""
+    def name(key: str) -> str:
+        return f"{prefix}[{key!r}]" if prefix else key
+
+    x = as_batch(x, name("x"))
+    w = as_float_array(w, name("w"), ndim=4)
+    b = as_float_array(b, name("b"), ndim=1)
     if w.shape[1] != x.shape[1]:
         raise ValueError(
-            f"w must be (F, C, kh, kw) with C = {x.shape[1]} (the channels of x), got shape {w.shape}"
+            f"{name('w')} must be (F, C, kh, kw) with C = {x.shape[1]} (the channels of {name('x')}), got shape {w.shape}"
         )
     if b.shape[0] != w.shape[0]:
-        raise ValueError(f"b must have one bias per filter ({w.shape[0]}), got shape {b.shape}")
-    stride = pair(stride, "stride", minimum=1)
-    padding = pair(padding, "padding", minimum=0)
-    return x, w, b, stride, padding
+        raise ValueError(f"{name('b')} must have one bias per filter ({w.shape[0]}), got shape {b.shape}")
+    return x, w, b, pair(stride, name("stride"), minimum=1), pair(padding, name("padding"), minimum=0)
 
 
-def _windows(x: np.ndarray, kernel: tuple, stride: tuple, padding: tuple) -> tuple[np.ndarray, tuple]:
-    """Zero-padded ``x`` and the strided view of its windows ``(N, C, Ho, Wo, kh, kw)``."""
+def _workspace(x_shape: tuple[int, ...], w_shape: tuple[int, ...], stride: tuple[int, int],
+               padding: tuple[int, int], w_name: str = "w") -> tuple[tuple[int, int], list[tuple[tuple[int, ...], str]]]:
+    """Output size and the largest arrays the layer allocates: the zero-padded input, the
+    im2col copy of every window that ``tensordot`` makes (the backward pass makes one as large),
+    and the output."""
+    n, c, h, width = x_shape
+    f, _, kh, kw = w_shape
+    (sh, sw), (ph, pw) = stride, padding
+    ho = _output_size(h, kh, ph, sh, "input height", f"{w_name}'s kernel height")
+    wo = _output_size(width, kw, pw, sw, "input width", f"{w_name}'s kernel width")
+    arrays: list[tuple[tuple[int, ...], str]] = [
+        ((n, ho, wo, c * kh * kw), "the windows of the input (im2col)"), ((n, f, ho, wo), "the output")]
+    if ph or pw:
+        arrays.append(((n, c, h + 2 * ph, width + 2 * pw), "the zero-padded input"))
+    return (ho, wo), arrays
+
+
+def _fits(arrays: list[tuple[tuple[int, ...], str]]) -> bool:
+    return all(8 * math.prod(shape) <= MAX_ARRAY_BYTES for shape, _ in arrays)
+
+
+def check_conv_cost(x_shape: tuple[int, ...], w_shape: tuple[int, ...], stride: tuple[int, int],
+                    padding: tuple[int, int], names: tuple[str, str, str] = ("x", "w", "padding")) -> tuple[int, int]:
+    """The output size ``(Ho, Wo)`` of a convolution, after checking that none of its arrays
+    would exceed :data:`cvkit._validation.MAX_ARRAY_BYTES` (``ValueError`` before anything is
+    allocated). ``names`` are the caller's names of the input, the filters and the padding:
+    the padding is named when the layer with at most ``kernel − 1`` zeros a side would fit, the
+    input otherwise."""
+    x_name, w_name, padding_name = names
+    size, arrays = _workspace(x_shape, w_shape, stride, padding, w_name)
+    if _fits(arrays):
+        return size
+    # padding beyond kernel − 1 only adds windows of zeros: blame it when the layer fits without
+    reasonable = (min(padding[0], w_shape[2] - 1), min(padding[1], w_shape[3] - 1))
+    fits_reasonably = reasonable != padding and _fits(_workspace(x_shape, w_shape, stride, reasonable, w_name)[1])
+    blame = padding_name if fits_reasonably else x_name
+    for shape, what in arrays:
+        check_allocation(shape, blame, what=what)
+    raise AssertionError("unreachable: an array above exceeds the limit")
+
+
+def _windows(x: np.ndarray, kernel: tuple[int, int], stride: tuple[int, int],
+             padding: tuple[int, int]) -> np.ndarray:
+    """The strided view of the windows ``(N, C, Ho, Wo, kh, kw)`` of the zero-padded ``x``."""
     (kh, kw), (sh, sw), (ph, pw) = kernel, stride, padding
-    ho = _output_size(x.shape[2], kh, ph, sh, "input height")
-    wo = _output_size(x.shape[3], kw, pw, sw, "input width")
     xp = np.pad(x, ((0, 0), (0, 0), (ph, ph), (pw, pw))) if ph or pw else x
-    view = sliding_window_view(xp, (kh, kw), axis=(2, 3))[:, :, ::sh, ::sw]
-    return view, (ho, wo)
+    return sliding_window_view(xp, (kh, kw), axis=(2, 3))[:, :, ::sh, ::sw]
 
 
 @algorithm("nn.conv2d_forward", section="10.7.3", check="cvkit.nn.checks:conv2d_forward")
-def conv2d_forward(x, w, b, stride=1, padding=0):
+def conv2d_forward(x: ArrayLike, w: ArrayLike, b: ArrayLike, stride: IntOrPair = 1,
+                   padding: IntOrPair = 0) -> tuple[np.ndarray, dict[str, Any]]:
     """Convolution layer: zero-padded cross-correlation over all input channels, plus a bias.
 
     Parameters
@@ -156,9 +209,13 @@ def conv2d_forward(x, w, b, stride=1, padding=0):
     b : (F,) array_like
         One bias per filter.
     stride : int or (int, int)
-        Step S between neighbouring windows (rows, cols).
+        Step S ≥ 1 between neighbouring windows (rows, cols).
     padding : int or (int, int)
-        Zeros added on each side of the input (rows, cols).
+        Zeros P ≥ 0 added on each side of the input (rows, cols). Bounded by memory: the
+        padded input, the copy of its windows that the product makes (N·Ho·Wo·C·kh·kw values)
+        and the output must each fit in 2 GiB (cvkit's limit for one array,
+        :data:`cvkit._validation.MAX_ARRAY_BYTES`), or ``ValueError`` names ``padding`` (when
+        at most kh − 1 zeros a side would fit) or ``x``, before anything is allocated.
 
     Returns
     -------
@@ -191,7 +248,8 @@ def conv2d_forward(x, w, b, stride=1, padding=0):
     (1, 1, 3, 3)
     """
     x, w, b, s, p = _conv_arguments(x, w, b, stride, padding)
-    view, _ = _windows(x, w.shape[2:], s, p)
+    check_conv_cost(x.shape, w.shape, s, p)
+    view = _windows(x, (w.shape[2], w.shape[3]), s, p)
     out = np.tensordot(view, w, axes=([1, 4, 5], [1, 2, 3]))       # (N, Ho, Wo, F)
     out = np.ascontiguousarray(out.transpose(0, 3, 1, 2))
     out += b[None, :, None, None]
@@ -199,7 +257,7 @@ def conv2d_forward(x, w, b, stride=1, padding=0):
 
 
 @algorithm("nn.conv2d_backward", section="10.7.3", check="cvkit.nn.checks:conv2d_backward")
-def conv2d_backward(dout, cache):
+def conv2d_backward(dout: ArrayLike, cache: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Gradients of :func:`conv2d_forward` with respect to the input, the filters and the biases.
 
     Parameters
@@ -207,7 +265,9 @@ def conv2d_backward(dout, cache):
     dout : (N, F, Ho, Wo) array_like
         Upstream gradient ∂L/∂out.
     cache : dict
-        The cache of :func:`conv2d_forward` (``x``, ``w``, ``b``, ``stride``, ``padding``).
+        The cache of :func:`conv2d_forward` (``x``, ``w``, ``b``, ``stride``, ``padding``);
+        its entries are checked as the forward's arguments (same memory bound), errors naming
+        them ``cache['x']``, ``cache['padding']``, ...
 
     Returns
     -------
@@ -240,9 +300,12 @@ def conv2d_backward(dout, cache):
     array([4.])
     """
     check_cache(cache, ("x", "w", "b", "stride", "padding"), "conv2d")
-    x, w, b, (sh, sw), (ph, pw) = _conv_arguments(cache["x"], cache["w"], cache["b"], cache["stride"], cache["padding"])
+    x, w, b, (sh, sw), (ph, pw) = _conv_arguments(
+        cache["x"], cache["w"], cache["b"], cache["stride"], cache["padding"], prefix="cache")
     kh, kw = w.shape[2:]
-    view, (ho, wo) = _windows(x, (kh, kw), (sh, sw), (ph, pw))
+    ho, wo = check_conv_cost(x.shape, w.shape, (sh, sw), (ph, pw),
+                             ("cache['x']", "cache['w']", "cache['padding']"))
+    view = _windows(x, (kh, kw), (sh, sw), (ph, pw))
     dout = as_gradient(dout, "dout", (x.shape[0], w.shape[0], ho, wo))
     db = dout.sum(axis=(0, 2, 3))
     dw = np.tensordot(dout, view, axes=([0, 2, 3], [0, 2, 3]))      # (F, C, kh, kw)

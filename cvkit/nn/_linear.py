@@ -1,16 +1,19 @@
 """The fully connected (linear, affine) layer of §10.5.1 in the layer convention ``W (D, C)``."""
 from __future__ import annotations
 
-import numpy as np
+from typing import Any
 
-from .._validation import as_float_array
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import as_float_array, check_allocation
 from ..registry import algorithm
 from ._common import as_gradient, check_cache
 
 __all__ = ["linear_forward", "linear_backward"]
 
 
-def _params(x, W, b):
+def _params(x: ArrayLike, W: ArrayLike, b: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     x = as_float_array(x, "x", ndim=2)
     W = as_float_array(W, "W", ndim=2)
     b = as_float_array(b, "b", ndim=1)
@@ -22,7 +25,7 @@ def _params(x, W, b):
 
 
 @algorithm("nn.linear_forward", section="10.5.1", check="cvkit.nn.checks:linear_forward")
-def linear_forward(x, W, b):
+def linear_forward(x: ArrayLike, W: ArrayLike, b: ArrayLike) -> tuple[np.ndarray, dict[str, Any]]:
     """Fully connected layer: ``out = x @ W + b``.
 
     Parameters
@@ -31,7 +34,8 @@ def linear_forward(x, W, b):
         One input vector per row (flatten feature maps first: ``x.reshape(N, -1)``).
     W : (D, C) array_like
         Weights in the *layer* convention: column ``j`` holds the weights of output ``j``.
-        (Chapter 9's ``cvkit.learn`` stores the transpose, ``(C, D)``.)
+        (Chapter 9's ``cvkit.learn`` stores the transpose, ``(C, D)``.) The output, N·C values,
+        must fit in 2 GiB (cvkit's limit for one array), else ``ValueError`` naming ``W``.
     b : (C,) array_like
         One bias per output.
 
@@ -57,11 +61,12 @@ def linear_forward(x, W, b):
     array([[1., 2., 0.]])
     """
     x, W, b = _params(x, W, b)
+    check_allocation((x.shape[0], W.shape[1]), "W", what="the output x @ W")
     return x @ W + b, {"x": x, "W": W, "b": b}
 
 
 @algorithm("nn.linear_backward", section="10.5.1", check="cvkit.nn.checks:linear_backward")
-def linear_backward(dout, cache):
+def linear_backward(dout: ArrayLike, cache: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Gradients of :func:`linear_forward`.
 
     Parameters

@@ -1,7 +1,10 @@
 """Batch normalisation for feature maps (§10.7.6) and inverted dropout (§12.3.6)."""
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import as_float_array, as_rng, check_real
 from ..registry import algorithm
@@ -10,7 +13,7 @@ from ._common import as_batch, as_gradient, check_bool, check_cache
 __all__ = ["batchnorm2d_forward", "batchnorm2d_backward", "dropout_forward", "dropout_backward"]
 
 
-def _per_channel(value, name: str, channels: int, nonnegative: bool = False) -> np.ndarray:
+def _per_channel(value: ArrayLike, name: str, channels: int, nonnegative: bool = False) -> np.ndarray:
     v = as_float_array(value, name, ndim=1)
     if v.shape[0] != channels:
         raise ValueError(f"{name} must have one entry per channel ({channels}), got shape {v.shape}")
@@ -19,7 +22,9 @@ def _per_channel(value, name: str, channels: int, nonnegative: bool = False) -> 
     return v
 
 
-def _bn_arguments(x, gamma, beta, running_mean, running_var, training, momentum, eps):
+def _bn_arguments(x: ArrayLike, gamma: ArrayLike, beta: ArrayLike, running_mean: ArrayLike, running_var: ArrayLike,
+                  training: bool, momentum: float, eps: float
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool, float, float]:
     x = as_batch(x, "x")
     c = x.shape[1]
     gamma = _per_channel(gamma, "gamma", c)
@@ -39,7 +44,9 @@ def _bcast(v: np.ndarray) -> np.ndarray:
 
 
 @algorithm("nn.batchnorm2d_forward", section="10.7.6", check="cvkit.nn.checks:batchnorm2d_forward")
-def batchnorm2d_forward(x, gamma, beta, running_mean, running_var, training, momentum=0.1, eps=1e-5):
+def batchnorm2d_forward(x: ArrayLike, gamma: ArrayLike, beta: ArrayLike, running_mean: ArrayLike,
+                        running_var: ArrayLike, training: bool, momentum: float = 0.1,
+                        eps: float = 1e-5) -> tuple[np.ndarray, dict[str, Any]]:
     """Spatial batch normalisation: per channel, over the batch and all positions.
 
     Parameters
@@ -112,7 +119,7 @@ def batchnorm2d_forward(x, gamma, beta, running_mean, running_var, training, mom
 
 
 @algorithm("nn.batchnorm2d_backward", section="10.7.6", check="cvkit.nn.checks:batchnorm2d_backward")
-def batchnorm2d_backward(dout, cache):
+def batchnorm2d_backward(dout: ArrayLike, cache: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Gradients of :func:`batchnorm2d_forward` with respect to x, γ and β.
 
     Parameters
@@ -175,7 +182,7 @@ def batchnorm2d_backward(dout, cache):
 # --------------------------------------------------------------------------------------------
 # dropout
 # --------------------------------------------------------------------------------------------
-def _p_keep(p_keep) -> float:
+def _p_keep(p_keep: float) -> float:
     p = check_real(p_keep, "p_keep")
     if not 0.0 < p <= 1.0:
         raise ValueError(f"p_keep must be in (0, 1] (the probability of keeping a unit), got {p}")
@@ -183,7 +190,8 @@ def _p_keep(p_keep) -> float:
 
 
 @algorithm("nn.dropout_forward", section="12.3.6", check="cvkit.nn.checks:dropout_forward")
-def dropout_forward(x, p_keep, training, rng=None):
+def dropout_forward(x: ArrayLike, p_keep: float, training: bool,
+                    rng: np.random.Generator | int | None = None) -> tuple[np.ndarray, dict[str, Any]]:
     """Inverted dropout: keep each unit with probability ``p_keep`` and scale it by ``1/p_keep``.
 
     Parameters
@@ -234,7 +242,7 @@ def dropout_forward(x, p_keep, training, rng=None):
 
 
 @algorithm("nn.dropout_backward", section="12.3.6", check="cvkit.nn.checks:dropout_backward")
-def dropout_backward(dout, cache):
+def dropout_backward(dout: ArrayLike, cache: dict[str, Any]) -> np.ndarray:
     """Gradient of :func:`dropout_forward`: ``dout · mask / p_keep`` in training, ``dout`` otherwise.
 
     Parameters

@@ -1,30 +1,47 @@
 """Pooling layers: max pooling (§10.7.5) and global average pooling (§11.3.5)."""
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+from numpy.typing import ArrayLike
 
-from .._validation import check_int
+from .._validation import check_allocation, check_int
 from ..registry import algorithm
 from ._common import as_batch, as_gradient, check_cache
-from ._conv import _output_size
 
 __all__ = ["maxpool2d_forward", "maxpool2d_backward", "global_avg_pool_forward", "global_avg_pool_backward"]
 
 
-def _pool_windows(x: np.ndarray, size: int, stride: int):
-    ho = _output_size(x.shape[2], size, 0, stride, "input height")
-    wo = _output_size(x.shape[3], size, 0, stride, "input width")
+def _pool_arguments(x: ArrayLike, size: int, stride: int,
+                    prefix: str = "") -> tuple[np.ndarray, int, int, tuple[int, int]]:
+    """The checked arguments and the output size ``(Ho, Wo)``; ``prefix`` (``"cache"``) names
+    them as entries of a cache. The window must fit in ``x`` and the copy of all windows
+    (``N·C·Ho·Wo·size²`` values) in cvkit's 2 GiB per array."""
+    def name(key: str) -> str:
+        return f"{prefix}[{key!r}]" if prefix else key
+
+    x = as_batch(x, name("x"))
+    size = check_int(size, name("size"), minimum=1)
+    stride = check_int(stride, name("stride"), minimum=1)
+    n, c, h, w = x.shape
+    if size > min(h, w):
+        raise ValueError(f"{name('size')} must be at most the height and width of {name('x')} "
+                         f"({h} × {w}), got {size}")
+    ho, wo = (h - size) // stride + 1, (w - size) // stride + 1
+    check_allocation((n, c, ho, wo, size * size), name("size"), what="the copy of the pooling windows")
+    return x, size, stride, (ho, wo)
+
+
+def _pool_windows(x: np.ndarray, size: int, stride: int) -> np.ndarray:
+    """Every ``size × size`` window, flattened: ``(N, C, Ho, Wo, size²)`` (a copy)."""
     view = sliding_window_view(x, (size, size), axis=(2, 3))[:, :, ::stride, ::stride]
-    return view.reshape(view.shape[:4] + (size * size,)), (ho, wo)
-
-
-def _pool_arguments(x, size, stride):
-    return as_batch(x, "x"), check_int(size, "size", minimum=1), check_int(stride, "stride", minimum=1)
+    return view.reshape(view.shape[:4] + (size * size,))
 
 
 @algorithm("nn.maxpool2d_forward", section="10.7.5", check="cvkit.nn.checks:maxpool2d_forward")
-def maxpool2d_forward(x, size=2, stride=2):
+def maxpool2d_forward(x: ArrayLike, size: int = 2, stride: int = 2) -> tuple[np.ndarray, dict[str, Any]]:
     """Max pooling: the maximum of each ``size × size`` window, channel by channel.
 
     Parameters
@@ -32,9 +49,11 @@ def maxpool2d_forward(x, size=2, stride=2):
     x : (N, C, H, W) array_like
         A batch of feature maps, at least ``size × size``.
     size : int
-        Side of the (square) pooling window.
+        Side of the (square) pooling window, 1 ≤ size ≤ min(H, W). Bounded by memory too: the
+        copy of all windows (N·C·Ho·Wo·size² values) must fit in 2 GiB (cvkit's limit for one
+        array), else ``ValueError`` naming ``size``, before anything is allocated.
     stride : int
-        Step between windows; ``stride < size`` gives overlapping windows.
+        Step between windows, ≥ 1; ``stride < size`` gives overlapping windows.
 
     Returns
     -------
@@ -57,13 +76,13 @@ def maxpool2d_forward(x, size=2, stride=2):
     array([[4., 5.],
            [9., 2.]])
     """
-    x, size, stride = _pool_arguments(x, size, stride)
-    windows, _ = _pool_windows(x, size, stride)
+    x, size, stride, _ = _pool_arguments(x, size, stride)
+    windows = _pool_windows(x, size, stride)
     return windows.max(axis=-1), {"x": x, "size": size, "stride": stride}
 
 
 @algorithm("nn.maxpool2d_backward", section="10.7.5", check="cvkit.nn.checks:maxpool2d_backward")
-def maxpool2d_backward(dout, cache):
+def maxpool2d_backward(dout: ArrayLike, cache: dict[str, Any]) -> np.ndarray:
     """Gradient of :func:`maxpool2d_forward`: each window's gradient goes to its maximum.
 
     Parameters
@@ -71,7 +90,8 @@ def maxpool2d_backward(dout, cache):
     dout : (N, C, Ho, Wo) array_like
         Upstream gradient.
     cache : dict
-        The cache of :func:`maxpool2d_forward` (``x``, ``size``, ``stride``).
+        The cache of :func:`maxpool2d_forward` (``x``, ``size``, ``stride``), checked as the
+        forward's arguments (errors name ``cache['size']``, ...).
 
     Returns
     -------
@@ -96,8 +116,8 @@ def maxpool2d_backward(dout, cache):
            [0., 0.]])
     """
     check_cache(cache, ("x", "size", "stride"), "maxpool2d")
-    x, size, stride = _pool_arguments(cache["x"], cache["size"], cache["stride"])
-    windows, (ho, wo) = _pool_windows(x, size, stride)
+    x, size, stride, (ho, wo) = _pool_arguments(cache["x"], cache["size"], cache["stride"], prefix="cache")
+    windows = _pool_windows(x, size, stride)
     dout = as_gradient(dout, "dout", x.shape[:2] + (ho, wo))
     winner = windows.argmax(axis=-1)
     dx = np.zeros(x.shape)
@@ -109,7 +129,7 @@ def maxpool2d_backward(dout, cache):
 
 
 @algorithm("nn.global_avg_pool_forward", section="11.3.5", check="cvkit.nn.checks:global_avg_pool_forward")
-def global_avg_pool_forward(x):
+def global_avg_pool_forward(x: ArrayLike) -> tuple[np.ndarray, dict[str, Any]]:
     """Global average pooling: the mean of each feature map.
 
     Parameters
@@ -140,7 +160,7 @@ def global_avg_pool_forward(x):
 
 
 @algorithm("nn.global_avg_pool_backward", section="11.3.5", check="cvkit.nn.checks:global_avg_pool_backward")
-def global_avg_pool_backward(dout, cache):
+def global_avg_pool_backward(dout: ArrayLike, cache: dict[str, Any]) -> np.ndarray:
     """Gradient of :func:`global_avg_pool_forward`: ``dout / (H·W)`` at every position.
 
     Parameters

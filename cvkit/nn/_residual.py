@@ -11,11 +11,15 @@ The block is a pipeline: it calls its layers through the registry, so
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import as_float_array, check_real
 from ..registry import algorithm, implementation
 from ._common import as_batch, check_bool, check_cache
+from ._conv import check_conv_cost
 
 __all__ = ["residual_block_forward", "residual_block_backward", "RESIDUAL_KEYS"]
 
@@ -28,7 +32,7 @@ LEARNABLE = ("w1", "gamma1", "beta1", "w2", "gamma2", "beta2")
 LEARNABLE_PROJ = ("w_proj", "gamma_proj", "beta_proj")
 
 
-def _check_params(x: np.ndarray, params) -> tuple[dict, bool]:
+def _check_params(x: np.ndarray, params: object, x_name: str = "x") -> tuple[dict[str, np.ndarray], bool]:
     if not isinstance(params, dict):
         raise TypeError(f"params must be a dict of arrays, got {type(params).__name__}")
     missing = [k for k in RESIDUAL_KEYS if k not in params]
@@ -55,21 +59,26 @@ def _check_params(x: np.ndarray, params) -> tuple[dict, bool]:
             f"without a projection the block must keep the channels: params['w1'] has {f} filters for "
             f"{c} input channels (give w_proj and its batch norm)"
         )
+    # the convolutions' largest arrays (their windows are 9 times the input) must fit in memory
+    stride = (2, 2) if projection else (1, 1)
+    ho, wo = check_conv_cost(x.shape, p["w1"].shape, stride, (1, 1), (x_name, "params['w1']", x_name))
+    check_conv_cost((x.shape[0], f, ho, wo), p["w2"].shape, (1, 1), (1, 1), (x_name, "params['w2']", x_name))
     return p, projection
 
 
-def _bn_args(p: dict, suffix: str):
+def _bn_args(p: dict[str, np.ndarray], suffix: str) -> tuple[np.ndarray, ...]:
     return tuple(p[f"{k}{suffix}"] for k in _BN)
 
 
-def _forward(x, p, projection, training, momentum, eps):
+def _forward(x: np.ndarray, p: dict[str, np.ndarray], projection: bool, training: bool, momentum: float,
+             eps: float) -> tuple[np.ndarray, dict[str, Any]]:
     conv = implementation("nn.conv2d_forward")
     bn = implementation("nn.batchnorm2d_forward")
     relu = implementation("nn.relu_forward")
     f = p["w1"].shape[0]
     zeros = np.zeros(f)
     stride = 2 if projection else 1
-    c = {}
+    c: dict[str, Any] = {}
     h, c["conv1"] = conv(x, p["w1"], zeros, stride=stride, padding=1)
     h, c["bn1"] = bn(h, *_bn_args(p, "1"), training, momentum=momentum, eps=eps)
     h, c["relu1"] = relu(h)
@@ -85,12 +94,15 @@ def _forward(x, p, projection, training, momentum, eps):
 
 
 @algorithm("nn.residual_block_forward", section="11.5.2–11.5.4", check="cvkit.nn.checks:residual_block_forward")
-def residual_block_forward(x, params, training=True, momentum=0.1, eps=1e-5):
+def residual_block_forward(x: ArrayLike, params: dict[str, ArrayLike], training: bool = True, momentum: float = 0.1,
+                           eps: float = 1e-5) -> tuple[np.ndarray, dict[str, Any]]:
     """ResNet basic block: two 3×3 conv + BN layers, the shortcut added before the last ReLU.
 
     Parameters
     ----------
     x : (N, C, H, W) array_like
+        The windows of the block's 3×3 convolutions (N·H·W·C·9 values, and the same with F)
+        must fit in 2 GiB (cvkit's limit for one array), else ``ValueError`` naming ``x``.
     params : dict
         ``w1`` (F, C, 3, 3), ``gamma1``, ``beta1``, ``running_mean1``, ``running_var1`` (F,);
         ``w2`` (F, F, 3, 3) and ``gamma2`` ... ``running_var2``; optionally the projection
@@ -150,7 +162,7 @@ def residual_block_forward(x, params, training=True, momentum=0.1, eps=1e-5):
 
 
 @algorithm("nn.residual_block_backward", section="11.5.2–11.5.4", check="cvkit.nn.checks:residual_block_backward")
-def residual_block_backward(dout, cache):
+def residual_block_backward(dout: ArrayLike, cache: dict[str, Any]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Gradients of :func:`residual_block_forward`.
 
     Parameters
@@ -186,7 +198,7 @@ def residual_block_backward(dout, cache):
     """
     check_cache(cache, ("x", "params", "training"), "residual_block")
     x = as_batch(cache["x"], "cache['x']")
-    p, projection = _check_params(x, cache["params"])
+    p, projection = _check_params(x, cache["params"], "cache['x']")
     training = check_bool(cache["training"], "cache['training']")
     momentum = check_real(cache.get("momentum", 0.1), "cache['momentum']", nonnegative=True)
     eps = check_real(cache.get("eps", 1e-5), "cache['eps']", positive=True)
@@ -197,7 +209,7 @@ def residual_block_backward(dout, cache):
     conv_b = implementation("nn.conv2d_backward")
     bn_b = implementation("nn.batchnorm2d_backward")
     relu_b = implementation("nn.relu_backward")
-    grads = {}
+    grads: dict[str, Any] = {}
     dz = np.asarray(relu_b(dout, c["relu_out"]), dtype=np.float64)
     dh, grads["gamma2"], grads["beta2"] = bn_b(dz, c["bn2"])
     dh, grads["w2"], _ = conv_b(dh, c["conv2"])
