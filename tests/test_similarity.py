@@ -304,6 +304,10 @@ def _course(tmp_path: Path, ch03) -> tuple[Path, Path]:
     broken.mkdir(parents=True)
     (broken / "ch03.ipynb").write_text('{"cells": [ {"cell_type": "code", ')  # invalid JSON
     (tmp_path / "course" / "submitted" / "gus").symlink_to(tmp_path / "course" / "submitted" / "bob")
+    outside = submit("ida", {**stubs, "add_salt_and_pepper_answer": SALT_COPY})  # then made a hard link to
+    moved = tmp_path / "elsewhere.ipynb"  # a file outside the submission
+    outside.rename(moved)
+    os.link(moved, outside)
     return tmp_path / "course", source
 
 
@@ -316,7 +320,7 @@ def test_report_reads_regular_files_only_and_skips_invalid_notebooks(tmp_path, c
         ("add_salt_and_pepper_answer", "bob", SOLUTION),
     }
     assert all(p.assignment == "ch03" and p.similarity >= THRESHOLD for p in pairs)
-    assert not any({"eve", "fay", "gus"} & {p.a, p.b} for p in pairs)  # links and broken JSON skipped
+    assert not any({"eve", "fay", "gus", "ida"} & {p.a, p.b} for p in pairs)  # links and broken JSON skipped
     assert similarity.report(course, source, "ch03", threshold=1.0) == []
     assert similarity.report(course, source, "no_such_assignment") == []
 

@@ -60,7 +60,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 __all__ = [
-    "NOISE", "THRESHOLD", "MIN_SIZE", "SOLUTION", "SimilarPair", "Exercise",
+    "NOISE", "THRESHOLD", "MIN_SIZE", "SOLUTION", "CODE_STUB", "MAX_NOTEBOOK_BYTES", "SimilarPair", "Exercise",
     "answer_sources", "exercise_algorithms", "exercises_from", "similar_pairs", "report",
     "write_csv", "write_html", "reference_label",
 ]
@@ -382,47 +382,37 @@ def similar_pairs(answers: Mapping[str, Mapping[str, str]], exercises: Mapping[s
 
 
 # ------------------------------------------------------------------------------- course folders
-def _regular_file(path: Path) -> bytes | None:
-    """The bytes of ``path`` if it is a regular file (not a link, device or pipe, not a hard
-    link to a file elsewhere, at most MAX_NOTEBOOK_BYTES), else None. Links are never followed."""
+def _read_notebook(path: Path, *, links: bool = False) -> dict | None:
+    """The notebook at ``path``, or None: not a regular file (a device, a pipe; a symbolic link
+    unless ``links``, a hard link to a file elsewhere), larger than MAX_NOTEBOOK_BYTES, not
+    JSON, not a JSON object. Links are followed only for the instructor's own files."""
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | (0 if links else getattr(os, "O_NOFOLLOW", 0))
     try:
-        descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
+        descriptor = os.open(path, flags)
     except OSError:
         return None
     try:
         info = os.fstat(descriptor)
-        if not stat.S_ISREG(info.st_mode) or info.st_nlink > 1 or info.st_size > MAX_NOTEBOOK_BYTES:
+        if not stat.S_ISREG(info.st_mode) or info.st_size > MAX_NOTEBOOK_BYTES or (info.st_nlink > 1 and not links):
             return None
         with os.fdopen(descriptor, "rb", closefd=False) as handle:
-            return handle.read(MAX_NOTEBOOK_BYTES + 1)
-    except OSError:
+            data = handle.read(MAX_NOTEBOOK_BYTES + 1)
+        if len(data) > MAX_NOTEBOOK_BYTES:  # grew after fstat
+            return None
+        notebook = json.loads(data)
+    except (OSError, ValueError, RecursionError):
         return None
     finally:
         os.close(descriptor)
-
-
-def _read_notebook(path: Path) -> dict | None:
-    data = _regular_file(path)
-    if data is None or len(data) > MAX_NOTEBOOK_BYTES:
-        return None
-    try:
-        notebook = json.loads(data)
-    except (ValueError, RecursionError):
-        return None
     return notebook if isinstance(notebook, dict) else None
 
 
 def _plain_folder(path: Path) -> bool:
+    """A folder that is not a symbolic link."""
     try:
         return stat.S_ISDIR(path.lstat().st_mode)
     except OSError:
         return False
-
-
-def _notebook_names(folder: Path) -> list[str]:
-    if not _plain_folder(folder):
-        return []
-    return sorted(path.name for path in folder.glob("*.ipynb") if not path.name.startswith("."))
 
 
 def report(course_root: str | os.PathLike, source_dir: str | os.PathLike, assignment: str,
@@ -452,9 +442,11 @@ def report(course_root: str | os.PathLike, source_dir: str | os.PathLike, assign
 
     Notes
     -----
-    Only regular files and plain folders are read: symbolic links (and what they point at),
-    hard links to other files, devices and pipes are skipped, as are notebooks that are not
-    valid JSON and folders whose name starts with a dot. Nothing is written.
+    Of the submissions, only regular files in plain folders are read: symbolic links (and
+    what they point at), hard links to other files, devices and pipes are skipped, as are
+    notebooks that are not valid JSON, larger than :data:`MAX_NOTEBOOK_BYTES`, and student
+    folders whose name starts with a dot. The course's own folders (``submitted``,
+    ``release``, the sources) may be links. Nothing is written.
     """
     for name, value in (("course_root", course_root), ("source_dir", source_dir)):
         if not isinstance(value, (str, os.PathLike)):
@@ -463,18 +455,17 @@ def report(course_root: str | os.PathLike, source_dir: str | os.PathLike, assign
         raise ValueError(f"assignment must be a folder name such as 'ch03_filtering', got {assignment!r}")
     _check_threshold(threshold, min_size)
     root, sources = Path(course_root), Path(source_dir) / assignment
-    names = _notebook_names(sources)
+    names = sorted(p.name for p in sources.glob("*.ipynb") if not p.name.startswith(".")) if sources.is_dir() else []
     submitted = root / "submitted"
     students = sorted(p.name for p in submitted.iterdir() if not p.name.startswith(".") and _plain_folder(p)) \
-        if _plain_folder(submitted) else []
+        if submitted.is_dir() else []
     exercises: dict[str, Exercise] = {}
     answers: dict[str, dict[str, str]] = {student: {} for student in students}
     for name in names:
-        source = _read_notebook(sources / name)
+        source = _read_notebook(sources / name, links=True)
         if source is None:
             continue
-        release_folder = root / "release" / assignment
-        release = _read_notebook(release_folder / name) if _plain_folder(release_folder) else None
+        release = _read_notebook(root / "release" / assignment / name, links=True)
         prefix = f"{Path(name).stem}:" if len(names) > 1 else ""
         exercises.update({prefix + key: value for key, value in exercises_from(source, release).items()})
         for student in students:
