@@ -16,6 +16,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..grading import Case, Check, Mistake, close
+from ..grading.casekit import distinct as _distinct
+from ..grading.casekit import size as _size
+from ..grading.casekit import uniform as _u
 from ._bayer import PATTERNS, channel_map
 from ._bayer import bayer_mosaic as _bayer_mosaic
 from ._bayer import demosaic_bilinear as _demosaic
@@ -37,27 +40,9 @@ _FORMULA = close(rtol=1e-9, atol=1e-12, kind="f")
 _VALUES = close(rtol=1e-12, atol=1e-12, kind="f", scaled=True)
 
 
-def _arg(case: Case, index: int, name: str, default=None):
-    if name in case.kwargs:
-        return case.kwargs[name]
-    if len(case.args) > index:
-        return case.args[index]
-    return default
-
-
-def _size(rng: np.random.Generator, lo: int, hi: int) -> int:
-    return int(rng.integers(lo, hi + 1))
-
-
 def _r3(values):
     """Rounded to 3 decimals (readable in the reports)."""
     return np.round(values, 3)
-
-
-def _distinct_rgb(h: int, w: int, *, seed: int = 5, scale: float = 1.0, dtype=np.float64) -> np.ndarray:
-    """An RGB image whose values are distinct integers (times ``scale``) in a shuffled order."""
-    values = np.random.default_rng(seed).permutation(h * w * 3).reshape(h, w, 3)
-    return (values * scale).astype(dtype)
 
 
 # --------------------------------------------------------------------------------------------
@@ -96,21 +81,21 @@ def _pp_hidden(rng):
     ints = rng.integers(-50, 51, (_size(rng, 4, 8), 3))
     ints[:, 2] = rng.integers(1, 40, ints.shape[0]) * rng.choice([-1, 1], ints.shape[0])
     return [
-        Case((_points(rng, _size(rng, 5, 10)), float(np.round(rng.uniform(0.5, 5.0), 3))), {},
+        Case((_points(rng, _size(rng, 5, 10)), _u(rng, 0.5, 5.0)), {},
              "points in front of the camera, f in scene units"),
         Case((_points(rng, _size(rng, 5, 10), 2.0, 50.0, 20.0), float(rng.integers(300, 1500))), {},
              "f in pixels (hundreds)"),
-        Case((behind, float(np.round(rng.uniform(1.0, 3.0), 2))), {}, "some points behind the camera (z < 0)"),
+        Case((behind, _u(rng, 1.0, 3.0, 2)), {}, "some points behind the camera (z < 0)"),
         Case((ints, float(rng.integers(2, 9))), {}, "integer coordinates (int dtype)"),
-        Case((_points(rng, 1), float(np.round(rng.uniform(0.2, 2.0), 3))), {}, "a single point (N = 1)"),
+        Case((_points(rng, 1), _u(rng, 0.2, 2.0)), {}, "a single point (N = 1)"),
         Case((np.zeros((0, 3)), 1.5), {}, "no points (N = 0): an empty (0, 2) result"),
-        Case((_points(rng, _size(rng, 3, 6), 1e3, 1e5, 1e4), float(np.round(rng.uniform(0.01, 0.1), 4))), {},
+        Case((_points(rng, _size(rng, 3, 6), 1e3, 1e5, 1e4), _u(rng, 0.01, 0.1, 4)), {},
              "far points, short focal length"),
-        Case((_points(rng, _size(rng, 3, 6), 0.01, 0.1, 0.05), float(np.round(rng.uniform(2.0, 8.0), 2))), {},
+        Case((_points(rng, _size(rng, 3, 6), 0.01, 0.1, 0.05), _u(rng, 2.0, 8.0, 2)), {},
              "points very close to the pinhole"),
         Case((np.hstack([np.zeros((3, 2)), _r3(rng.uniform(1, 9, (3, 1)))]), 2.0), {},
              "points on the optical axis (they project to the image centre)"),
-        Case((_points(rng, _size(rng, 4, 8)).tolist(), float(np.round(rng.uniform(0.5, 3.0), 2))), {},
+        Case((_points(rng, _size(rng, 4, 8)).tolist(), _u(rng, 0.5, 3.0, 2)), {},
              "points given as a list of lists"),
     ]
 
@@ -178,8 +163,8 @@ def _disparities(rng, shape, lo=-3.0, hi=60.0, zeros=0.15, decimals=2):
 
 
 def _dd_hidden(rng):
-    b = float(np.round(rng.uniform(0.05, 0.5), 3))
-    f = float(np.round(rng.uniform(300, 1500), 1))
+    b = _u(rng, 0.05, 0.5)
+    f = _u(rng, 300, 1500, 1)
     nan_map = _disparities(rng, (_size(rng, 4, 7), _size(rng, 5, 9)))
     nan_map[rng.random(nan_map.shape) < 0.2] = np.nan
     return [
@@ -190,9 +175,9 @@ def _dd_hidden(rng):
         Case((rng.integers(0, 256, (_size(rng, 4, 8), _size(rng, 5, 10)), dtype=np.uint8), b, f), {},
              "uint8 disparities"),
         Case((nan_map, b, f), {}, "NaN marks unknown disparities (they stay NaN)"),
-        Case((float(np.round(rng.uniform(1, 80), 3)), b, f), {}, "a single disparity (a scalar)"),
+        Case((_u(rng, 1, 80), b, f), {}, "a single disparity (a scalar)"),
         Case((0.0, b, f), {}, "zero disparity: a point at infinity"),
-        Case((-float(np.round(rng.uniform(0.5, 5), 2)), b, f), {}, "negative disparity (no valid depth)"),
+        Case((-_u(rng, 0.5, 5, 2), b, f), {}, "negative disparity (no valid depth)"),
         Case((_disparities(rng, _size(rng, 8, 20), 0.01, 0.5, 0.0, 4), b, f), {},
              "1-D array of sub-pixel disparities (far points)"),
         Case((_disparities(rng, (_size(rng, 3, 6), _size(rng, 4, 7)), 100, 5000, 0.0, 1), 1.5, 12.0), {},
@@ -250,7 +235,7 @@ def _tl_abs(object_distance, focal_length):
 
 
 def _tl_hidden(rng):
-    f = float(np.round(rng.uniform(10, 200), 1))
+    f = _u(rng, 10, 200, 1)
 
     def far(n):
         return np.round(f * rng.uniform(1.05, 200.0, n), 2)
@@ -329,7 +314,7 @@ def _bc_radius(object_distance, focus_distance, focal_length, aperture_diameter)
 
 
 def _bc_hidden(rng):
-    f = float(np.round(rng.uniform(15, 100), 1))
+    f = _u(rng, 15, 100, 1)
     aperture = float(np.round(f / rng.choice([1.4, 2.0, 2.8, 4.0, 5.6, 8.0]), 3))
 
     def dist(n, lo=1.5, hi=100.0):
@@ -448,7 +433,7 @@ def _q_hidden(rng):
         Case((halves, 1), {"vmax": float(np.abs(halves).max() / 2)}, "1 bit with values exactly half-way"),
         Case((_q_image(rng, _size(rng, 12, 30), 2, 2.5, -0.3, 1.3), 2), {"vmax": 2.5},
              "1-D ramp-like values, 2 bits, vmax 2.5"),
-        Case((np.full((_size(rng, 3, 5), _size(rng, 3, 5)), float(np.round(rng.uniform(0.3, 0.7), 3))), 1), {},
+        Case((np.full((_size(rng, 3, 5), _size(rng, 3, 5)), _u(rng, 0.3, 0.7)), 1), {},
              "constant image, 1 bit"),
         Case((_q_image(rng, (3, 4), 5, 1.0, -5.0, 5.0), 5), {}, "values far outside [0, vmax]"),
     ]
@@ -622,8 +607,8 @@ def _dr(e_max, e_min, factor=20.0, log=np.log10, invert=False):
 
 def _dr_hidden(rng):
     return [
-        Case((float(np.round(rng.uniform(1e3, 1e5), 1)), float(np.round(rng.uniform(0.5, 20), 3))), {}, "scalars"),
-        Case((np.round(rng.uniform(100, 1e5, _size(rng, 3, 7)), 1), float(np.round(rng.uniform(0.5, 5), 2))), {},
+        Case((_u(rng, 1e3, 1e5, 1), _u(rng, 0.5, 20)), {}, "scalars"),
+        Case((np.round(rng.uniform(100, 1e5, _size(rng, 3, 7)), 1), _u(rng, 0.5, 5, 2)), {},
              "array of e_max, scalar e_min"),
         Case((np.round(rng.uniform(100, 1e5, (2, 3)), 1), np.round(rng.uniform(0.5, 5, (2, 3)), 2)), {},
              "two arrays of the same shape"),
@@ -706,9 +691,9 @@ def _mosaic_hidden(rng):
 
 bayer_mosaic = Check(
     public=[
-        Case((_distinct_rgb(4, 6),), {}, "4×6 image, default pattern RGGB"),
-        Case((_distinct_rgb(5, 7, seed=6), "GRBG"), {}, "odd size 5×7, GRBG"),
-        Case((_distinct_rgb(3, 4, seed=7, dtype=np.uint8), "BGGR"), {}, "uint8 image, BGGR"),
+        Case((_distinct((4, 6, 3), seed=5),), {}, "4×6 image, default pattern RGGB"),
+        Case((_distinct((5, 7, 3), seed=6), "GRBG"), {}, "odd size 5×7, GRBG"),
+        Case((_distinct((3, 4, 3), seed=7, dtype=np.uint8), "BGGR"), {}, "uint8 image, BGGR"),
     ],
     hidden=_mosaic_hidden,
     compare=_VALUES,
@@ -808,7 +793,7 @@ def _demosaic_hidden(rng):
         Case((_raw(rng, 2, _size(rng, 5, 9)), q[1]), {}, f"two rows, {q[1]}"),
         Case((_raw(rng, _size(rng, 5, 9), 3, "uint16"), q[2]), {}, f"uint16 raw, 3 columns, {q[2]}"),
         Case((_raw(rng, _size(rng, 6, 9), _size(rng, 6, 9), "big"), q[3]), {}, f"±1e6 values, {q[3]}"),
-        Case((np.full((_size(rng, 4, 6), _size(rng, 4, 6)), float(np.round(rng.uniform(0, 1), 3))),
+        Case((np.full((_size(rng, 4, 6), _size(rng, 4, 6)), _u(rng, 0, 1)),
               str(rng.choice(PATTERNS))), {}, "a constant raw image (grey)"),
         Case((_raw(rng, 10, 12, "smooth"), "RGGB"), {}, "a smooth colour scene"),
     ]

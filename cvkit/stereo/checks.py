@@ -24,6 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..grading import Case, Check, Comparator, Mismatch, Mistake
+from ..grading.casekit import argument, variant
+from ..grading.casekit import size as _size
+from ..grading.casekit import uniform as _u
 from ._matching import _window_is_flat
 from ._matching import cost_volume
 
@@ -34,11 +37,7 @@ _DEFAULTS = {"block_size": 7, "cost": "sad"}
 
 
 def _arg(case: Case, index: int, name: str):
-    if name in case.kwargs:
-        return case.kwargs[name]
-    if len(case.args) > index:
-        return case.args[index]
-    return _DEFAULTS[name]
+    return argument(case, index, name, _DEFAULTS.get(name))
 
 
 def _integer_valued(array: np.ndarray) -> bool:
@@ -232,12 +231,6 @@ def _variant(left, right, max_disparity, block_size=7, cost="sad", *, sign=1, an
     return disparity
 
 
-def _mistake(**knobs):
-    def wrong(left, right, max_disparity, block_size=7, cost="sad"):
-        return _variant(left, right, max_disparity, block_size, cost, **knobs)
-    return wrong
-
-
 # --------------------------------------------------------------------------------------------
 # cases
 # --------------------------------------------------------------------------------------------
@@ -274,7 +267,7 @@ def _pair(rng, h, w, max_disparity, *, kind="unit", flat_rows=0, gain=1.0, offse
 
 def _hidden(rng):
     def size(lo, hi):
-        return int(rng.integers(lo, hi + 1))
+        return _size(rng, lo, hi)
 
     cases = []
 
@@ -293,8 +286,8 @@ def _hidden(rng):
     add(_pair(rng, size(8, 11), size(12, 18), d, kind="uint8", flat_rows=4), d,
         "SSD on uint8 images, flat band", block_size=3, cost="ssd")
     d = size(3, 6)
-    add(_pair(rng, size(9, 12), size(14, 20), d, gain=float(np.round(rng.uniform(0.5, 0.8), 2)),
-              offset=float(np.round(rng.uniform(0.1, 0.3), 2))), d,
+    add(_pair(rng, size(9, 12), size(14, 20), d, gain=_u(rng, 0.5, 0.8, 2),
+              offset=_u(rng, 0.1, 0.3, 2)), d,
         "ZNCC, 5×5 blocks, right view darker and offset", block_size=5, cost="zncc")
     d = size(3, 5)
     add(_pair(rng, size(9, 12), size(12, 18), d, flat_rows=4), d, "ZNCC, 3×3 blocks, flat band on top",
@@ -306,7 +299,7 @@ def _hidden(rng):
     add(_pair(rng, 5, 6, 4, kind="int", flat_rows=0), size(7, 10), "max_disparity larger than the width",
         block_size=3, cost="sad")
     add(_pair(rng, 2, 3, 1), 2, "tiny 2×3 image, 5×5 block", block_size=5, cost="sad")
-    level = float(np.round(rng.uniform(0.2, 0.8), 1))
+    level = _u(rng, 0.2, 0.8, 1)
     add((np.full((5, 9), level), np.full((5, 9), level)), size(3, 6), "constant images (all candidates tie)",
         block_size=3, cost="zncc")
     d = size(3, 4)
@@ -338,21 +331,21 @@ block_matching = Check(
     hidden=_hidden,
     compare=DisparityMaps(),
     mistakes=[
-        Mistake("disparity sign reversed (x + d)", _mistake(sign=-1),
+        Mistake("disparity sign reversed (x + d)", variant(_variant, sign=-1),
                 "The match of left pixel (x, y) is right pixel (x − d, y): objects appear further left in the right image"),
-        Mistake("window not centred (anchored at its top-left)", _mistake(anchor="corner"),
+        Mistake("window not centred (anchored at its top-left)", variant(_variant, anchor="corner"),
                 "Centre the block on the pixel: rows y − r .. y + r and columns x − r .. x + r, r = block_size // 2"),
-        Mistake("candidates with x − d < 0 not excluded", _mistake(exclude=False),
+        Mistake("candidates with x − d < 0 not excluded", variant(_variant, exclude=False),
                 "Only d <= x is a candidate (the right pixel x − d must be inside the image)"),
-        Mistake("ties broken towards the largest d", _mistake(ties="largest"),
+        Mistake("ties broken towards the largest d", variant(_variant, ties="largest"),
                 "Keep the first (smallest) d among equal costs: update only when the cost is strictly better (<), or use argmin"),
-        Mistake("uint8 differences wrapped around", _mistake(wrap=True),
+        Mistake("uint8 differences wrapped around", variant(_variant, wrap=True),
                 "Convert the images to float before subtracting: uint8 arithmetic wraps (3 − 5 = 254)"),
-        Mistake("ZNCC minimised (it is a similarity)", _mistake(maximise=False),
+        Mistake("ZNCC minimised (it is a similarity)", variant(_variant, maximise=False),
                 "SAD and SSD are minimised, but ZNCC measures similarity: take the d with the LARGEST ZNCC"),
-        Mistake("ZNCC without subtracting the window means", _mistake(means=False),
+        Mistake("ZNCC without subtracting the window means", variant(_variant, means=False),
                 "Subtract each window's mean before correlating: ZNCC = Σ(L−L̄)(R−R̄) / √(Σ(L−L̄)² Σ(R−R̄)²)"),
-        Mistake("zero border instead of reflect101", _mistake(border="zero"),
+        Mistake("zero border instead of reflect101", variant(_variant, border="zero"),
                 "Read outside the images by reflect101 (np.pad(img, r, mode='reflect')), not with zeros"),
     ],
     arg_names=_NAMES,
