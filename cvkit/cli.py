@@ -1,6 +1,9 @@
 """The ``cvkit`` command line.
 
-    cvkit list                      algorithms, sections, providers, check status
+    cvkit list [NAMESPACE]          algorithms, sections, packages, providers, check sizes
+    cvkit list --validate           ... and whether each reference passes its own public cases
+    cvkit list --markdown           the catalog of cvkit's algorithms (docs/catalog.md)
+    cvkit new exercise ID           scaffold an exercise of an instructor's course package
     cvkit course build              nbgrader generate_assignment for the chapters
     cvkit course grade              autograde all submissions in parallel, feedback, CSV, table
     cvkit course table              the grade table of what has been graded
@@ -9,41 +12,103 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
+from typing import Sequence
+
+
+def _table(headers: Sequence[object], rows: Sequence[Sequence[object]], gap: int = 2) -> list[str]:
+    """Rows of text whose columns are as wide as their widest cell plus ``gap``: a column never
+    runs into the next, and each starts at the same offset on every line."""
+    widths = [max(len(str(row[i])) for row in [headers, *rows]) + gap for i in range(len(headers) - 1)]
+    return ["".join(str(cell).ljust(width) for cell, width in zip(row, widths)) + str(row[-1])
+            for row in [headers, *rows]]
+
+
+def _check_status(row: dict) -> str:
+    if row.get("check_error"):
+        return "check broken (see below)"
+    if row.get("public") is None:
+        return "no check"
+    return f"{row['public']} public, {row['mistakes']} mistakes"
+
+
+def _listing(namespace: str | None) -> list[dict]:
+    """cvkit's algorithms (from the catalog's index) and the course packages' (live)."""
+    from . import catalog, registry
+
+    if namespace in registry.topic_modules():
+        rows = [r for r in catalog.listing() if r["id"].startswith(namespace + ".")]
+    elif namespace is None:
+        rows = catalog.listing()
+    else:
+        rows = []
+    for package in registry.course_packages():
+        if package.error or namespace not in (None, package.name):
+            continue
+        for row in catalog.entries([registry.get(i) for i in sorted(package.ids)]):
+            rows.append(dict(row, package=package.distribution))
+    return rows
 
 
 def _cmd_list(args) -> int:
-    from . import registry
+    from . import catalog, registry
 
-    rows = []
-    for algo in registry.algorithms():
-        providers = ["reference"] + [
-            name for name in registry.providers()[1:] if algo.id in registry.provider(name)
-        ]
-        try:
-            check = algo.check
-            status = (
-                f"{len(check.public_cases())} public, {len(check.hidden_cases(__import__('numpy').random.default_rng(0)))} hidden, "
-                f"{len(check.mistakes)} mistakes" if check is not None else "no check"
-            )
-        except Exception as exc:  # a broken check is reported, not fatal
-            status = f"check broken: {type(exc).__name__}: {exc}"
-        rows.append((algo.id, algo.section, ", ".join(providers), status))
+    if args.markdown:
+        sys.stdout.write(catalog.markdown())
+        return 0
+    rows = _listing(args.namespace)
+    offered = {name: set(registry.provider(name).functions) for name in registry.providers()[1:]}
+    notes = [f"{row['id']}: check broken: {row['check_error']}" for row in rows if row.get("check_error")]
+    refused = 0
+    for row in rows:
+        row["providers"] = ["reference"] + [name for name, ids in offered.items() if row["id"] in ids]
+        row["check"] = _check_status(row)
+        if args.validate and row.get("check_error"):
+            refused += 1
+        elif args.validate:
+            try:
+                registry.validate(row["id"])
+                row["check"] += ", valid"
+            except (ValueError, KeyError) as error:
+                refused += 1
+                row["check"] += ", REFUSED (see below)"
+                notes.append(str(error.args[0]))
     if args.json:
         import json
 
-        print(json.dumps([dict(zip(("id", "section", "providers", "check"), r)) for r in rows], indent=1))
-        return 0
-    w = max(len(r[0]) for r in rows) + 2 if rows else 10
-    print(f"{'id'.ljust(w)}{'§'.ljust(8)}{'providers'.ljust(22)}check")
-    for r in rows:
-        print(f"{r[0].ljust(w)}{r[1].ljust(8)}{r[2].ljust(22)}{r[3]}")
-    errors = registry.plugin_errors()
-    for name, why in errors.items():
+        keys = ("id", "section", "package", "providers", "public", "mistakes", "allowed", "check")
+        print(json.dumps([{key: row.get(key) for key in keys} for row in rows], indent=1, ensure_ascii=False))
+        return 1 if refused else 0
+    table = [(row["id"], row["section"], row["package"], ", ".join(row["providers"]), row["check"]) for row in rows]
+    print("\n".join(_table(("id", "§", "package", "providers", "check"), table)))
+    for note in notes:
+        print(f"!! {note}")
+    for name, why in registry.plugin_errors().items():
         print(f"plugin {name!r} failed to load: {why}")
-    print(f"{len(rows)} algorithms")
+    for name, why in registry.package_errors().items():
+        print(f"course package {name!r} failed to load: {why}")
+    packages = len({row["package"] for row in rows} - {registry.CVKIT})
+    print(f"{len(rows)} algorithm{'s' * (len(rows) != 1)}" + (f" ({packages} course package{'s' * (packages != 1)})" if packages else "")
+          + (f", {refused} check{'s' * (refused != 1)} refused" if refused else ""))
+    return 1 if refused else 0
+
+
+def _cmd_new_exercise(args) -> int:
+    from .scaffold import new_exercise
+
+    written = new_exercise(args.id, args.package, args.section)
+    for path in written:
+        print(f"wrote {path}")
+    namespace, name = args.id.split(".")
+    init = next((p for p in written if p.name == "__init__.py"), None)
+    print(f"next: write the reference, its cases and mistakes in {next(p for p in written if p.name == name + '.py')}, "
+          f"`pip install -e {args.package}`, then `cvkit list {namespace} --validate`; paste the cells of "
+          f"{next(p for p in written if p.suffix == '.ipynb')} into a chapter notebook (docs/own-exercise.md)")
+    if init is None:
+        print(f"note: the package's __init__.py was there already: make sure it imports the module {name}")
     return 0
 
 
@@ -148,8 +213,20 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("list", help="list algorithms with their providers and checks")
+    p.add_argument("namespace", nargs="?", help="only this cvkit topic or course package (e.g. filters, mycourse)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--markdown", action="store_true", help="the catalog of cvkit's algorithms (docs/catalog.md)")
+    p.add_argument("--validate", action="store_true",
+                   help="run every reference on its check's public cases; exit status 1 when a check is refused")
     p.set_defaults(func=_cmd_list)
+
+    p = sub.add_parser("new", help="scaffold an exercise of your own course package")
+    nsub = p.add_subparsers(dest="new_command", required=True)
+    p = nsub.add_parser("exercise", help="reference stub, check, mistake and notebook cells of a new exercise")
+    p.add_argument("id", help="<course>.<name>, e.g. mycourse.gamma_correction")
+    p.add_argument("--package", default=".", help="the course package folder (default: here); made if missing")
+    p.add_argument("--section", default="1", help="section of your notes the exercise belongs to (default 1)")
+    p.set_defaults(func=_cmd_new_exercise)
 
     def course_options(p):
         p.add_argument("--course-dir", help="course folder (default: the project's autograders/)")
@@ -189,9 +266,12 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except (FileNotFoundError, RuntimeError, KeyError, ValueError) as exc:
-        print(f"cvkit: error: {exc}", file=sys.stderr)
+    except (FileNotFoundError, FileExistsError, RuntimeError, KeyError, ValueError) as exc:
+        print(f"cvkit: error: {exc.args[0] if isinstance(exc, KeyError) and exc.args else exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # `cvkit list | head`: the reader has gone
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":

@@ -82,6 +82,7 @@ __all__ = [
     "reference_functions",
     "signature_differences",
     "topic_modules",
+    "namespace_problem",
     "ENTRY_POINT_GROUP",
     "ALGORITHMS_GROUP",
 ]
@@ -178,12 +179,13 @@ def _distribution(entry_point: Any) -> str:
     return str(dist.metadata["Name"]) if dist is not None else "?"
 
 
-def _namespace_problem(name: str) -> str | None:
+def namespace_problem(name: str) -> str | None:
+    """Why ``name`` cannot be a course package's namespace (entry point name), or None."""
     if not re.fullmatch(_NAMESPACE, name):
-        return (f"its entry point name {name!r} is the namespace of its ids and must be lower case letters, "
-                "digits and underscores (e.g. 'mycourse')")
+        return (f"the namespace {name!r} (a course package's entry point name, the first part of its ids) must be "
+                "lower case letters, digits and underscores (e.g. 'mycourse')")
     if name in _topics() or name in _NOT_TOPICS or name == CVKIT:
-        return f"its entry point name {name!r} is a cvkit module: choose your course's own name (e.g. 'mycourse')"
+        return f"the namespace {name!r} belongs to a cvkit module: choose your course's own name (e.g. 'mycourse')"
     return None
 
 
@@ -199,7 +201,7 @@ def _forget(package: CoursePackage) -> None:
 
 def _load_package(entry_point: Any) -> CoursePackage:
     package = CoursePackage(entry_point.name, entry_point.value, _distribution(entry_point))
-    problem = _namespace_problem(package.name)
+    problem = namespace_problem(package.name)
     if problem is not None:
         package.error = f"{package.origin}: refused: {problem}"
         return package
@@ -462,19 +464,19 @@ def _reference_problems(record: Algorithm, spec: Any) -> list[str]:
             first, used = run(case)
             again, _ = run(case)
         except Exception as error:  # noqa: BLE001
-            problems.append(f"the reference raised {_first_line(error)} on {label}")
+            problems.append(f"{label}: the reference raised {_first_line(error)}")
             continue
         given = list(case.args) + list(case.kwargs.values())
         if not all(_unchanged(a, b) for a, b in zip(given, used)):
-            problems.append(f"the reference modified its input on {label}")
+            problems.append(f"{label}: the reference modified its input")
         try:
             mismatch = spec.compare(again, first, case)
         except Exception as error:  # noqa: BLE001
-            problems.append(f"the comparator raised {_first_line(error)} on the reference's output for {label}")
+            problems.append(f"{label}: the comparator raised {_first_line(error)} on the reference's output")
             continue
         if mismatch is not None:
             message = str(getattr(mismatch, "message", mismatch)).strip().splitlines()
-            problems.append(f"the reference's output on {label} does not pass the check's comparator against "
+            problems.append(f"{label}: the reference's output does not pass the check's comparator against "
                             f"itself ({message[0] if message else 'no message'})")
     return problems
 
