@@ -182,7 +182,37 @@ def grade_submission(project, student: str, assignment: str, files: dict, releas
             reason = f"{name}: the grader failed on this notebook ({type(error).__name__}: {str(error)[:200]})"
             return ExecutedSubmission(student, assignment, {}, False, executed.log + "\n" + reason, not_graded=reason)
         verified[name] = nbformat.writes(nb)
-    return ExecutedSubmission(student, assignment, verified, True, executed.log, verified=True)
+    # nbgrader's cell-metadata check, here in the parallel phase rather than twice in the single
+    # writer (about a fifth of its recording time): a notebook that fails it is recorded by the
+    # writer's full pipeline instead, which refuses it and grades a repaired copy
+    metadata_valid = all(_valid_cell_metadata(nbformat.reads(text, as_version=4)) for text in verified.values())
+    return ExecutedSubmission(student, assignment, verified, True, executed.log, verified=metadata_valid)
+
+
+def _valid_cell_metadata(nb) -> bool:
+    from nbgrader.preprocessors import CheckCellMetadata
+
+    try:
+        CheckCellMetadata().preprocess(nb, {})
+    except Exception:  # noqa: BLE001 - any complaint means: let the writer's full pipeline decide
+        return False
+    return True
+
+
+def _recording_settings(config, verified: bool) -> dict:
+    """nbgrader settings of the writer's autograde run. Notebooks verified in the parallel phase
+    (checks decided, cell metadata validated) skip nbgrader's CheckCellMetadata, which they have
+    passed; nbconvert validates each notebook once after its preprocessors instead of after each."""
+    from nbgrader.converters import Autograde
+    from nbgrader.preprocessors import CheckCellMetadata
+
+    settings: dict = {"Exporter.optimistic_validation": True}
+    if verified:
+        for name in ("sanitize_preprocessors", "autograde_preprocessors"):
+            configured = config.Autograde.get(name) if name in config.Autograde else None
+            steps = configured if configured is not None else Autograde.class_traits()[name].default()
+            settings[f"Autograde.{name}"] = [step for step in steps if step is not CheckCellMetadata]
+    return settings
 
 
 def feedback_submissions(root, db_url, project, pairs) -> None:
@@ -510,9 +540,11 @@ class Course:
             # notebooks verified in the parallel phase carry their verdicts; any other
             # (execution failed, repaired copy) is verified here by nbgrader's TrustedChecks
             verified = all(e.verified and e.ok for e in group) and not repair
+            self.nbgrader_api()  # the course's configuration, loaded once
             api = self.nbgrader_api(**{
                 "CourseDirectory.submitted_directory": str(staging), "SandboxedExecute.enabled": False,
-                "ClearOutput.enabled": False, "TrustedChecks.enabled": not verified})
+                "ClearOutput.enabled": False, "TrustedChecks.enabled": not verified,
+                **_recording_settings(self._nbgrader_config, verified)})
             try:
                 outcome = api.autograde(assignment, group[0].student if len(group) == 1 else "*", force=True,
                                         create=True)
