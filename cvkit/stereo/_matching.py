@@ -16,10 +16,13 @@ development machine, and the gap widens when other processes compete for memory 
 """
 from __future__ import annotations
 
+from typing import Callable, Literal
+
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, check_int
+from .._validation import as_float_array, check_allocation, check_int, check_padded, check_work
 from ..registry import algorithm
 
 __all__ = ["block_matching", "COSTS", "cost_volume"]
@@ -37,13 +40,18 @@ _ZNCC_TIE = 1e-9
 _SUM_TIE = 1e-12
 
 
-def _check_cost(cost) -> str:
+Cost = Literal["sad", "ssd", "zncc"]
+#: a binary ufunc such as ``np.add`` or ``np.maximum`` (``out=`` keyword)
+_Op = Callable[..., np.ndarray]
+
+
+def _check_cost(cost: str) -> str:
     if not isinstance(cost, str) or cost not in COSTS:
         raise ValueError(f"cost must be one of {', '.join(map(repr, COSTS))}, got {cost!r}")
     return cost
 
 
-def _check_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
+def _check_pair(left: ArrayLike, right: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     left_arr = as_float_array(left, "left", ndim=2)
     right_arr = as_float_array(right, "right", ndim=2)
     if left_arr.shape != right_arr.shape:
@@ -55,7 +63,8 @@ def _take(x: np.ndarray, axis: int, start: int, stop: int) -> np.ndarray:
     return x[start:stop] if axis == 0 else x[:, start:stop]
 
 
-def _sum_runs(values: np.ndarray, size: int, axis: int, out: np.ndarray, scratch, op=np.add) -> np.ndarray:
+def _sum_runs(values: np.ndarray, size: int, axis: int, out: np.ndarray,
+              scratch: tuple[np.ndarray, np.ndarray], op: _Op = np.add) -> np.ndarray:
     """``out[i] = values[i] + ... + values[i + size - 1]`` along ``axis`` (0 or 1), for the
     ``n - size + 1`` windows that fit ("valid"); ``op`` may be any associative ufunc
     (``np.maximum`` gives running maxima).
@@ -97,7 +106,7 @@ def _sum_runs(values: np.ndarray, size: int, axis: int, out: np.ndarray, scratch
         power, run = target, 2 * run
 
 
-def _window_sums(values: np.ndarray, size: int, op=np.add) -> np.ndarray:
+def _window_sums(values: np.ndarray, size: int, op: _Op = np.add) -> np.ndarray:
     """Sums (or maxima, minima with ``op``) over every ``size × size`` window of a 2-D array
     ("valid")."""
     scratch = (np.empty(values.shape), np.empty(values.shape))
@@ -110,7 +119,7 @@ def _window_is_flat(padded: np.ndarray, size: int) -> np.ndarray:
     return _window_sums(padded, size, np.maximum) == _window_sums(padded, size, np.minimum)
 
 
-def _window_stats(padded: np.ndarray, size: int):
+def _window_stats(padded: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
     """Per window: the sum, and ``1 / sqrt(Σ (x − mean)²)`` (0 for a flat window)."""
     n = size * size
     total = _window_sums(padded, size)
@@ -121,8 +130,14 @@ def _window_stats(padded: np.ndarray, size: int):
     return total, inverse
 
 
+def _names(max_disparity: int, block_size: int) -> str:
+    """The argument to blame for too much work: the larger of the two loops."""
+    return "max_disparity" if max_disparity + 1 > block_size else "block_size"
+
+
 @algorithm("stereo.block_matching", section="2.6", check="cvkit.stereo.checks:block_matching")
-def block_matching(left, right, max_disparity, block_size=7, cost="sad"):
+def block_matching(left: ArrayLike, right: ArrayLike, max_disparity: int, block_size: int = 7,
+                   cost: Cost = "sad") -> np.ndarray:
     """Dense disparity map of a rectified stereo pair by block matching.
 
     Parameters
@@ -133,12 +148,18 @@ def block_matching(left, right, max_disparity, block_size=7, cost="sad"):
         (d >= 0), on the same row.
     max_disparity : int
         Largest disparity D >= 0 tried; candidates are d = 0..D, and only d <= x (the
-        matching right pixel x − d must lie inside the image).
+        matching right pixel x − d must lie inside the image), so any D >= W − 1 tries the
+        same candidates as W − 1.
     block_size : int
         Odd side of the square matching window, >= 1.
     cost : {"sad", "ssd", "zncc"}
         Sum of absolute differences and sum of squared differences are minimised;
         zero-mean normalised cross-correlation is maximised.
+
+    The work is bounded: the images padded by ``block_size // 2`` may take at most 2 GiB,
+    and the search, about ``(min(D, W − 1) + 1)·(H + padding rows)·(W + block_size)·
+    (6 + 4·log2(block_size))`` operations, at most 2**36 (about a minute); otherwise
+    ``ValueError`` naming ``block_size`` or ``max_disparity``.
 
     Returns
     -------
@@ -193,10 +214,19 @@ def block_matching(left, right, max_disparity, block_size=7, cost="sad"):
     L, R = _check_pair(left, right)
     max_disparity = check_int(max_disparity, "max_disparity", minimum=0)
     block_size = check_int(block_size, "block_size", minimum=1, odd=True)
-    cost = _check_cost(cost)
+    _check_cost(cost)
     height, width = L.shape
     b = block_size
     r = b // 2
+    check_padded(L.shape, r, "block_size")
+    band = max(8, _BAND_ELEMENTS // (width + 2 * r))
+    last = min(max_disparity, width - 1)
+    bands = -(-height // band)
+    rows = height + 2 * r * bands  # every band reads 2r extra rows
+    # per band and candidate: a dozen whole-band passes, and ~10 µs of Python and NumPy calls
+    check_work((last + 1) * (rows * (width + 2 * r) * (6 + 4 * b.bit_length()) + 10_000 * bands), _names(last, b),
+               what=f"block matching with max_disparity={max_disparity} and block_size={b} "
+                    f"on a {height}×{width} pair")
     if cost == "zncc":  # invariant to offsets: centring the images keeps the sums small
         L, R = L - L.mean(), R - R.mean()
     left_p = np.pad(L, r, mode="reflect")   # numpy's "reflect" is reflect101
@@ -213,7 +243,6 @@ def block_matching(left, right, max_disparity, block_size=7, cost="sad"):
         with np.errstate(divide="ignore"):
             slack = np.where(inv_l > 0, _ZNCC_TIE / np.where(inv_l > 0, inv_l, 1.0), 0.0)
 
-    band = max(8, _BAND_ELEMENTS // wp)
     term = np.empty((band + 2 * r, wp))
     scratch = (np.empty((band + 2 * r, wp)), np.empty((band + 2 * r, wp)))
     rows = np.empty((band, wp))
@@ -222,7 +251,6 @@ def block_matching(left, right, max_disparity, block_size=7, cost="sad"):
     better = np.empty((band, width), dtype=bool)
     best = np.empty((height, width))
     disparity = np.zeros((height, width), dtype=np.int64)
-    last = min(max_disparity, width - 1)
     for y0 in range(0, height, band):
         y1 = min(height, y0 + band)
         h = y1 - y0
@@ -265,13 +293,20 @@ def block_matching(left, right, max_disparity, block_size=7, cost="sad"):
     return disparity
 
 
-def cost_volume(left, right, max_disparity, block_size=7, cost="sad"):
+def cost_volume(left: ArrayLike, right: ArrayLike, max_disparity: int, block_size: int = 7,
+                cost: Cost = "sad") -> np.ndarray:
     """The matching costs behind :func:`block_matching`, by direct summation over the window.
 
     Returns a ``(D + 1, H, W)`` float64 array with the cost of every candidate d at every
     pixel (SAD, SSD, or ZNCC, not negated), ``nan`` where d > x. It sums the window tap by
     tap (no cumulative sums), so it is slower but its round-off is relative to the window's
     values only; the grader uses it to recognise genuine ties.
+
+    Bounded: the volume (``max_disparity``), the padded images and, for ZNCC, the
+    ``(H, W, block_size²)`` windows (``block_size``) may each take at most 2 GiB, and the
+    summation, about ``(min(D, W − 1) + 1)·block_size²·(3·H·W + 10⁴)`` operations, at most
+    2**36 (about a minute);
+    otherwise ``ValueError`` naming the argument.
 
     >>> c = cost_volume(np.eye(4), np.eye(4), 1, block_size=1)   # SAD of single pixels
     >>> c[:, 1, :]                                              # row 1: d = 0 and d = 1
@@ -281,12 +316,21 @@ def cost_volume(left, right, max_disparity, block_size=7, cost="sad"):
     L, R = _check_pair(left, right)
     max_disparity = check_int(max_disparity, "max_disparity", minimum=0)
     block_size = check_int(block_size, "block_size", minimum=1, odd=True)
-    cost = _check_cost(cost)
+    _check_cost(cost)
     height, width = L.shape
     r = block_size // 2
+    n = block_size * block_size
+    last = min(max_disparity, width - 1)
+    check_allocation((max_disparity + 1, height, width), "max_disparity", what="a cost volume")
+    check_padded(L.shape, r, "block_size")
+    if cost == "zncc":
+        check_allocation((height, width, n), "block_size", what="the windows of every pixel")
+    # per candidate and window tap: three whole-image passes and ~10 µs of Python and NumPy calls
+    check_work((last + 1) * n * (3 * height * width + 10_000), _names(last, block_size),
+               what=f"a cost volume with max_disparity={max_disparity} and block_size={block_size} "
+                    f"on a {height}×{width} pair")
     left_p = np.pad(L, r, mode="reflect")
     right_p = np.pad(R, r, mode="reflect")
-    n = block_size * block_size
     volume = np.full((max_disparity + 1, height, width), np.nan)
     if cost == "zncc":
         windows_l = sliding_window_view(left_p, (block_size, block_size)).reshape(height, width, n)
@@ -297,7 +341,7 @@ def cost_volume(left, right, max_disparity, block_size=7, cost="sad"):
         flat_r = np.all(windows_r == windows_r[..., :1], axis=-1)
         norm_l = np.sqrt((dev_l ** 2).sum(axis=-1))
         norm_r = np.sqrt((dev_r ** 2).sum(axis=-1))
-    for d in range(min(max_disparity, width - 1) + 1):
+    for d in range(last + 1):
         if cost == "zncc":
             num = (dev_l[:, d:] * dev_r[:, : width - d]).sum(axis=-1)
             den = norm_l[:, d:] * norm_r[:, : width - d]
