@@ -103,12 +103,14 @@ def _cmd_new_exercise(args) -> int:
     for path in written:
         print(f"wrote {path}")
     namespace, name = args.id.split(".")
-    init = next((p for p in written if p.name == "__init__.py"), None)
-    print(f"next: write the reference, its cases and mistakes in {next(p for p in written if p.name == name + '.py')}, "
-          f"`pip install -e {args.package}`, then `cvkit list {namespace} --validate`; paste the cells of "
-          f"{next(p for p in written if p.suffix == '.ipynb')} into a chapter notebook (docs/own-exercise.md)")
-    if init is None:
-        print(f"note: the package's __init__.py was there already: make sure it imports the module {name}")
+    module = next(p for p in written if p.name == f"{name}.py")
+    cells = next(p for p in written if p.suffix == ".ipynb")
+    print(f"next: 1. write the reference, its cases and its mistakes in {module}\n"
+          f"      2. pip install -e {args.package}, then: cvkit list {namespace} --validate\n"
+          f"      3. paste the cells of {cells} into a chapter notebook\n"
+          "      (docs/own-exercise.md walks through it)")
+    if not any(p.name == "__init__.py" for p in written):
+        print(f"note: {module.parent / '__init__.py'} was there already: make sure it imports {module.stem}")
     return 0
 
 
