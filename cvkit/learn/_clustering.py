@@ -4,12 +4,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, as_rng, check_int
+from .._validation import as_float_array, as_rng, check_allocation, check_int, check_size
 from ..registry import algorithm
-from ._common import exact_squared_distances, expanded_squared_distances
+from ._common import expanded_squared_distances, nearest_rows
 
 __all__ = ["kmeans", "bovw_histogram"]
+
+#: the most update steps :func:`kmeans` accepts
+MAX_ITERATIONS = 100_000
 
 
 def _plus_plus(X: np.ndarray, x_sq: np.ndarray, k: int, generator: np.random.Generator) -> np.ndarray:
@@ -69,13 +73,14 @@ def _update(XT: np.ndarray, labels: np.ndarray, dist: np.ndarray, k: int) -> np.
             dist[far] = 0.0
     # per-cluster sums, one weighted bincount per dimension (loops over D, not over samples)
     sums = np.empty((k, XT.shape[0]))
-    for j, column in enumerate(XT):
-        sums[:, j] = np.bincount(labels, weights=column, minlength=k)
+    for dim, column in enumerate(XT):
+        sums[:, dim] = np.bincount(labels, weights=column, minlength=k)
     return sums / counts[:, None]
 
 
 @algorithm("learn.kmeans", section="10.3.2", check="cvkit.learn.checks:kmeans")
-def kmeans(X, k, iterations=50, rng=None, init=None):
+def kmeans(X: ArrayLike, k: int, iterations: int = 50, rng: np.random.Generator | int | None = None,
+           init: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """k-means clustering by Lloyd's algorithm with k-means++ seeding.
 
     Parameters
@@ -83,9 +88,12 @@ def kmeans(X, k, iterations=50, rng=None, init=None):
     X : (N, D) array_like
         Samples (e.g. local descriptors), one per row.
     k : int
-        Number of clusters, 1 ≤ k ≤ the number of distinct rows of ``X`` (else ``ValueError``).
+        Number of clusters, 1 ≤ k ≤ the number of distinct rows of ``X`` (else ``ValueError``);
+        the distances of the N samples to the k centres must fit in 2 GiB (cvkit's limit for
+        one array), else ``ValueError`` naming ``k``.
     iterations : int
-        Maximal number of update steps (≥ 0); the loop stops earlier at a fixed point.
+        Maximal number of update steps, 0 ≤ iterations ≤ :data:`MAX_ITERATIONS` (100 000);
+        the loop stops earlier at a fixed point.
     rng : numpy.random.Generator, int or None
         Source of the k-means++ draws.
     init : (k, D) array_like, optional
@@ -131,10 +139,11 @@ def kmeans(X, k, iterations=50, rng=None, init=None):
     X = as_float_array(X, "X", ndim=2)
     n, d = X.shape
     k = check_int(k, "k", minimum=1)
-    iterations = check_int(iterations, "iterations", minimum=0)
+    iterations = check_size(iterations, "iterations", minimum=0, maximum=MAX_ITERATIONS)
     distinct = np.unique(X, axis=0).shape[0] if k > 1 else 1
     if k > distinct:
         raise ValueError(f"k must be at most the number of distinct rows of X ({distinct}), got {k}")
+    check_allocation((n, k), "k", what="the distances of every sample to every centre")
     x_sq = np.einsum("ij,ij->i", X, X)
     if init is None:
         centers = _plus_plus(X, x_sq, k, as_rng(rng))
@@ -143,7 +152,7 @@ def kmeans(X, k, iterations=50, rng=None, init=None):
         if centers.shape != (k, d):
             raise ValueError(f"init must have shape (k, D) = ({k}, {d}), got {centers.shape}")
     labels, dist = _assign(X, x_sq, centers)
-    XT = np.ascontiguousarray(X.T) if iterations else None
+    XT = np.ascontiguousarray(X.T) if iterations else X.T  # the copy only when it is used
     for _ in range(iterations):
         updated = _update(XT, labels, dist, k)
         if np.array_equal(updated, centers):
@@ -154,7 +163,7 @@ def kmeans(X, k, iterations=50, rng=None, init=None):
 
 
 @algorithm("learn.bovw_histogram", section="10.3.2", check="cvkit.learn.checks:bovw_histogram")
-def bovw_histogram(descriptors, codebook, normalize=True):
+def bovw_histogram(descriptors: ArrayLike, codebook: ArrayLike, normalize: bool = True) -> np.ndarray:
     """Bag-of-visual-words histogram: how often each codeword is the nearest one.
 
     Parameters
@@ -194,7 +203,7 @@ def bovw_histogram(descriptors, codebook, normalize=True):
         raise ValueError(f"codebook must have the {desc.shape[1]} columns of descriptors, got shape {words.shape}")
     if not isinstance(normalize, (bool, np.bool_)):
         raise TypeError(f"normalize must be True or False, got {normalize!r}")
-    nearest = exact_squared_distances(desc, words).argmin(axis=1)
+    nearest = nearest_rows(desc, words)
     counts = np.bincount(nearest, minlength=words.shape[0]).astype(np.float64)
     if normalize:
         counts /= desc.shape[0]

@@ -2,11 +2,12 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 _CHUNK_ELEMENTS = 1 << 22  # elements of a (rows, others, D) difference block: 32 MB of float64
 
 
-def as_labels(y, name: str, n: int | None = None, classes: int | None = None) -> np.ndarray:
+def as_labels(y: ArrayLike, name: str, n: int | None = None, classes: int | None = None) -> np.ndarray:
     """Integer class labels ``0..classes−1`` as an int64 vector of length ``n``."""
     if isinstance(y, (str, bytes)) or y is None:
         raise TypeError(f"{name} must be an integer array of class labels, got {type(y).__name__}")
@@ -45,6 +46,17 @@ def exact_l1_distances(points: np.ndarray, others: np.ndarray) -> np.ndarray:
         diff = points[start:start + rows, None, :] - others[None, :, :]
         np.abs(diff, out=diff)
         diff.sum(axis=2, out=out[start:start + rows])
+    return out
+
+
+def nearest_rows(points: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """Index of the nearest row of ``others`` for every row of ``points`` (exact squared
+    distances, ties to the lowest index), a block of rows at a time: the full ``(M, K)``
+    distance matrix is never held."""
+    out = np.empty(points.shape[0], dtype=np.intp)
+    rows = max(1, _CHUNK_ELEMENTS // max(1, others.shape[0]))
+    for start in range(0, points.shape[0], rows):
+        out[start:start + rows] = exact_squared_distances(points[start:start + rows], others).argmin(axis=1)
     return out
 
 

@@ -8,13 +8,18 @@ the Chapter 10 demos, not a graded algorithm.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .._validation import as_image, check_int, check_real
+from .._validation import as_image, check_allocation, check_int, check_real, check_size
 
 __all__ = ["dense_descriptors"]
 
+#: the most orientation bins :func:`dense_descriptors` accepts (one per degree)
+MAX_BINS = 360
 
-def dense_descriptors(image, size=8, step=4, bins=8, cells=2, min_gradient=0.01):
+
+def dense_descriptors(image: ArrayLike, size: int = 8, step: int = 4, bins: int = 8, cells: int = 2,
+                      min_gradient: float = 0.01) -> np.ndarray:
     """Gradient-orientation histograms on a dense grid of windows.
 
     Parameters
@@ -24,10 +29,13 @@ def dense_descriptors(image, size=8, step=4, bins=8, cells=2, min_gradient=0.01)
     size : int
         Side of each square window in pixels, a multiple of ``cells``.
     step : int
-        Distance between neighbouring windows (``step < size``: overlapping windows).
+        Distance between neighbouring windows, ≥ 1 (``step < size``: overlapping windows). The
+        descriptors, M · cells² · bins values, must fit in 2 GiB (cvkit's limit for one
+        array), else ``ValueError`` naming ``step``.
     bins : int
         Orientation bins over the full circle [0, 2π) (gradient directions, so a dark-to-light
-        edge differs from a light-to-dark one).
+        edge differs from a light-to-dark one), 1 ≤ bins ≤ :data:`MAX_BINS` (360: one per
+        degree); the votes, (H + 1)·(W + 1)·bins values, must fit in 2 GiB too.
     cells : int
         Each window is split into ``cells × cells`` sub-windows with one histogram each.
     min_gradient : float
@@ -67,7 +75,7 @@ def dense_descriptors(image, size=8, step=4, bins=8, cells=2, min_gradient=0.01)
     min_gradient = check_real(min_gradient, "min_gradient", nonnegative=True)
     size = check_int(size, "size", minimum=1)
     step = check_int(step, "step", minimum=1)
-    bins = check_int(bins, "bins", minimum=1)
+    bins = check_size(bins, "bins", minimum=1, maximum=MAX_BINS)
     cells = check_int(cells, "cells", minimum=1)
     if size % cells:
         raise ValueError(f"size must be a multiple of cells ({cells}), got {size}")
@@ -76,6 +84,9 @@ def dense_descriptors(image, size=8, step=4, bins=8, cells=2, min_gradient=0.01)
         raise ValueError(f"image must be at least size × size ({size} × {size}), got shape {img.shape}")
     if h < 2 or w < 2:
         raise ValueError(f"image must be at least 2 × 2 pixels, got shape {img.shape}")
+    windows = ((h - size) // step + 1) * ((w - size) // step + 1)
+    check_allocation((h + 1, w + 1, bins), "bins", what="the orientation votes")
+    check_allocation((windows, cells * cells * bins), "step", what="the descriptors")
 
     gy, gx = np.gradient(img)
     magnitude = np.hypot(gx, gy)

@@ -7,9 +7,13 @@ Everything is computed in float64 and no input is ever modified.
 """
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Callable
+from typing import Any
 
-from .._validation import as_float_array, as_rng, check_int, check_real
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import as_float_array, as_rng, check_allocation, check_int, check_real, check_size
 from ..registry import algorithm, implementation
 from ._common import as_labels
 
@@ -18,8 +22,11 @@ __all__ = [
     "sgd_train", "top_k_accuracy",
 ]
 
+#: the most epochs :func:`sgd_train` accepts
+MAX_EPOCHS = 100_000
 
-def _weights(W, b, d: int | None = None):
+
+def _weights(W: ArrayLike, b: ArrayLike, d: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     W = as_float_array(W, "W", ndim=2)
     b = as_float_array(b, "b", ndim=1)
     if b.shape[0] != W.shape[0]:
@@ -30,7 +37,7 @@ def _weights(W, b, d: int | None = None):
 
 
 @algorithm("learn.linear_scores", section="9.6.1–9.6.5", check="cvkit.learn.checks:linear_scores")
-def linear_scores(X, W, b):
+def linear_scores(X: ArrayLike, W: ArrayLike, b: ArrayLike) -> np.ndarray:
     """Class scores of a linear (affine) classifier, one row per sample.
 
     Parameters
@@ -38,7 +45,8 @@ def linear_scores(X, W, b):
     X : (N, D) array_like
         One flattened image (feature vector) per row, any real dtype.
     W : (C, D) array_like
-        One row (a template) per class.
+        One row (a template) per class. The scores, N·C values, must fit in 2 GiB (cvkit's
+        limit for one array), else ``ValueError`` naming ``W``.
     b : (C,) array_like
         One bias per class.
 
@@ -65,11 +73,12 @@ def linear_scores(X, W, b):
     """
     X = as_float_array(X, "X", ndim=2)
     W, b = _weights(W, b, X.shape[1])
+    check_allocation((X.shape[0], W.shape[0]), "W", what="the scores X @ W.T")
     return X @ W.T + b
 
 
 @algorithm("learn.softmax", section="9.7.3", check="cvkit.learn.checks:softmax")
-def softmax(scores):
+def softmax(scores: ArrayLike) -> np.ndarray:
     """Row-wise softmax: scores → probabilities (each row non-negative, summing to 1).
 
     Parameters
@@ -106,7 +115,7 @@ def softmax(scores):
 
 
 @algorithm("learn.cross_entropy", section="9.7.4", check="cvkit.learn.checks:cross_entropy")
-def cross_entropy(scores, y):
+def cross_entropy(scores: ArrayLike, y: ArrayLike) -> tuple[float, np.ndarray]:
     """Mean cross-entropy (softmax + negative log-likelihood) and its gradient.
 
     Parameters
@@ -159,7 +168,8 @@ def cross_entropy(scores, y):
 
 
 @algorithm("learn.linear_loss_and_grad", section="9.7", check="cvkit.learn.checks:linear_loss_and_grad")
-def linear_loss_and_grad(W, b, X, y, reg=0.0):
+def linear_loss_and_grad(W: ArrayLike, b: ArrayLike, X: ArrayLike, y: ArrayLike,
+                         reg: float = 0.0) -> tuple[float, np.ndarray, np.ndarray]:
     """Regularised cross-entropy loss of a linear classifier and its gradients.
 
     Parameters
@@ -217,7 +227,7 @@ def linear_loss_and_grad(W, b, X, y, reg=0.0):
 
 
 @algorithm("learn.numerical_gradient", section="9.8.1", check="cvkit.learn.checks:numerical_gradient")
-def numerical_gradient(f, x, eps=1e-5):
+def numerical_gradient(f: Callable[[np.ndarray], Any], x: ArrayLike, eps: float = 1e-5) -> np.ndarray:
     """Central-difference gradient of a scalar function, one coordinate at a time.
 
     Parameters
@@ -227,7 +237,10 @@ def numerical_gradient(f, x, eps=1e-5):
     x : array_like
         The point (any shape, any real dtype; computed in float64).
     eps : float
-        The step h > 0.
+        The step h > 0. It must move every coordinate: an ``eps`` that rounds away
+        (``x_i ± eps == x_i``, e.g. ``1e-300``, or 1e-5 next to 1e12) or that takes ``x ± eps``
+        out of the floating-point range raises ``ValueError`` (the differences would be 0 or
+        not finite, not a gradient).
 
     Returns
     -------
@@ -254,13 +267,14 @@ def numerical_gradient(f, x, eps=1e-5):
         raise TypeError(f"f must be a callable returning a number, got {type(f).__name__}")
     point = as_float_array(x, "x", allow_empty=True)
     eps = check_real(eps, "eps", positive=True)
+    _check_step(point, eps)
     # C order, so that the flat reshape below is a view (for a transposed or Fortran-ordered x
     # it would be a copy, and f would never see the moved coordinate)
     work = np.array(point, dtype=np.float64, order="C", copy=True)
     flat = work.reshape(-1)  # a view: moving flat[i] moves work
     grad = np.empty(flat.size)
 
-    def value(v):
+    def value(v: np.ndarray) -> float:
         out = f(v)
         try:
             return float(out)
@@ -279,8 +293,24 @@ def numerical_gradient(f, x, eps=1e-5):
     return grad.reshape(point.shape)
 
 
+def _check_step(point: np.ndarray, eps: float) -> None:
+    """Refuse a step ``eps`` that rounding loses at some coordinate of ``point`` or that
+    overflows it."""
+    with np.errstate(over="ignore"):
+        up, down = point + eps, point - eps
+    if not (np.all(np.isfinite(up)) and np.all(np.isfinite(down))):
+        raise ValueError(f"eps must keep x ± eps finite, got eps = {eps!r}")
+    lost = np.flatnonzero((up == point) | (down == point))
+    if lost.size:
+        at = float(point.reshape(-1)[lost[0]])
+        raise ValueError(
+            f"eps = {eps!r} is lost to rounding at x = {at!r} (x ± eps == x, so the difference would be "
+            f"0): use an eps well above {float(np.spacing(abs(at))):.3g}")
+
+
 @algorithm("learn.sgd_train", section="9.8.3–9.8.4", check="cvkit.learn.checks:sgd_train")
-def sgd_train(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None):
+def sgd_train(X: ArrayLike, y: ArrayLike, classes: int, lr: float, epochs: int, batch_size: int, reg: float = 0.0,
+              rng: np.random.Generator | int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Train a linear softmax classifier by mini-batch stochastic gradient descent.
 
     Parameters
@@ -290,13 +320,16 @@ def sgd_train(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None):
     y : (N,) array_like of int
         Labels in ``0..classes−1``.
     classes : int
-        The number of classes C ≥ 1.
+        The number of classes C ≥ 1; the weights ``(C, D)`` must fit in 2 GiB (cvkit's limit
+        for one array), else ``ValueError`` naming ``classes``.
     lr : float
         Learning rate (step size) > 0.
     epochs : int
-        Number of passes over the training set, ≥ 1.
+        Number of passes over the training set, 1 ≤ epochs ≤ :data:`MAX_EPOCHS` (100 000).
     batch_size : int
         Samples per mini-batch B ≥ 1 (``B = 1``: online SGD; ``B ≥ N``: batch gradient descent).
+        The scores of a mini-batch, min(B, N)·C values, must fit in 2 GiB, else ``ValueError``
+        naming ``batch_size``.
     reg : float
         L2 regularisation strength λ ≥ 0 (see :func:`linear_loss_and_grad`).
     rng : numpy.random.Generator, int or None
@@ -336,9 +369,11 @@ def sgd_train(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None):
     classes = check_int(classes, "classes", minimum=1)
     labels = as_labels(y, "y", n, classes)
     lr = check_real(lr, "lr", positive=True)
-    epochs = check_int(epochs, "epochs", minimum=1)
+    epochs = check_size(epochs, "epochs", minimum=1, maximum=MAX_EPOCHS)
     batch_size = check_int(batch_size, "batch_size", minimum=1)
     reg = check_real(reg, "reg", nonnegative=True)
+    check_allocation((classes, d), "classes", what="the weights W")
+    check_allocation((min(batch_size, n), classes), "batch_size", what="the scores of a mini-batch")
     generator = as_rng(rng)
     step = implementation("learn.linear_loss_and_grad")
     W = np.zeros((classes, d))
@@ -358,7 +393,7 @@ def sgd_train(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None):
 
 
 @algorithm("learn.top_k_accuracy", section="9.5", check="cvkit.learn.checks:top_k_accuracy")
-def top_k_accuracy(scores, y, k=5):
+def top_k_accuracy(scores: ArrayLike, y: ArrayLike, k: int = 5) -> float:
     """Fraction of samples whose true label is among their k highest scores.
 
     Parameters

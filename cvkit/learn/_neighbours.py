@@ -1,11 +1,15 @@
 """k-nearest-neighbour classification (§10.1) on raw feature vectors."""
 from __future__ import annotations
 
-import numpy as np
+from typing import Literal
 
-from .._validation import as_float_array, check_int
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import as_float_array, check_allocation, check_int
 from ..registry import algorithm
 from ._common import (
+    _CHUNK_ELEMENTS,
     as_labels,
     exact_l1_distances,
     exact_squared_distances,
@@ -34,11 +38,12 @@ def _nearest_l2(train: np.ndarray, test: np.ndarray, k: int) -> np.ndarray:
     still be changed by rounding error (many points at the k-th distance, e.g. duplicates)
     is recomputed exactly against the whole training set.
     """
-    n = train.shape[0]
+    n, d = train.shape
     m = min(n, k + _EXTRA_CANDIDATES)
     train_sq = np.einsum("ij,ij->i", train, train)
     out = np.empty((test.shape[0], k), dtype=np.int64)
-    rows = max(1, _ROWS_ELEMENTS // max(1, n))
+    # a block's distances (rows × n) and its candidates' differences (rows × m × d) stay small
+    rows = max(1, min(_ROWS_ELEMENTS // max(1, n), _CHUNK_ELEMENTS // max(1, m * d)))
     for start in range(0, test.shape[0], rows):
         block = test[start:start + rows]
         if m == n:
@@ -63,8 +68,32 @@ def _nearest_l2(train: np.ndarray, test: np.ndarray, k: int) -> np.ndarray:
     return out
 
 
+def _nearest_l1(train: np.ndarray, test: np.ndarray, k: int) -> np.ndarray:
+    """The k nearest training rows of every test row in (L1 distance, index) order, a block of
+    test rows at a time."""
+    out = np.empty((test.shape[0], k), dtype=np.int64)
+    rows = max(1, _ROWS_ELEMENTS // max(1, train.shape[0]))
+    for start in range(0, test.shape[0], rows):
+        out[start:start + rows] = _first_k(exact_l1_distances(test[start:start + rows], train), k)
+    return out
+
+
+def _vote(votes: np.ndarray, width: int) -> np.ndarray:
+    """The most frequent of the ``width`` codes in every row of ``votes`` (ties: the smallest),
+    a block of rows at a time (the counts of all rows at once could be large)."""
+    out = np.empty(votes.shape[0], dtype=np.int64)
+    rows = max(1, _CHUNK_ELEMENTS // width)
+    for start in range(0, votes.shape[0], rows):
+        block = votes[start:start + rows]
+        index = np.arange(block.shape[0])[:, None]
+        counts = np.bincount((index * width + block).ravel(), minlength=block.shape[0] * width)
+        out[start:start + rows] = counts.reshape(block.shape[0], width).argmax(axis=1)
+    return out
+
+
 @algorithm("learn.knn_predict", section="10.1", check="cvkit.learn.checks:knn_predict")
-def knn_predict(X_train, y_train, X_test, k=1, metric="l2"):
+def knn_predict(X_train: ArrayLike, y_train: ArrayLike, X_test: ArrayLike, k: int = 1,
+                metric: Literal["l2", "l1"] = "l2") -> np.ndarray:
     """Predict labels by a majority vote of the k nearest training samples.
 
     Parameters
@@ -76,7 +105,8 @@ def knn_predict(X_train, y_train, X_test, k=1, metric="l2"):
     X_test : (M, D) array_like
         Samples to classify.
     k : int
-        Number of neighbours, 1 ≤ k ≤ N.
+        Number of neighbours, 1 ≤ k ≤ N; the neighbours of all test rows, M·k indices, must
+        fit in 2 GiB (cvkit's limit for one array), else ``ValueError`` naming ``k``.
     metric : {"l2", "l1"}
         Euclidean distance :math:`\\sqrt{\\sum (a-b)^2}` or Manhattan distance
         :math:`\\sum |a-b|`.
@@ -119,12 +149,12 @@ def knn_predict(X_train, y_train, X_test, k=1, metric="l2"):
         raise ValueError(f"metric must be one of {', '.join(map(repr, _METRICS))}, got {metric!r}")
     if test.shape[0] == 0:
         return np.zeros(0, dtype=np.int64)
+    check_allocation((test.shape[0], k), "k", what="the neighbours of every test row")
     if metric == "l2":
         nearest = _nearest_l2(train, test, k)
     else:
-        nearest = _first_k(exact_l1_distances(test, train), k)
-    votes = labels[nearest]                                   # (M, k)
-    width = int(labels.max()) + 1
-    rows = np.arange(votes.shape[0])[:, None]
-    counts = np.bincount((rows * width + votes).ravel(), minlength=votes.shape[0] * width)
-    return counts.reshape(votes.shape[0], width).argmax(axis=1).astype(np.int64)
+        nearest = _nearest_l1(train, test, k)
+    # vote on the distinct labels in increasing order (so ties still go to the smallest label,
+    # and a label as large as 10**12 costs nothing)
+    distinct, codes = np.unique(labels, return_inverse=True)
+    return distinct[_vote(codes.reshape(-1)[nearest], distinct.size)]
