@@ -2,13 +2,14 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import as_float_array, check_int, check_real
 
 __all__ = ["gray", "check_int", "check_real", "box_sum", "window_max"]
 
 
-def gray(value, name: str = "image") -> np.ndarray:
+def gray(value: ArrayLike, name: str = "image") -> np.ndarray:
     """A grayscale ``(H, W)`` image as float64 (feature detectors take 2-D images only)."""
     array = as_float_array(value, name, ndim=(2, 3))
     if array.ndim == 3:

@@ -7,9 +7,12 @@ the registry's Gaussian; peaks compare each pixel with a separable running maxim
 """
 from __future__ import annotations
 
-import numpy as np
+from typing import cast
 
-from .._validation import as_float_array, check_border
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import Border, as_float_array, check_border, check_padded, check_work
 from ..registry import algorithm, implementation
 from ._common import box_sum, check_int, check_real, gray, window_max
 
@@ -23,7 +26,7 @@ SHIFTS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
 # §5.6 Moravec
 # --------------------------------------------------------------------------------------------
 @algorithm("features.moravec", section="5.6", check="cvkit.features.checks:moravec")
-def moravec(image, window=7, border="reflect101"):
+def moravec(image: ArrayLike, window: int = 7, border: Border = "reflect101") -> np.ndarray:
     """Moravec's cornerness: the smallest SSD between the window at p and its 8 shifted copies.
 
     Parameters
@@ -31,7 +34,10 @@ def moravec(image, window=7, border="reflect101"):
     image : (H, W) array_like
         Grayscale image, any real dtype, finite values (not rescaled).
     window : int
-        Side of the square window, odd, ≥ 3 (the notes use 7×7).
+        Side of the square window, odd, ≥ 3 (the notes use 7×7). Bounded by the work it
+        causes: the image padded by ``window // 2 + 1`` may take at most 2 GiB and the 8
+        shifted window sums, about ``8·(2·window + 3)`` operations per padded pixel, at most
+        ``cvkit._validation.MAX_WORK`` (``ValueError`` naming ``window`` otherwise).
     border : {"reflect101", "reflect", "replicate", "zero"}
         How pixels outside the image are made up (§3.7).
 
@@ -62,23 +68,26 @@ def moravec(image, window=7, border="reflect101"):
     window = check_int(window, "window", minimum=3, odd=True)
     check_border(border)
     r = window // 2
+    grown = check_padded(img.shape, r + 1, "window")
+    check_work(8 * (2 * window + 3) * grown[0] * grown[1], "window",
+               what=f"Moravec's {window}×{window} window sums on a {img.shape[0]}×{img.shape[1]} image")
     padded = np.asarray(implementation("filters.pad")(img, r + 1, border=border), dtype=np.float64)
     h, w = img.shape
     # the window pixels of every output pixel, one pixel more for the shift
     centre = padded[1: h + 2 * r + 1, 1: w + 2 * r + 1]
-    best = None
+    best: np.ndarray | None = None
     for dy, dx in SHIFTS:
         shifted = padded[1 + dy: h + 2 * r + 1 + dy, 1 + dx: w + 2 * r + 1 + dx]
         ssd = box_sum((shifted - centre) ** 2, window)
         best = ssd if best is None else np.minimum(best, ssd, out=best)
-    return best
+    return cast(np.ndarray, best)          # 8 shifts: never None
 
 
 # --------------------------------------------------------------------------------------------
 # §5.7 structure tensor and Harris
 # --------------------------------------------------------------------------------------------
 @algorithm("features.structure_tensor", section="5.7", check="cvkit.features.checks:structure_tensor")
-def structure_tensor(image, sigma=1.0):
+def structure_tensor(image: ArrayLike, sigma: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The second-moment matrix M of every pixel: Gaussian-weighted products of the derivatives.
 
     Parameters
@@ -123,7 +132,7 @@ def structure_tensor(image, sigma=1.0):
 
 
 @algorithm("features.harris", section="5.7", check="cvkit.features.checks:harris")
-def harris(image, k=0.04, sigma=1.0):
+def harris(image: ArrayLike, k: float = 0.04, sigma: float = 1.0) -> np.ndarray:
     """Harris' corner response R = det(M) − k·trace(M)².
 
     Parameters
@@ -168,7 +177,7 @@ def harris(image, k=0.04, sigma=1.0):
 # §5.6–5.7 thresholding and non-maximum suppression
 # --------------------------------------------------------------------------------------------
 @algorithm("features.peaks", section="5.7", check="cvkit.features.checks:peaks")
-def peaks(response, threshold, radius=1):
+def peaks(response: ArrayLike, threshold: float, radius: int = 1) -> np.ndarray:
     """Points where a response map is above a threshold and the maximum of its neighbourhood.
 
     Parameters
@@ -178,7 +187,11 @@ def peaks(response, threshold, radius=1):
     threshold : float
         A peak must be strictly greater than this.
     radius : int
-        Half-side of the square neighbourhood, ≥ 0 (1: the 3×3 window).
+        Half-side of the square neighbourhood, ≥ 0 (1: the 3×3 window). A radius of
+        ``max(H, W) − 1`` or more reaches the whole map from every pixel, and is computed as
+        that one (same result, whatever the radius); the running maxima, about
+        ``2(2r + 1)·H·W`` operations, may take at most ``cvkit._validation.MAX_WORK``
+        (``ValueError`` naming ``radius`` otherwise).
 
     Returns
     -------
@@ -205,7 +218,9 @@ def peaks(response, threshold, radius=1):
     """
     values = as_float_array(response, "response", ndim=2)
     threshold = check_real(threshold, "threshold")
-    radius = check_int(radius, "radius", minimum=0)
+    radius = min(check_int(radius, "radius", minimum=0), max(values.shape) - 1)   # the whole map at most
+    check_work(2 * (2 * radius + 1) * values.size, "radius",
+               what=f"the {2 * radius + 1}×{2 * radius + 1} running maxima of a {values.shape[0]}×{values.shape[1]} map")
     keep = (values > threshold) & (values >= window_max(values, radius))
     rows, cols = np.nonzero(keep)  # raster order
     order = np.argsort(-values[rows, cols], kind="stable")

@@ -11,14 +11,16 @@ stops when its budget of distance computations is spent.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .._validation import as_float_array
+from .._validation import as_float_array, check_allocation
 from ..registry import algorithm
 from ._common import check_int, check_real
 
 __all__ = ["match_ratio", "KDTree", "nearest_two"]
 
 _BLOCK = 1 << 18  # elements of a block of temporaries: small enough to stay in cache
+_ROWS_BUDGET = 1 << 24  # elements of the per-block arrays of a k-d tree search (128 MiB of float64)
 
 
 def _pairwise_sq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -59,7 +61,7 @@ def nearest_two(desc1: np.ndarray, desc2: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 @algorithm("features.match_ratio", section="5.13", check="cvkit.features.checks:match_ratio")
-def match_ratio(desc1, desc2, ratio=0.8):
+def match_ratio(desc1: ArrayLike, desc2: ArrayLike, ratio: float = 0.8) -> np.ndarray:
     """Nearest-neighbour matches that pass Lowe's ratio test.
 
     Parameters
@@ -117,7 +119,9 @@ class KDTree:
     Parameters
     ----------
     points : (N, D) array_like
-        The points to index (finite, N ≥ 1). The tree keeps its own copy.
+        The points to index (finite, N ≥ 1). The tree keeps its own copy, and its leaves
+        padded to the largest one (many equal points make one large leaf), which may take at
+        most 2 GiB (``ValueError`` naming ``points``).
     leaf_size : int
         Largest number of points in a leaf, ≥ 1.
 
@@ -149,7 +153,7 @@ class KDTree:
     (array([[0.70710678]]), array([[1]]))
     """
 
-    def __init__(self, points, leaf_size=4):
+    def __init__(self, points: ArrayLike, leaf_size: int = 4) -> None:
         data = as_float_array(points, "points", ndim=2)
         self.leaf_size = check_int(leaf_size, "leaf_size", minimum=1)
         self.points = data.copy()
@@ -172,6 +176,7 @@ class KDTree:
             self._cell_hi[leaf, :axes.size] = hi[leaf, axes]
         width = int(self._sizes.max())
         # the leaves' points padded to a common width: (L, width) indices, N = padding
+        check_allocation((len(self._starts), width, self.dim), "points", what="the leaves padded to the largest")
         slots = self._starts[:, None] + np.arange(width)[None, :]
         valid = np.arange(width)[None, :] < self._sizes[:, None]
         self._leaf_index = np.where(valid, self._order[np.minimum(slots, self.n - 1)], self.n)
@@ -183,7 +188,7 @@ class KDTree:
         """Number of leaves."""
         return len(self._starts)
 
-    def _build(self):
+    def _build(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         pts = self.points
         order = np.arange(self.n)
         lo_root = np.full(self.dim, -np.inf)
@@ -214,7 +219,7 @@ class KDTree:
         return order, bounds, lo, hi
 
     # ----------------------------------------------------------------------------------------
-    def _queries(self, q) -> tuple[np.ndarray, bool]:
+    def _queries(self, q: ArrayLike) -> tuple[np.ndarray, bool]:
         arr = as_float_array(q, "q", ndim=(1, 2), allow_empty=True)
         single = arr.ndim == 1
         arr = arr.reshape(1, -1) if single else arr
@@ -222,13 +227,13 @@ class KDTree:
             raise ValueError(f"q must have {self.dim} coordinates per point like the tree's points, got shape {np.shape(q)}")
         return arr, single
 
-    def _k(self, k) -> int:
+    def _k(self, k: int) -> int:
         k = check_int(k, "k", minimum=1)
         if k > self.n:
             raise ValueError(f"k must be at most the number of points {self.n}, got {k}")
         return k
 
-    def query(self, q, k=1):
+    def query(self, q: ArrayLike, k: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """The k nearest points of each query, exactly.
 
         Parameters
@@ -236,7 +241,9 @@ class KDTree:
         q : (D,) or (M, D) array_like
             One query point or M of them.
         k : int
-            Number of neighbours, 1 ≤ k ≤ N.
+            Number of neighbours, 1 ≤ k ≤ N. The result, M × k distances and indices, may take
+            at most 2 GiB per array (``ValueError`` naming ``k``); the search itself works on
+            blocks of queries sized to the tree and to k, so its memory stays bounded.
 
         Returns
         -------
@@ -250,7 +257,7 @@ class KDTree:
         k = self._k(k)
         return self._search(arr, single, k, None)
 
-    def query_bbf(self, q, k=2, max_checks=200):
+    def query_bbf(self, q: ArrayLike, k: int = 2, max_checks: int = 200) -> tuple[np.ndarray, np.ndarray]:
         """The k nearest points found by Best-Bin-First search with a budget.
 
         Parameters
@@ -276,11 +283,18 @@ class KDTree:
             raise ValueError(f"max_checks must be at least k = {k} (one check per point examined), got {max_checks}")
         return self._search(arr, single, k, max_checks)
 
-    def _search(self, queries: np.ndarray, single: bool, k: int, budget):
+    def _search(self, queries: np.ndarray, single: bool, k: int,
+                budget: int | None) -> tuple[np.ndarray, np.ndarray]:
         m = queries.shape[0]
+        check_allocation((m, k), "k", what="the distances")
         distances = np.empty((m, k))
         indices = np.empty((m, k), dtype=np.int64)
-        rows = 1024  # queries searched together: the per-leaf steps are vectorised over them
+        # queries searched together (the per-leaf steps are vectorised over them): up to 1024,
+        # fewer when their (rows, leaves) cell bounds or (rows, k + leaf width) candidates
+        # would outgrow _ROWS_BUDGET elements
+        width = self._leaf_index.shape[1]
+        per_row = max(self.leaves, k + width, width * self.dim)
+        rows = max(1, min(1024, _ROWS_BUDGET // per_row))
         for start in range(0, m, rows):
             part = queries[start:start + rows]
             d2, idx = self._search_block(part, k, budget)
@@ -290,7 +304,7 @@ class KDTree:
             return distances[0], indices[0]
         return distances, indices
 
-    def _search_block(self, q: np.ndarray, k: int, budget):
+    def _search_block(self, q: np.ndarray, k: int, budget: int | None) -> tuple[np.ndarray, np.ndarray]:
         m = q.shape[0]
         # squared distance from every query to every leaf's cell, and the visiting order
         n_leaves, n_axes = self._axes.shape

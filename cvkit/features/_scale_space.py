@@ -9,24 +9,29 @@ neighbours of the few surviving candidates).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .._validation import as_float_array
+from .._validation import as_float_array, check_allocation, check_padded, check_size, check_work
 from ..registry import algorithm, implementation
 from ._common import check_int, check_real, gray
 
 __all__ = [
     "double_size", "gaussian_pyramid", "dog_pyramid", "log_blobs", "dog_extrema", "refine_extremum",
-    "is_edge_like", "NEIGHBOURS_26",
+    "is_edge_like", "NEIGHBOURS_26", "MAX_SCALES", "max_octaves", "pyramid_arguments", "derivatives_3d",
 ]
 
 #: the 26 offsets (ds, dr, dc) of a sample's neighbours in (scale, row, col)
 NEIGHBOURS_26 = tuple((ds, dr, dc) for ds in (-1, 0, 1) for dr in (-1, 0, 1) for dc in (-1, 0, 1)
                       if (ds, dr, dc) != (0, 0, 0))
+#: the most scales per octave of a pyramid (and σ's of :func:`log_blobs`): each one is a
+#: whole-image Gaussian (or LoG) per octave, and SIFT uses 3
+MAX_SCALES = 100
 
 
-def double_size(image: np.ndarray) -> np.ndarray:
+def double_size(image: ArrayLike) -> np.ndarray:
     """Double both sides: ``U[2i, 2j] = I[i, j]``, bilinear in between, replicate border."""
     img = np.asarray(image, dtype=np.float64)
     h, w = img.shape
@@ -41,11 +46,81 @@ def double_size(image: np.ndarray) -> np.ndarray:
     return out
 
 
+def _increments(sigma0: float, scales: int) -> list[float]:
+    """The blurs taking level i − 1 of an octave to level i, i = 1 … s + 2: total blurs
+    σ_i = σ0·2^(i/s) compose by adding variances."""
+    totals = [sigma0 * 2.0 ** (i / scales) for i in range(scales + 3)]
+    return [math.sqrt(totals[i] ** 2 - totals[i - 1] ** 2) for i in range(1, scales + 3)]
+
+
+def _gaussian_radius(sigma: float) -> int:
+    """The radius ``ceil(3σ − 1e-9)`` of the registry's Gaussian (``filters.gaussian_kernel``);
+    2**60, beyond any allocation, for a σ that is huge (or whose square overflowed to inf/nan)."""
+    reach = 3.0 * sigma
+    return max(0, math.ceil(reach - 1e-9)) if reach < 2.0**60 else 2**60
+
+
+def _separable_work(h: int, w: int, radius: int) -> int:
+    """Elementary operations of a separable filter of ``radius`` on an h × w image (the padded
+    copy and its two passes, as ``filters.gaussian`` counts them)."""
+    return 3 * (radius + 1) * (2 * h + 2 * radius) * w
+
+
+def max_octaves(shape: Sequence[int]) -> int:
+    """Octaves an image of ``shape`` gives before the next one would repeat 1 × 1 (each octave
+    takes every second row and column of the previous one)."""
+    side, count = max(int(n) for n in shape[:2]), 1
+    while side > 1:
+        side, count = (side + 1) // 2, count + 1
+    return count
+
+
+def pyramid_arguments(shape: Sequence[int], sigma0: float, scales: int, octaves: int, upsample: bool,
+                      assumed_blur: float) -> tuple[float, int, int, float]:
+    """The arguments of :func:`gaussian_pyramid` for an image of ``shape``, checked (errors name
+    the argument): ``(sigma0, scales, octaves, b)`` with ``b`` the blur the base already has.
+
+    Bounds: ``scales`` up to :data:`MAX_SCALES`, ``octaves`` up to :func:`max_octaves` of the
+    (upsampled) image, every Gaussian within the 2 GiB padded image and all of them within
+    ``cvkit._validation.MAX_WORK`` (``sigma0``), each octave within 2 GiB (``image``).
+    """
+    sigma0 = check_real(sigma0, "sigma0", positive=True)
+    scales = check_size(scales, "scales", minimum=1, maximum=MAX_SCALES)
+    octaves = check_int(octaves, "octaves", minimum=1)
+    if not isinstance(upsample, (bool, np.bool_)):
+        raise TypeError(f"upsample must be True or False, got {type(upsample).__name__} {upsample!r}")
+    assumed_blur = check_real(assumed_blur, "assumed_blur", nonnegative=True)
+    blur = 2.0 * assumed_blur if upsample else assumed_blur
+    if sigma0 <= blur:
+        raise ValueError(
+            f"sigma0 must exceed the blur the {'upsampled ' if upsample else ''}image already has "
+            f"({'2·' if upsample else ''}assumed_blur = {blur:g}), got sigma0 = {sigma0:g}"
+        )
+    base = (2 * int(shape[0]), 2 * int(shape[1])) if upsample else (int(shape[0]), int(shape[1]))
+    allowed = max_octaves(base)
+    if octaves > allowed:
+        size = f"{base[0]}×{base[1]}{' (upsampled)' if upsample else ''}"
+        raise ValueError(f"octaves must be <= {allowed}: a {size} image halves to 1×1 in {allowed} octaves, "
+                         f"got {octaves}")
+    check_allocation((scales + 3,) + base, "image", what="an octave of scales + 3 levels")
+    radii = [_gaussian_radius(step) for step in _increments(sigma0, scales)]
+    first = _gaussian_radius(math.sqrt(sigma0 * sigma0 - blur * blur))
+    check_padded(base, max(radii + [first]), "sigma0")
+    h, w = base
+    work = _separable_work(h, w, first)
+    for _ in range(octaves):
+        work += sum(_separable_work(h, w, r) for r in radii)
+        h, w = (h + 1) // 2, (w + 1) // 2
+    check_work(work, "sigma0", what=f"a pyramid of {octaves} octaves of {scales + 3} levels with sigma0 = {sigma0:g}")
+    return sigma0, scales, octaves, blur
+
+
 # --------------------------------------------------------------------------------------------
 # §5.8–5.9 pyramids
 # --------------------------------------------------------------------------------------------
 @algorithm("features.gaussian_pyramid", section="5.8", check="cvkit.features.checks:gaussian_pyramid")
-def gaussian_pyramid(image, sigma0=1.6, scales=3, octaves=4, upsample=True, assumed_blur=0.5):
+def gaussian_pyramid(image: ArrayLike, sigma0: float = 1.6, scales: int = 3, octaves: int = 4, upsample: bool = True,
+                     assumed_blur: float = 0.5) -> list[np.ndarray]:
     """SIFT's scale space: octaves of progressively blurred images, halved from one to the next.
 
     Parameters
@@ -53,12 +128,19 @@ def gaussian_pyramid(image, sigma0=1.6, scales=3, octaves=4, upsample=True, assu
     image : (H, W) array_like
         Grayscale image, any real dtype, finite values.
     sigma0 : float
-        Blur of level 0 of every octave, in that octave's pixels (1.6 in SIFT).
+        Blur of level 0 of every octave, in that octave's pixels (1.6 in SIFT). Bounded by the
+        work it causes: the (upsampled) image padded for the widest Gaussian of the pyramid
+        may take at most 2 GiB, and all the Gaussians together at most
+        ``cvkit._validation.MAX_WORK`` (2**36, about a minute) elementary operations
+        (``ValueError`` naming ``sigma0`` otherwise).
     scales : int
-        s ≥ 1, the number of scales per octave at which extrema are sought (3 in SIFT); every
-        octave has s + 3 levels, so that its s + 2 DoG levels have s interior ones.
+        1 ≤ s ≤ 100 (:data:`MAX_SCALES`), the number of scales per octave at which extrema are
+        sought (3 in SIFT); every octave has s + 3 levels, so that its s + 2 DoG levels have s
+        interior ones. An octave may take at most 2 GiB (``ValueError`` naming ``image``).
     octaves : int
-        Number of octaves, ≥ 1.
+        Number of octaves, 1 ≤ octaves ≤ :func:`max_octaves` of the (upsampled) image: as
+        many as halve it down to 1×1 (a 16×16 image allows 5), since further ones would only
+        repeat that pixel (``ValueError`` saying how many the image allows).
     upsample : bool
         Double the image first (Lowe: it quadruples the number of stable keypoints).
     assumed_blur : float
@@ -80,7 +162,7 @@ def gaussian_pyramid(image, sigma0=1.6, scales=3, octaves=4, upsample=True, assu
     level s of octave o (total blur 2σ0) taken ``[::2, ::2]``, whose blur in the new pixels is
     σ0 again; its further levels use the same increments. A point (x_o, y_o) of octave o lies
     at ``x_o·2^o`` (halved when upsampled) in the input. Small images simply give small
-    octaves (down to 1×1).
+    octaves (down to 1×1, the last octave allowed).
 
     Examples
     --------
@@ -90,24 +172,12 @@ def gaussian_pyramid(image, sigma0=1.6, scales=3, octaves=4, upsample=True, assu
     [(6, 64, 80), (6, 32, 40), (6, 16, 20)]
     """
     img = gray(image)
-    sigma0 = check_real(sigma0, "sigma0", positive=True)
-    scales = check_int(scales, "scales", minimum=1)
-    octaves = check_int(octaves, "octaves", minimum=1)
-    if not isinstance(upsample, (bool, np.bool_)):
-        raise TypeError(f"upsample must be True or False, got {type(upsample).__name__} {upsample!r}")
-    assumed_blur = check_real(assumed_blur, "assumed_blur", nonnegative=True)
-    b = 2.0 * assumed_blur if upsample else assumed_blur
-    if sigma0 <= b:
-        raise ValueError(
-            f"sigma0 must exceed the blur the {'upsampled ' if upsample else ''}image already has "
-            f"({'2·' if upsample else ''}assumed_blur = {b:g}), got sigma0 = {sigma0:g}"
-        )
+    sigma0, scales, octaves, b = pyramid_arguments(img.shape, sigma0, scales, octaves, upsample, assumed_blur)
     gaussian = implementation("filters.gaussian")
-    totals = [sigma0 * 2.0 ** (i / scales) for i in range(scales + 3)]
-    increments = [math.sqrt(totals[i] ** 2 - totals[i - 1] ** 2) for i in range(1, scales + 3)]
+    increments = _increments(sigma0, scales)
     base = double_size(img) if upsample else img
     base = np.asarray(gaussian(base, math.sqrt(sigma0 * sigma0 - b * b)), dtype=np.float64)
-    pyramid = []
+    pyramid: list[np.ndarray] = []
     for o in range(octaves):
         if o > 0:
             base = pyramid[-1][scales][::2, ::2]
@@ -119,7 +189,7 @@ def gaussian_pyramid(image, sigma0=1.6, scales=3, octaves=4, upsample=True, assu
     return pyramid
 
 
-def _as_stacks(value, name: str) -> list[np.ndarray]:
+def _as_stacks(value: object, name: str) -> list[np.ndarray]:
     if isinstance(value, np.ndarray) and value.ndim == 3:
         value = [value]
     if not isinstance(value, (list, tuple)) or not value:
@@ -129,7 +199,7 @@ def _as_stacks(value, name: str) -> list[np.ndarray]:
 
 
 @algorithm("features.dog_pyramid", section="5.9", check="cvkit.features.checks:dog_pyramid")
-def dog_pyramid(gaussian_pyramid):
+def dog_pyramid(gaussian_pyramid: Sequence[ArrayLike] | np.ndarray) -> list[np.ndarray]:
     """Differences of adjacent Gaussian levels, octave by octave.
 
     Parameters
@@ -179,8 +249,22 @@ def _strict_extrema(stack: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return is_max, is_min
 
 
+def _check_log_stack(shape: tuple[int, ...], sigmas: np.ndarray) -> None:
+    """Refuse (naming ``sigmas``) a stack of LoG responses beyond the bounds of :func:`log_blobs`."""
+    check_size(sigmas.size, "len(sigmas)", maximum=MAX_SCALES)
+    check_allocation((sigmas.size,) + tuple(shape), "sigmas", what="the stack of LoG responses")
+    work = 0
+    for sigma in sigmas.tolist():
+        radius = max(0, math.ceil(3.0 * sigma)) if sigma < 2.0**60 else 2**60      # edges.log's ceil(3σ)
+        check_allocation((2 * radius + 1, 2 * radius + 1), "sigmas", what="a LoG kernel")
+        padded = check_padded(shape, radius, "sigmas")
+        pixels = padded[0] * padded[1]
+        work += 15 * pixels * max(1, math.ceil(math.log2(pixels)))          # at most three FFTs of it
+    check_work(work, "sigmas", what=f"{sigmas.size} LoG responses of a {shape[0]}×{shape[1]} image")
+
+
 @algorithm("features.log_blobs", section="5.8", check="cvkit.features.checks:log_blobs")
-def log_blobs(image, sigmas, threshold):
+def log_blobs(image: ArrayLike, sigmas: ArrayLike, threshold: float) -> np.ndarray:
     """Blobs: extrema in space and scale of the scale-normalised Laplacian of Gaussian.
 
     Parameters
@@ -189,7 +273,11 @@ def log_blobs(image, sigmas, threshold):
         Grayscale image, any real dtype, finite values.
     sigmas : sequence of float
         The scales σ > 0 to sample, in the order that defines the scale neighbours (usually
-        increasing).
+        increasing); at most 100 (:data:`MAX_SCALES`) of them. Bounded by the work they cause:
+        the LoG kernel of the largest σ and the image padded by its radius ceil(3σ) may each
+        take at most 2 GiB, the stack of responses too, and the LoGs together at most
+        ``cvkit._validation.MAX_WORK`` elementary operations (``ValueError`` naming
+        ``sigmas`` otherwise).
     threshold : float
         A blob needs ``|F| > threshold``, ≥ 0.
 
@@ -223,6 +311,7 @@ def log_blobs(image, sigmas, threshold):
     if np.any(sigmas <= 0):
         raise ValueError(f"sigmas must all be > 0, got {sigmas.tolist()}")
     threshold = check_real(threshold, "threshold", nonnegative=True)
+    _check_log_stack(img.shape, sigmas)
     log = implementation("edges.log")
     stack = np.stack([s * s * np.asarray(log(img, float(s)), dtype=np.float64) for s in sigmas])
     is_max, is_min = _strict_extrema(stack)
@@ -277,7 +366,7 @@ def _extrema_of_level(d: np.ndarray, s: int, threshold: float) -> tuple[np.ndarr
 
 
 @algorithm("features.dog_extrema", section="5.9", check="cvkit.features.checks:dog_extrema")
-def dog_extrema(dog_pyramid, contrast_threshold=0.03):
+def dog_extrema(dog_pyramid: Sequence[ArrayLike] | np.ndarray, contrast_threshold: float = 0.03) -> np.ndarray:
     """Samples of the DoG pyramid that are extrema among their 26 neighbours.
 
     Parameters
@@ -328,14 +417,15 @@ def dog_extrema(dog_pyramid, contrast_threshold=0.03):
     return rows[order]
 
 
-def _position(value, name: str, size: int) -> int:
+def _position(value: int, name: str, size: int) -> int:
     index = check_int(value, name)
     if not 1 <= index <= size - 2:
         raise ValueError(f"{name} must be an interior index 1..{size - 2} (both neighbours needed), got {index}")
     return index
 
 
-def derivatives_3d(d: np.ndarray, s: int, r: int, c: int) -> tuple[np.ndarray, np.ndarray]:
+def derivatives_3d(d: np.ndarray, s: int | np.ndarray, r: int | np.ndarray,
+                   c: int | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Central-difference gradient (..., 3) and Hessian (..., 3, 3) of a stack at (s, r, c), in the
     order (s, r, c); the indices may be integers or arrays of them."""
     v = d[s, r, c]
@@ -352,7 +442,7 @@ def derivatives_3d(d: np.ndarray, s: int, r: int, c: int) -> tuple[np.ndarray, n
 
 
 @algorithm("features.refine_extremum", section="5.9", check="cvkit.features.checks:refine_extremum")
-def refine_extremum(dog_stack, scale, row, col):
+def refine_extremum(dog_stack: ArrayLike, scale: int, row: int, col: int) -> tuple[np.ndarray, float]:
     """Sub-pixel, sub-scale position of an extremum: one Newton step on a 3-D quadratic.
 
     Parameters
@@ -410,7 +500,7 @@ def refine_extremum(dog_stack, scale, row, col):
 
 
 @algorithm("features.is_edge_like", section="5.9", check="cvkit.features.checks:is_edge_like")
-def is_edge_like(dog_slice, row, col, r=10.0):
+def is_edge_like(dog_slice: ArrayLike, row: int, col: int, r: float = 10.0) -> bool:
     """Is a DoG extremum on an edge (principal curvatures too unequal)?
 
     Parameters

@@ -11,15 +11,18 @@ keypoint — ``with cvkit.use("student"):`` runs the pipeline on a student's pie
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .._validation import as_float_array
+from .._validation import as_float_array, check_allocation, check_size, check_work
 from ..registry import algorithm, get, implementation
 from ._common import check_int, check_real, gray
-from ._scale_space import derivatives_3d
+from ._scale_space import derivatives_3d, pyramid_arguments
 
-__all__ = ["orientations", "sift_descriptor", "sift", "DESCRIPTOR_RADIUS_FACTOR", "OFFSET_LIMIT"]
+__all__ = ["orientations", "sift_descriptor", "sift", "DESCRIPTOR_RADIUS_FACTOR", "OFFSET_LIMIT", "MAX_BINS",
+           "MAX_COORDINATE", "MAX_STEPS", "orientation_histograms", "histogram_peaks", "descriptors_batch"]
 
 #: descriptor window: cells of 3σ, 4×4 cells (+1 for the interpolation), radius 3σ·√2·5/2
 DESCRIPTOR_RADIUS_FACTOR = 3.0 * math.sqrt(2.0) * 2.5
@@ -32,9 +35,15 @@ _CHUNK = 1 << 16  # grid samples per batch: the temporaries stay in cache (8x fa
 #: (OpenCV) an extremum about half-way between two samples is sent back and forth between them
 #: until the steps run out, and lost (9 % of the candidates of the astronaut image)
 OFFSET_LIMIT = 0.6
+#: the most orientation bins (0.1° each)
+MAX_BINS = 3600
+#: the largest |x|, |y| and σ (pixels) of a keypoint: the window's integer offsets stay exact
+MAX_COORDINATE = 1e9
+#: the most Newton steps :func:`sift` allows an extremum (each one a pass over the candidates)
+MAX_STEPS = 100
 
 
-def _round(value) -> np.ndarray:
+def _round(value: ArrayLike) -> np.ndarray:
     """Round to the nearest integer, halves to even: the catalog's ``round`` read as Python's
     ``round`` and ``np.rint`` (and OpenCV's ``cvRound``): round(4.5) = 4, round(13.5) = 14."""
     return np.rint(np.asarray(value, dtype=np.float64)).astype(np.int64)
@@ -50,7 +59,33 @@ def _differences(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return dx, dy
 
 
-def _samples(cx, cy, radii, radius: int, shape, keep=None):
+def _window_radii(cx: np.ndarray, cy: np.ndarray, radii: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """Each window's radius cut to the pixels that can vote (1 ≤ row ≤ H−2, 1 ≤ col ≤ W−2):
+    the grid of the smaller radius holds the same samples in the same order (0 when the window
+    misses them all), so the work is bounded by the image whatever σ."""
+    h, w = shape[0], shape[1]
+    lo_x, hi_x = np.maximum(cx - radii, 1), np.minimum(cx + radii, w - 2)
+    lo_y, hi_y = np.maximum(cy - radii, 1), np.minimum(cy + radii, h - 2)
+    reach = np.maximum(np.maximum(cx - lo_x, hi_x - cx), np.maximum(cy - lo_y, hi_y - cy))
+    empty = (lo_x > hi_x) | (lo_y > hi_y)
+    return np.where(empty, 0, np.minimum(radii, reach))
+
+
+def _check_keypoint(x: float, y: float, sigma: float, radius: float, shape: tuple[int, ...]) -> None:
+    """Refuse, naming the argument, a keypoint beyond :data:`MAX_COORDINATE` or whose window
+    (radius ``radius`` before it is cut to the image) would exceed cvkit's bounds."""
+    for value, name in ((x, "x"), (y, "y"), (sigma, "sigma")):
+        if abs(value) > MAX_COORDINATE:
+            raise ValueError(f"{name} must be at most {MAX_COORDINATE:g} pixels in size, got {value:g}")
+    reach = int(_window_radii(_round([x]), _round([y]), _round([radius]), shape)[0])
+    samples = (2 * reach + 1) ** 2
+    check_allocation((samples,), "sigma", what="the samples of the keypoint's window")
+    check_work(40 * samples, "sigma", what=f"a window of radius {reach}")
+
+
+def _samples(cx: np.ndarray, cy: np.ndarray, radii: np.ndarray, radius: int, shape: tuple[int, ...],
+             keep: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The pixels of the (2r+1)² squares about the centres (r = each centre's own radius),
     as flat lists ``k, rows, cols`` in raster order per centre, restricted to the pixels where
     both central differences exist (1 ≤ row ≤ H−2, 1 ≤ col ≤ W−2).
@@ -72,7 +107,7 @@ def _samples(cx, cy, radii, radius: int, shape, keep=None):
     return k, rows[k, n], cols[k, n]
 
 
-def _chunks(count: int, per_item: int):
+def _chunks(count: int, per_item: int) -> Iterator[tuple[int, int]]:
     step = max(1, _CHUNK // max(1, per_item))
     for start in range(0, count, step):
         yield start, min(count, start + step)
@@ -81,7 +116,8 @@ def _chunks(count: int, per_item: int):
 # --------------------------------------------------------------------------------------------
 # §5.11 canonical orientation
 # --------------------------------------------------------------------------------------------
-def orientation_histograms(dx, dy, x, y, sigma, bins: int) -> np.ndarray:
+def orientation_histograms(dx: np.ndarray, dy: np.ndarray, x: ArrayLike, y: ArrayLike, sigma: ArrayLike,
+                           bins: int) -> np.ndarray:
     """(K, bins) histograms of gradient directions, votes = magnitude × Gaussian(1.5σ)."""
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
@@ -90,8 +126,8 @@ def orientation_histograms(dx, dy, x, y, sigma, bins: int) -> np.ndarray:
     out = np.zeros((count, bins))
     if count == 0:
         return out
-    radii = _round(4.5 * sigma)
     cx, cy = _round(x), _round(y)
+    radii = _window_radii(cx, cy, _round(4.5 * sigma), dx.shape)
     big = int(radii.max())
     for start, stop in _chunks(count, (2 * big + 1) ** 2):
         part = slice(start, stop)
@@ -126,7 +162,8 @@ def histogram_peaks(histograms: np.ndarray, peak_ratio: float) -> list[np.ndarra
 
 
 @algorithm("features.orientations", section="5.11", check="cvkit.features.checks:orientations")
-def orientations(gaussian_image, x, y, sigma, bins=36, peak_ratio=0.8):
+def orientations(gaussian_image: ArrayLike, x: float, y: float, sigma: float, bins: int = 36,
+                 peak_ratio: float = 0.8) -> np.ndarray:
     """Canonical orientations of a keypoint: the peaks of its histogram of gradient directions.
 
     Parameters
@@ -134,11 +171,14 @@ def orientations(gaussian_image, x, y, sigma, bins=36, peak_ratio=0.8):
     gaussian_image : (H, W) array_like
         The Gaussian-blurred image L of the keypoint's scale (a level of the pyramid).
     x, y : float
-        Keypoint position in that image's pixels (x along the columns, y down the rows).
+        Keypoint position in that image's pixels (x along the columns, y down the rows),
+        ``|x|, |y| ≤ 1e9`` (:data:`MAX_COORDINATE`).
     sigma : float
-        Keypoint scale in that image's pixels, > 0.
+        Keypoint scale in that image's pixels, ``0 < σ ≤ 1e9``. The window is cut to the
+        image's pixels (the same votes), and its samples may take at most 2 GiB and
+        ``cvkit._validation.MAX_WORK`` operations (``ValueError`` naming ``sigma``).
     bins : int
-        Histogram bins over the full circle, ≥ 3 (36: 10° each).
+        Histogram bins over the full circle, 3 ≤ bins ≤ 3600 (:data:`MAX_BINS`; 36: 10° each).
     peak_ratio : float
         Secondary peaks at least this fraction of the highest one also give an orientation.
 
@@ -178,8 +218,9 @@ def orientations(gaussian_image, x, y, sigma, bins=36, peak_ratio=0.8):
     x = check_real(x, "x")
     y = check_real(y, "y")
     sigma = check_real(sigma, "sigma", positive=True)
-    bins = check_int(bins, "bins", minimum=3)
+    bins = check_size(bins, "bins", minimum=3, maximum=MAX_BINS)
     peak_ratio = check_real(peak_ratio, "peak_ratio", nonnegative=True)
+    _check_keypoint(x, y, sigma, 4.5 * sigma, img.shape)
     dx, dy = _differences(img)
     return histogram_peaks(orientation_histograms(dx, dy, [x], [y], [sigma], bins), peak_ratio)[0]
 
@@ -187,7 +228,8 @@ def orientations(gaussian_image, x, y, sigma, bins=36, peak_ratio=0.8):
 # --------------------------------------------------------------------------------------------
 # §5.12 the descriptor
 # --------------------------------------------------------------------------------------------
-def descriptors_batch(dx, dy, x, y, sigma, angle) -> np.ndarray:
+def descriptors_batch(dx: np.ndarray, dy: np.ndarray, x: ArrayLike, y: ArrayLike, sigma: ArrayLike,
+                      angle: ArrayLike) -> np.ndarray:
     """(K, 128) SIFT descriptors of keypoints on one image (see :func:`sift_descriptor`)."""
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
@@ -199,8 +241,8 @@ def descriptors_batch(dx, dy, x, y, sigma, angle) -> np.ndarray:
     if count == 0:
         return out
     limit = int(math.ceil(math.hypot(*dx.shape)))
-    radii = np.minimum(_round(DESCRIPTOR_RADIUS_FACTOR * sigma), limit)
     cx, cy = _round(x), _round(y)
+    radii = _window_radii(cx, cy, np.minimum(_round(DESCRIPTOR_RADIUS_FACTOR * sigma), limit), dx.shape)
     cos_t, sin_t = np.cos(angle), np.sin(angle)
     big = int(radii.max())
     size = (d + 2) * (d + 2) * (n_o + 2)  # room for the bins −1 and d (and o + 1) while voting
@@ -243,18 +285,18 @@ def descriptors_batch(dx, dy, x, y, sigma, angle) -> np.ndarray:
         # bins shifted by one: bin −1 is row 0 of the padded histogram
         base = ((k * (d + 2) + (r0.astype(np.int64) + 1)) * (d + 2) + (c0.astype(np.int64) + 1)) * (n_o + 2) \
             + o0.astype(np.int64) % n_o
-        n = k.size
-        index = np.empty(8 * n, dtype=np.int64)
-        weight = np.empty(8 * n)
+        votes_n = k.size
+        index = np.empty(8 * votes_n, dtype=np.int64)
+        weight = np.empty(8 * votes_n)
         slot = 0
         for a, wa in ((0, 1.0 - fr), (1, fr)):
             v_r = magnitude * wa
             for b, wb in ((0, 1.0 - fc), (1, fc)):
                 v_rc = v_r * wb
                 for e, we in ((0, 1.0 - fo), (1, fo)):
-                    index[slot:slot + n] = base + ((a * (d + 2) + b) * (n_o + 2) + e)
-                    np.multiply(v_rc, we, out=weight[slot:slot + n])
-                    slot += n
+                    index[slot:slot + votes_n] = base + ((a * (d + 2) + b) * (n_o + 2) + e)
+                    np.multiply(v_rc, we, out=weight[slot:slot + votes_n])
+                    slot += votes_n
         votes = np.bincount(index, weights=weight, minlength=len(part) * size)
         hist = votes.reshape(len(part), d + 2, d + 2, n_o + 2)
         hist[..., 0] += hist[..., n_o]  # orientation bin n_o is bin 0 (the circle wraps)
@@ -269,7 +311,7 @@ def descriptors_batch(dx, dy, x, y, sigma, angle) -> np.ndarray:
 
 
 @algorithm("features.sift_descriptor", section="5.12", check="cvkit.features.checks:sift_descriptor")
-def sift_descriptor(gaussian_image, x, y, sigma, angle):
+def sift_descriptor(gaussian_image: ArrayLike, x: float, y: float, sigma: float, angle: float) -> np.ndarray:
     """The 128-D SIFT descriptor: 4×4 cells × 8 orientation bins of the rotated patch.
 
     Parameters
@@ -277,9 +319,11 @@ def sift_descriptor(gaussian_image, x, y, sigma, angle):
     gaussian_image : (H, W) array_like
         The Gaussian-blurred image L of the keypoint's scale.
     x, y : float
-        Keypoint position in that image's pixels.
+        Keypoint position in that image's pixels, ``|x|, |y| ≤ 1e9`` (:data:`MAX_COORDINATE`).
     sigma : float
-        Keypoint scale in that image's pixels, > 0.
+        Keypoint scale in that image's pixels, ``0 < σ ≤ 1e9``. The window is cut to the
+        image's pixels (the same votes), and its samples may take at most 2 GiB and
+        ``cvkit._validation.MAX_WORK`` operations (``ValueError`` naming ``sigma``).
     angle : float
         The keypoint's canonical orientation in radians (y down, as :func:`orientations`).
 
@@ -318,6 +362,7 @@ def sift_descriptor(gaussian_image, x, y, sigma, angle):
     y = check_real(y, "y")
     sigma = check_real(sigma, "sigma", positive=True)
     angle = check_real(angle, "angle")
+    _check_keypoint(x, y, sigma, min(DESCRIPTOR_RADIUS_FACTOR * sigma, math.ceil(math.hypot(*img.shape))), img.shape)
     dx, dy = _differences(img)
     return descriptors_batch(dx, dy, [x], [y], [sigma], [angle])[0]
 
@@ -405,15 +450,16 @@ def _edge_like_batch(d: np.ndarray, r: np.ndarray, c: np.ndarray, ratio: float) 
     return (det <= 0) | (trace * trace * ratio >= (ratio + 1.0) ** 2 * det)
 
 
-def _default_octaves(shape) -> int:
+def _default_octaves(shape: tuple[int, ...]) -> int:
     """As many octaves as keep the smallest octave's shorter side at 8 pixels or more."""
     side = min(shape)
     return max(1, int(math.floor(math.log2(side / 8.0))) + 1) if side >= 8 else 1
 
 
 @algorithm("features.sift", section="5.14.1", check="cvkit.features.checks:sift")
-def sift(image, sigma0=1.6, scales=3, octaves=None, upsample=True, contrast_threshold=0.04,
-         edge_ratio=10.0, assumed_blur=0.5, border=5, max_steps=5):
+def sift(image: ArrayLike, sigma0: float = 1.6, scales: int = 3, octaves: int | None = None, upsample: bool = True,
+         contrast_threshold: float = 0.04, edge_ratio: float = 10.0, assumed_blur: float = 0.5, border: int = 5,
+         max_steps: int = 5) -> tuple[np.ndarray, np.ndarray]:
     """SIFT keypoints and descriptors (Lowe 2004), with OpenCV's defaults.
 
     Parameters
@@ -421,9 +467,11 @@ def sift(image, sigma0=1.6, scales=3, octaves=None, upsample=True, contrast_thre
     image : (H, W) array_like
         Grayscale image with values in [0, 1] (the thresholds assume that range).
     sigma0, scales, upsample, assumed_blur
-        The scale space, as :func:`gaussian_pyramid` (1.6, 3, True, 0.5).
+        The scale space, as :func:`gaussian_pyramid` (1.6, 3, True, 0.5), with its bounds
+        (checked here, whoever provides the pyramid).
     octaves : int, optional
-        Default: as many as keep the smallest octave's shorter side ≥ 8 pixels.
+        Default: as many as keep the smallest octave's shorter side ≥ 8 pixels; at most as
+        many as :func:`gaussian_pyramid` allows.
     contrast_threshold : float
         Keypoints need ``|D(x̂)| ≥ contrast_threshold / scales`` (OpenCV's 0.04); candidates
         need ``|D| > 0.5 · contrast_threshold / scales`` first.
@@ -432,7 +480,8 @@ def sift(image, sigma0=1.6, scales=3, octaves=None, upsample=True, contrast_thre
     border : int
         Extrema closer than this to the border of their octave are ignored (OpenCV's 5).
     max_steps : int
-        Newton steps allowed for an extremum to converge (OpenCV's and IPOL's 5).
+        Newton steps allowed for an extremum to converge (OpenCV's and IPOL's 5), at most 100
+        (:data:`MAX_STEPS`).
 
     Returns
     -------
@@ -488,18 +537,15 @@ def sift(image, sigma0=1.6, scales=3, octaves=None, upsample=True, contrast_thre
     (array([23.6, 24.3]), 2.65)
     """
     img = gray(image)
-    sigma0 = check_real(sigma0, "sigma0", positive=True)
-    scales = check_int(scales, "scales", minimum=1)
     contrast = check_real(contrast_threshold, "contrast_threshold", nonnegative=True)
     ratio = check_real(edge_ratio, "edge_ratio", positive=True)
     border = check_int(border, "border", minimum=1)
-    max_steps = check_int(max_steps, "max_steps", minimum=1)
+    max_steps = check_size(max_steps, "max_steps", minimum=1, maximum=MAX_STEPS)
     if not isinstance(upsample, (bool, np.bool_)):
         raise TypeError(f"upsample must be True or False, got {type(upsample).__name__} {upsample!r}")
     if octaves is None:
-        base_shape = (2 * img.shape[0], 2 * img.shape[1]) if upsample else img.shape
-        octaves = _default_octaves(base_shape)
-    octaves = check_int(octaves, "octaves", minimum=1)
+        octaves = _default_octaves((2 * img.shape[0], 2 * img.shape[1]) if upsample else img.shape)
+    sigma0, scales, octaves, _ = pyramid_arguments(img.shape, sigma0, scales, octaves, upsample, assumed_blur)
 
     pyramid = implementation("features.gaussian_pyramid")(img, sigma0, scales, octaves, upsample, assumed_blur)
     pyramid = [as_float_array(level, "a Gaussian octave", ndim=3) for level in pyramid]
@@ -526,10 +572,11 @@ def sift(image, sigma0=1.6, scales=3, octaves=None, upsample=True, contrast_thre
     if points:
         if reference:
             table = np.array([p[:4] for p in points])
-            flags = np.zeros(len(points), dtype=bool)
+            batch = np.zeros(len(points), dtype=bool)
             for key in {(o, s) for o, s, _, _, _ in points}:
                 rows = np.flatnonzero((table[:, 0] == key[0]) & (table[:, 1] == key[1]))
-                flags[rows] = _edge_like_batch(dog[key[0]][key[1]], table[rows, 2], table[rows, 3], ratio)
+                batch[rows] = _edge_like_batch(dog[key[0]][key[1]], table[rows, 2], table[rows, 3], ratio)
+            flags = batch.tolist()
         else:
             flags = [bool(edge_like(dog[o][s], r, c, ratio)) for o, s, r, c, _ in points]
         points = [p for p, flag in zip(points, flags) if not flag]
@@ -544,9 +591,7 @@ def sift(image, sigma0=1.6, scales=3, octaves=None, upsample=True, contrast_thre
     for (o, s), members in sorted(groups.items()):
         level = pyramid[o][s]
         xs, ys, sigmas = (np.array(v) for v in zip(*members))
-        dx = dy = None
-        if orient_reference or describe_reference:
-            dx, dy = _differences(level)
+        dx, dy = _differences(level)       # (used by the batch paths of cvkit's own blocks)
         if orient_reference:
             angles = histogram_peaks(orientation_histograms(dx, dy, xs, ys, sigmas, 36), 0.8)
         else:
