@@ -16,7 +16,10 @@ and the block repeats over the whole sensor. **OpenCV names the same layouts dif
 """
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import as_float_array, as_image
 from ..registry import algorithm
@@ -27,9 +30,10 @@ PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
 #: cvkit's pattern name → the name in OpenCV's ``COLOR_Bayer<XY>2RGB`` conversion codes
 OPENCV_BAYER_NAMES = {"RGGB": "BG", "BGGR": "RG", "GRBG": "GB", "GBRG": "GR"}
 _CHANNEL = {"R": 0, "G": 1, "B": 2}
+Pattern = Literal["RGGB", "BGGR", "GRBG", "GBRG"]
 
 
-def _check_pattern(pattern) -> str:
+def _check_pattern(pattern: str) -> str:
     if not isinstance(pattern, str) or pattern not in PATTERNS:
         raise ValueError(f"pattern must be one of {', '.join(map(repr, PATTERNS))}, got {pattern!r}")
     return pattern
@@ -48,7 +52,7 @@ def channel_map(pattern: str, height: int, width: int, offset: int = 0) -> np.nd
 
 
 @algorithm("formation.bayer_mosaic", section="2.13", check="cvkit.formation.checks:bayer_mosaic")
-def bayer_mosaic(rgb, pattern="RGGB"):
+def bayer_mosaic(rgb: ArrayLike, pattern: Pattern = "RGGB") -> np.ndarray:
     """The raw image a Bayer-filtered sensor records of a colour scene.
 
     Parameters
@@ -82,13 +86,13 @@ def bayer_mosaic(rgb, pattern="RGGB"):
     img = as_image(rgb, "rgb")
     if img.ndim != 3:
         raise ValueError(f"rgb must be an (H, W, 3) colour image, got shape {img.shape}")
-    pattern = _check_pattern(pattern)
+    _check_pattern(pattern)
     channels = channel_map(pattern, img.shape[0], img.shape[1])
     return np.take_along_axis(img, channels[:, :, None], axis=2)[:, :, 0]
 
 
 @algorithm("formation.demosaic_bilinear", section="2.13", check="cvkit.formation.checks:demosaic_bilinear")
-def demosaic_bilinear(raw, pattern="RGGB"):
+def demosaic_bilinear(raw: ArrayLike, pattern: Pattern = "RGGB") -> np.ndarray:
     """Bilinear demosaicking: an RGB image from a Bayer raw image.
 
     Parameters
@@ -140,7 +144,7 @@ def demosaic_bilinear(raw, pattern="RGGB"):
     img = as_float_array(raw, "raw", ndim=2)
     if img.shape[0] < 2 or img.shape[1] < 2:
         raise ValueError(f"raw must be at least 2×2 (one whole Bayer block), got shape {img.shape}")
-    pattern = _check_pattern(pattern)
+    _check_pattern(pattern)
     h, w = img.shape
     padded = np.pad(img, 1, mode="reflect")  # numpy's "reflect" is reflect101
     sites = channel_map(pattern, h + 2, w + 2, offset=-1)

@@ -2,11 +2,15 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import as_float_array
 
+#: what the scalar functions return: an array, or a NumPy float for a scalar input
+Values = np.ndarray | np.float64
 
-def as_values(value, name: str, *, allow_nan: bool = False, allow_inf: bool = False) -> np.ndarray:
+
+def as_values(value: ArrayLike, name: str, *, allow_nan: bool = False, allow_inf: bool = False) -> np.ndarray:
     """``value`` (a number or an array of any shape) as a float64 array.
 
     NaN and ±inf are refused unless allowed; the message names the argument.
@@ -19,6 +23,6 @@ def as_values(value, name: str, *, allow_nan: bool = False, allow_inf: bool = Fa
     return array
 
 
-def scalar_or_array(result: np.ndarray):
+def scalar_or_array(result: np.ndarray) -> Values:
     """A 0-d result as a NumPy scalar (like a ufunc), anything else as the array."""
     return result[()] if result.ndim == 0 else result

@@ -2,10 +2,11 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import as_float_array, check_int, check_real
 from ..registry import algorithm
-from ._common import as_values, scalar_or_array
+from ._common import Values, as_values, scalar_or_array
 
 __all__ = ["quantize", "image_memory_bits", "snr_db", "dynamic_range_db"]
 
@@ -14,7 +15,7 @@ MAX_BITS = 53
 
 
 @algorithm("formation.quantize", section="2.11", check="cvkit.formation.checks:quantize")
-def quantize(image, bits, vmax=1.0):
+def quantize(image: ArrayLike, bits: int, vmax: float = 1.0) -> np.ndarray:
     """Quantize intensities to ``2**bits`` equally spaced levels between 0 and ``vmax``.
 
     Parameters
@@ -71,7 +72,7 @@ def quantize(image, bits, vmax=1.0):
 
 
 @algorithm("formation.image_memory_bits", section="2.11", check="cvkit.formation.checks:image_memory_bits")
-def image_memory_bits(width, height, bits_per_pixel):
+def image_memory_bits(width: int, height: int, bits_per_pixel: int) -> int:
     """Memory needed by an uncompressed digital image, in bits.
 
     Parameters
@@ -107,7 +108,7 @@ def image_memory_bits(width, height, bits_per_pixel):
 
 
 @algorithm("formation.snr_db", section="2.14", check="cvkit.formation.checks:snr_db")
-def snr_db(frames):
+def snr_db(frames: ArrayLike) -> np.ndarray:
     """Per-pixel signal-to-noise ratio, in decibels, of a stack of frames of a static scene.
 
     Parameters
@@ -155,7 +156,7 @@ def snr_db(frames):
 
 
 @algorithm("formation.dynamic_range_db", section="2.15", check="cvkit.formation.checks:dynamic_range_db")
-def dynamic_range_db(e_max, e_min):
+def dynamic_range_db(e_max: ArrayLike, e_min: ArrayLike) -> Values:
     """Dynamic range of a sensor in decibels.
 
     Parameters

@@ -2,16 +2,17 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import as_float_array, check_real
 from ..registry import algorithm
-from ._common import as_values, scalar_or_array
+from ._common import Values, as_values, scalar_or_array
 
 __all__ = ["project_pinhole", "depth_from_disparity"]
 
 
 @algorithm("formation.project_pinhole", section="2.3", check="cvkit.formation.checks:project_pinhole")
-def project_pinhole(points_cam, f):
+def project_pinhole(points_cam: ArrayLike, f: float) -> np.ndarray:
     """Perspective projection of 3-D points given in the camera reference system.
 
     Parameters
@@ -67,7 +68,7 @@ def project_pinhole(points_cam, f):
 
 
 @algorithm("formation.depth_from_disparity", section="2.5.1", check="cvkit.formation.checks:depth_from_disparity")
-def depth_from_disparity(disparity, baseline, focal):
+def depth_from_disparity(disparity: ArrayLike, baseline: float, focal: float) -> Values:
     """Depth of points seen by a rectified stereo pair, from their disparity.
 
     Parameters

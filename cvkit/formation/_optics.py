@@ -2,17 +2,18 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import check_real
 from ..registry import algorithm
-from ._common import as_values, scalar_or_array
+from ._common import Values, as_values, scalar_or_array
 
 __all__ = ["thin_lens_image_distance", "blur_circle_diameter"]
 
 
 @algorithm("formation.thin_lens_image_distance", section="2.8.1",
            check="cvkit.formation.checks:thin_lens_image_distance")
-def thin_lens_image_distance(object_distance, focal_length):
+def thin_lens_image_distance(object_distance: ArrayLike, focal_length: float) -> Values:
     """Distance behind a thin lens at which a point at ``object_distance`` is in focus.
 
     Parameters
@@ -64,7 +65,8 @@ def thin_lens_image_distance(object_distance, focal_length):
 
 
 @algorithm("formation.blur_circle_diameter", section="2.8–2.9", check="cvkit.formation.checks:blur_circle_diameter")
-def blur_circle_diameter(object_distance, focus_distance, focal_length, aperture_diameter):
+def blur_circle_diameter(object_distance: ArrayLike, focus_distance: ArrayLike, focal_length: ArrayLike,
+                         aperture_diameter: ArrayLike) -> Values:
     """Diameter of the blur circle (circle of confusion) of an out-of-focus point.
 
     Parameters

@@ -7,6 +7,7 @@ a ``numpy.random.Generator``, an int seed or ``None``. The same seed gives the s
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import as_image, as_rng, check_real
 from ..registry import algorithm
@@ -15,7 +16,7 @@ __all__ = ["add_gaussian", "add_salt_and_pepper"]
 
 
 @algorithm("noise.add_gaussian", section="3.1", check="cvkit.noise.checks:add_gaussian")
-def add_gaussian(image, sigma, rng=None):
+def add_gaussian(image: ArrayLike, sigma: float, rng: np.random.Generator | int | None = None) -> np.ndarray:
     """Add independent zero-mean Gaussian noise to every pixel (and channel).
 
     Parameters
@@ -57,7 +58,8 @@ def add_gaussian(image, sigma, rng=None):
 
 
 @algorithm("noise.add_salt_and_pepper", section="3.10", check="cvkit.noise.checks:add_salt_and_pepper")
-def add_salt_and_pepper(image, amount, rng=None, low=0.0, high=1.0):
+def add_salt_and_pepper(image: ArrayLike, amount: float, rng: np.random.Generator | int | None = None,
+                        low: float = 0.0, high: float = 1.0) -> np.ndarray:
     """Impulse (salt-and-pepper) noise: replace a fraction of the pixels by ``low`` or ``high``.
 
     Parameters
