@@ -347,3 +347,23 @@ def test_a_named_pipe_in_place_of_a_notebook_is_skipped_without_blocking(tmp_pat
     folder.mkdir(parents=True)
     os.mkfifo(folder / "ch03.ipynb")
     assert {p.a for p in similarity.report(course, source, "ch03")} == {"ann", "bob"}
+
+
+def test_the_vectorized_pre_check_gives_copydetects_own_values(ch03):
+    from copydetect import compare_files
+
+    _, exercises, solutions = ch03
+    texts = [solutions["add_salt_and_pepper_answer"], SALT_COPY, inspect.getsource(alternatives_ch03.add_salt_and_pepper),
+             exercises["add_salt_and_pepper_answer"].reference, KERNEL_LOOP]
+    comparer = similarity._Comparer(exercises["add_salt_and_pepper_answer"].stub)
+    for text in texts:
+        comparer.size(similarity._normalised(text))
+    documents = list(comparer.documents.values())
+    assert len(documents) == len(texts)
+    values = set()
+    for one in documents:
+        for two in documents:
+            _, shares, _ = compare_files(one.fingerprint, two.fingerprint)
+            assert (one.share(two), two.share(one)) == pytest.approx(shares, abs=1e-12)
+            values.add(round(float(shares[0]), 3))
+    assert len(values) > 5  # pairs from unrelated to identical

@@ -284,31 +284,64 @@ def _boilerplate(stub: str) -> Any:
     return np.array(sorted(_fingerprint(_normalised(stub)).hashes)) if stub.strip() else None
 
 
+class _Document:
+    """One normalised text's copydetect fingerprint, and its (hash, position) pairs as arrays."""
+
+    def __init__(self, normalised: str, boilerplate: Any) -> None:
+        import numpy as np
+
+        self.fingerprint = _fingerprint(normalised, boilerplate)
+        index = self.fingerprint.hash_idx
+        self.hashes = np.array([h for h, places in index.items() for _ in places], dtype=np.int64)
+        self.positions = np.array([p for places in index.values() for p in places], dtype=np.int64)
+        self.unique = np.unique(self.hashes)
+
+    def share(self, other: _Document) -> float:
+        """The fraction of this text's own code that ``other`` contains, as
+        :func:`copydetect.compare_files` computes it (copydetect's ``get_copied_slices`` over
+        the positions of the shared k-grams, found by one vectorized binary search)."""
+        import numpy as np
+        from copydetect.utils import get_copied_slices
+
+        if other.unique.size == 0 or not self.fingerprint.token_coverage:
+            return 0.0
+        found = other.unique[np.minimum(np.searchsorted(other.unique, self.hashes), other.unique.size - 1)]
+        shared = self.positions[found == self.hashes]
+        if shared.size == 0:
+            return 0.0
+        starts, ends = get_copied_slices(shared, self.fingerprint.k)
+        return float(np.sum(ends - starts)) / float(self.fingerprint.token_coverage)
+
+
 class _Comparer:
     """The fingerprints of one exercise's texts (one per distinct normalised text: copies are
     fingerprinted and compared once) and their pairwise similarities."""
 
     def __init__(self, stub: str) -> None:
         self.boilerplate = _boilerplate(stub)
-        self.prints: dict[str, Any] = {}
+        self.documents: dict[str, _Document] = {}
         self.values: dict[tuple[str, str], float] = {}
 
     def size(self, normalised: str) -> float:
         """Normalised characters of the text's own code (covered by k-grams not in the stub)."""
-        if normalised not in self.prints:
-            self.prints[normalised] = _fingerprint(normalised, self.boilerplate)
-        return float(self.prints[normalised].token_coverage)
+        if normalised not in self.documents:
+            self.documents[normalised] = _Document(normalised, self.boilerplate)
+        return float(self.documents[normalised].fingerprint.token_coverage)
 
-    def similarity(self, first: str, second: str) -> float:
-        """Mean over the two texts of the fraction of each one's own code found in the other."""
+    def similarity(self, first: str, second: str, threshold: float) -> float:
+        """Mean over the two texts of the fraction of each one's own code found in the other.
+
+        The vectorized :meth:`_Document.share` gives the value of every pair; the pairs it
+        finds at or above ``threshold`` are measured again by :func:`copydetect.compare_files`,
+        whose value is the one reported."""
         from copydetect import compare_files
 
         key = (first, second) if first <= second else (second, first)
         if key not in self.values:
-            one, two = self.prints[key[0]], self.prints[key[1]]
-            value = 0.0
-            if one.hashes & two.hashes:
-                _, (share_one, share_two), _ = compare_files(one, two)
+            one, two = self.documents[key[0]], self.documents[key[1]]
+            value = (one.share(two) + two.share(one)) / 2.0
+            if value >= threshold - 1e-9 and value > 0.0:
+                _, (share_one, share_two), _ = compare_files(one.fingerprint, two.fingerprint)
                 value = (float(share_one) + float(share_two)) / 2.0
             self.values[key] = value
         return self.values[key]
@@ -376,7 +409,7 @@ def similar_pairs(answers: Mapping[str, Mapping[str, str]], exercises: Mapping[s
                     targets.append(name)
         comparisons = list(combinations(students, 2)) + [(a, b) for a in students for b in targets]
         for a, b in comparisons:
-            value = comparer.similarity(texts[a][1], texts[b][1])
+            value = comparer.similarity(texts[a][1], texts[b][1], threshold)
             if value >= threshold:
                 pairs.append(SimilarPair(grade_id, a, b, round(value, 6), texts[a][0], texts[b][0], assignment))
     return sorted(pairs, key=lambda p: (-p.similarity, p.exercise, p.a, p.b))
