@@ -18,11 +18,18 @@ student's loop version finishes in well under a second per case.
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from ..grading import Case, Check, Close, Mistake, close
+from ..grading import Case, Check, Mistake, close
+from ..grading.casekit import BORDERS, random_image, variant
+from ..grading.casekit import SWAPPED_REFLECT as _SWAP
+from ..grading.casekit import distinct as _distinct
+from ..grading.casekit import sigma as _sigma
+from ..grading.casekit import size as _size
+from ..grading.casekit import uniform as _u
 from ._linear import convolve as _convolve
 from ._linear import correlate as _correlate
 from ._linear import gaussian as _gaussian
@@ -39,10 +46,6 @@ __all__ = [
     "median", "bilateral", "nl_means", "temporal_mean", "BORDERS",
 ]
 
-BORDERS = ("zero", "replicate", "reflect", "reflect101")
-_SWAP = {"reflect": "reflect101", "reflect101": "reflect"}
-
-
 #: padding copies values: exact
 _EXACT = close(rtol=0.0, atol=0.0, kind="f")
 #: sums of products: loop, vectorised, FFT and integral-image versions agree to ~1e-12 of the
@@ -55,42 +58,21 @@ _NONLINEAR = close(rtol=1e-7, atol=1e-10, kind="f", scaled=True)
 # --------------------------------------------------------------------------------------------
 # case helpers
 # --------------------------------------------------------------------------------------------
-def _distinct(h: int, w: int, channels: int | None = None, *, seed: int = 7, scale: float = 1.0,
-              dtype=np.float64) -> np.ndarray:
-    """A small image whose values are distinct integers 0..n−1 (times ``scale``) in a fixed
-    shuffled order: every border rule, flip and shift shows in the output."""
-    shape = (h, w) if channels is None else (h, w, channels)
-    n = int(np.prod(shape))
-    values = np.random.default_rng(seed).permutation(n).reshape(shape)
-    return (values * scale).astype(dtype)
-
-
 def _image(rng: np.random.Generator, h: int, w: int, kind: str = "unit", channels: int | None = None) -> np.ndarray:
+    """A random image (:func:`~cvkit.grading.casekit.random_image`), or ``"step"``: a noisy vertical
+    edge (what edge-preserving filters are for), or ``"impulses"``: flat grey with a few black and
+    white pixels."""
     shape = (int(h), int(w)) if channels is None else (int(h), int(w), channels)
-    if kind == "unit":
-        return rng.random(shape)
-    if kind == "uint8":
-        return rng.integers(0, 256, shape, dtype=np.uint8)
-    if kind == "big":
-        return rng.uniform(-1e6, 1e6, shape)
-    if kind == "normal":
-        return rng.normal(0.0, 3.0, shape)
-    if kind == "const":
-        return np.full(shape, float(np.round(rng.uniform(-5, 5), 3)))
-    if kind == "step":  # a noisy vertical edge: what edge-preserving filters are for
+    if kind == "step":
         img = np.zeros(shape)
         img[:, shape[1] // 2:] = 1.0
         return img * 0.6 + 0.2 + rng.normal(0, 0.05, shape)
-    if kind == "impulses":  # flat grey with a few black and white pixels
+    if kind == "impulses":
         img = np.full(shape, 0.5) + rng.normal(0, 0.02, shape)
         mask = rng.random(shape[:2]) < 0.15
         img[mask] = rng.choice([0.0, 1.0], size=mask.sum())[(...,) + (None,) * (len(shape) - 2)]
         return img
-    raise ValueError(kind)
-
-
-def _size(rng: np.random.Generator, lo: int, hi: int) -> int:
-    return int(rng.integers(lo, hi + 1))
+    return random_image(rng, shape, kind)
 
 
 def _kernel(rng: np.random.Generator, kh: int, kw: int) -> np.ndarray:
@@ -98,21 +80,6 @@ def _kernel(rng: np.random.Generator, kh: int, kw: int) -> np.ndarray:
     k = np.round(rng.normal(0.0, 1.0, (kh, kw)), 3)
     k[0, 0] += 1.5  # never symmetric under flips or transposition
     return k
-
-
-def _sigma(rng: np.random.Generator, lo: float, hi: float, *, frac=(0.1, 0.9)) -> float:
-    """σ in [lo, hi], σ ≠ 1, with 3σ at a fractional part in ``frac`` (far from integers:
-    ceil, floor and round of 3σ are unambiguous and 3σ never sits on a rounding edge)."""
-    for _ in range(1000):
-        s = float(np.round(rng.uniform(lo, hi), 3))
-        f = 3 * s - math.floor(3 * s)
-        if frac[0] <= f <= frac[1] and abs(s - 1.0) > 0.05:
-            return s
-    raise RuntimeError("no suitable sigma")  # pragma: no cover
-
-
-def _border_of(case: Case) -> str:
-    return case.kwargs.get("border", "reflect101")
 
 
 # --------------------------------------------------------------------------------------------
@@ -207,10 +174,10 @@ def _pad_hidden(rng):
 
 pad = Check(
     public=[
-        Case((_distinct(5, 6), 2), {}, "5×6 image, radius 2, default border (reflect101)"),
-        Case((_distinct(5, 6), (1, 3)), {"border": "reflect"}, "radius (ry, rx) = (1, 3), reflect"),
-        Case((_distinct(4, 5, 3), 1), {"border": "replicate"}, "colour 4×5×3 image, radius 1, replicate"),
-        Case((_distinct(3, 4), (2, 1)), {"border": "zero"}, "radius (2, 1), zero border"),
+        Case((_distinct((5, 6)), 2), {}, "5×6 image, radius 2, default border (reflect101)"),
+        Case((_distinct((5, 6)), (1, 3)), {"border": "reflect"}, "radius (ry, rx) = (1, 3), reflect"),
+        Case((_distinct((4, 5, 3)), 1), {"border": "replicate"}, "colour 4×5×3 image, radius 1, replicate"),
+        Case((_distinct((3, 4)), (2, 1)), {"border": "zero"}, "radius (2, 1), zero border"),
     ],
     hidden=_pad_hidden,
     compare=_EXACT,
@@ -292,13 +259,13 @@ def _linear_hidden(rng, even_sizes):
 
 correlate = Check(
     public=[
-        Case((_distinct(5, 6), np.array([[1.0, 2.0, 0.0], [0.0, 1.0, -1.0], [3.0, 0.0, 1.0]])), {},
+        Case((_distinct((5, 6)), np.array([[1.0, 2.0, 0.0], [0.0, 1.0, -1.0], [3.0, 0.0, 1.0]])), {},
              "5×6 image, asymmetric 3×3 kernel, default border (reflect101)"),
-        Case((_distinct(6, 7), np.array([[1.0, 2.0, 3.0, 4.0], [0.0, -1.0, 0.0, 2.0]])), {"border": "reflect"},
+        Case((_distinct((6, 7)), np.array([[1.0, 2.0, 3.0, 4.0], [0.0, -1.0, 0.0, 2.0]])), {"border": "reflect"},
              "even 2×4 kernel (anchor (1, 2)), reflect"),
-        Case((_distinct(4, 5, 3), np.array([[1.0, 0.0], [2.0, -1.0], [0.0, 3.0]])), {"border": "zero"},
+        Case((_distinct((4, 5, 3)), np.array([[1.0, 0.0], [2.0, -1.0], [0.0, 3.0]])), {"border": "zero"},
              "colour image, 3×2 kernel, zero border"),
-        Case((_distinct(5, 6), np.array([[0.0, 1.0, 2.0], [1.0, 0.0, 0.0]])), {"output": "valid"},
+        Case((_distinct((5, 6)), np.array([[0.0, 1.0, 2.0], [1.0, 0.0, 0.0]])), {"output": "valid"},
              "output='valid' (shape 4×4)"),
     ],
     hidden=lambda rng: _linear_hidden(rng, ((4, 4), (2, 4))),
@@ -355,13 +322,13 @@ def _conv_swapped(image, kernel, border="reflect101", output="same"):
 
 convolve = Check(
     public=[
-        Case((_distinct(5, 6), np.array([[1.0, 2.0, 0.0], [0.0, 1.0, -1.0], [3.0, 0.0, 1.0]])), {},
+        Case((_distinct((5, 6)), np.array([[1.0, 2.0, 0.0], [0.0, 1.0, -1.0], [3.0, 0.0, 1.0]])), {},
              "5×6 image, asymmetric 3×3 kernel, default border (reflect101)"),
-        Case((_distinct(6, 7), np.array([[1.0, 2.0, 3.0, 4.0], [0.0, -1.0, 0.0, 2.0]])), {"border": "reflect"},
+        Case((_distinct((6, 7)), np.array([[1.0, 2.0, 3.0, 4.0], [0.0, -1.0, 0.0, 2.0]])), {"border": "reflect"},
              "even 2×4 kernel (as scipy.ndimage.convolve), reflect"),
-        Case((_distinct(4, 5, 3), np.array([[1.0, 0.0], [2.0, -1.0], [0.0, 3.0]])), {"border": "zero"},
+        Case((_distinct((4, 5, 3)), np.array([[1.0, 0.0], [2.0, -1.0], [0.0, 3.0]])), {"border": "zero"},
              "colour image, 3×2 kernel, zero border"),
-        Case((_distinct(5, 6), np.array([[0.0, 1.0, 2.0], [1.0, 0.0, 0.0]])), {"output": "valid"},
+        Case((_distinct((5, 6)), np.array([[0.0, 1.0, 2.0], [1.0, 0.0, 0.0]])), {"output": "valid"},
              "output='valid' (shape 4×4)"),
     ],
     hidden=lambda rng: _linear_hidden(rng, ((4, 4), (2, 4))),
@@ -480,9 +447,9 @@ def _mean_hidden(rng):
 
 mean = Check(
     public=[
-        Case((_distinct(5, 6), 3), {}, "5×6 image, 3×3 window, default border (reflect101)"),
-        Case((_distinct(6, 7), 3), {"border": "reflect"}, "3×3 window, reflect"),
-        Case((_distinct(4, 5, 3, dtype=np.uint8), 3), {"border": "replicate"}, "colour uint8 image, replicate"),
+        Case((_distinct((5, 6)), 3), {}, "5×6 image, 3×3 window, default border (reflect101)"),
+        Case((_distinct((6, 7)), 3), {"border": "reflect"}, "3×3 window, reflect"),
+        Case((_distinct((4, 5, 3), dtype=np.uint8), 3), {"border": "replicate"}, "colour uint8 image, replicate"),
     ],
     hidden=_mean_hidden,
     compare=_LINEAR,
@@ -645,9 +612,9 @@ def _gaussian_hidden(rng):
 
 gaussian = Check(
     public=[
-        Case((_distinct(7, 8), 1.4), {}, "7×8 image, σ = 1.4, default border (reflect101)"),
-        Case((_distinct(6, 7, 3), 0.8), {"border": "reflect"}, "colour image, σ = 0.8, reflect"),
-        Case((_distinct(6, 9, dtype=np.uint8, scale=4), 0.6), {"border": "replicate"},
+        Case((_distinct((7, 8)), 1.4), {}, "7×8 image, σ = 1.4, default border (reflect101)"),
+        Case((_distinct((6, 7, 3)), 0.8), {"border": "reflect"}, "colour image, σ = 0.8, reflect"),
+        Case((_distinct((6, 9), dtype=np.uint8, scale=4), 0.6), {"border": "replicate"},
              "uint8 image, σ = 0.6, replicate"),
     ],
     hidden=_gaussian_hidden,
@@ -713,9 +680,9 @@ def _median_hidden(rng):
 
 median = Check(
     public=[
-        Case((_distinct(5, 6), 3), {}, "5×6 image, 3×3 window, default border (reflect101)"),
-        Case((_distinct(6, 7), 3), {"border": "reflect"}, "3×3 window, reflect"),
-        Case((_distinct(4, 5, 3, dtype=np.uint8), 3), {"border": "replicate"}, "colour uint8 image, replicate"),
+        Case((_distinct((5, 6)), 3), {}, "5×6 image, 3×3 window, default border (reflect101)"),
+        Case((_distinct((6, 7)), 3), {"border": "reflect"}, "3×3 window, reflect"),
+        Case((_distinct((4, 5, 3), dtype=np.uint8), 3), {"border": "replicate"}, "colour uint8 image, replicate"),
     ],
     hidden=_median_hidden,
     compare=_NONLINEAR,
@@ -772,10 +739,7 @@ def _bilateral_variant(image, sigma_space, sigma_range, radius=None, border="ref
     return out[..., 0] if img.ndim == 2 else out
 
 
-def _bil(**knobs):
-    def wrong(image, sigma_space, sigma_range, radius=None, border="reflect101"):
-        return _bilateral_variant(image, sigma_space, sigma_range, radius, border, **knobs)
-    return wrong
+_bil = partial(variant, _bilateral_variant)
 
 
 def _bilateral_hidden(rng):
@@ -786,15 +750,15 @@ def _bilateral_hidden(rng):
         return _sigma(rng, 0.6, 1.3)
 
     return [
-        Case((img(_size(rng, 8, 14), _size(rng, 10, 18), "step"), ss(), float(np.round(rng.uniform(0.1, 0.4), 2))),
+        Case((img(_size(rng, 8, 14), _size(rng, 10, 18), "step"), ss(), _u(rng, 0.1, 0.4, 2)),
              {"border": "zero"}, "noisy edge, default radius, zero border"),
-        Case((img(_size(rng, 8, 14), _size(rng, 10, 18)), ss(), float(np.round(rng.uniform(0.15, 0.5), 2))),
+        Case((img(_size(rng, 8, 14), _size(rng, 10, 18)), ss(), _u(rng, 0.15, 0.5, 2)),
              {"border": "replicate"}, "default radius, replicate"),
-        Case((img(_size(rng, 8, 14), _size(rng, 10, 18), "step"), ss(), float(np.round(rng.uniform(0.1, 0.4), 2)), 2),
+        Case((img(_size(rng, 8, 14), _size(rng, 10, 18), "step"), ss(), _u(rng, 0.1, 0.4, 2), 2),
              {"border": "reflect"}, "radius 2 given, reflect"),
-        Case((img(_size(rng, 8, 14), _size(rng, 10, 18)), ss(), float(np.round(rng.uniform(0.15, 0.5), 2))),
+        Case((img(_size(rng, 8, 14), _size(rng, 10, 18)), ss(), _u(rng, 0.15, 0.5, 2)),
              {"radius": 1, "border": "reflect101"}, "radius=1, reflect101"),
-        Case((img(_size(rng, 7, 12), _size(rng, 8, 14), channels=3), ss(), float(np.round(rng.uniform(0.2, 0.5), 2))),
+        Case((img(_size(rng, 7, 12), _size(rng, 8, 14), channels=3), ss(), _u(rng, 0.2, 0.5, 2)),
              {"border": str(rng.choice(BORDERS[1:]))}, "colour image (Euclidean RGB distance)"),
         Case((img(_size(rng, 7, 10), _size(rng, 8, 12), "step", channels=3), ss(), 0.3, 2),
              {"border": "reflect101"}, "colour edge, radius 2"),
@@ -812,10 +776,10 @@ def _bilateral_hidden(rng):
 
 bilateral = Check(
     public=[
-        Case((_distinct(6, 7, scale=1 / 41), 1.0, 0.3), {}, "6×7 image, σs = 1, σr = 0.3, default radius 3"),
-        Case((_distinct(5, 6, 3, scale=1 / 89), 0.8, 0.25, 2), {"border": "reflect"},
+        Case((_distinct((6, 7), scale=1 / 41), 1.0, 0.3), {}, "6×7 image, σs = 1, σr = 0.3, default radius 3"),
+        Case((_distinct((5, 6, 3), scale=1 / 89), 0.8, 0.25, 2), {"border": "reflect"},
              "colour image, radius 2, reflect"),
-        Case((_distinct(6, 8, dtype=np.uint8, scale=5), 1.2, 40.0), {"border": "zero"},
+        Case((_distinct((6, 8), dtype=np.uint8, scale=5), 1.2, 40.0), {"border": "zero"},
              "uint8 image, σr = 40, zero border"),
     ],
     hidden=_bilateral_hidden,
@@ -875,10 +839,7 @@ def _nlm_variant(image, h, patch_size=7, search_size=21, border="reflect101", *,
     return out[..., 0] if img.ndim == 2 else out
 
 
-def _nlm(**knobs):
-    def wrong(image, h, patch_size=7, search_size=21, border="reflect101"):
-        return _nlm_variant(image, h, patch_size, search_size, border, **knobs)
-    return wrong
+_nlm = partial(variant, _nlm_variant)
 
 
 def _nlm_hidden(rng):
@@ -886,7 +847,7 @@ def _nlm_hidden(rng):
         return _image(rng, h, w, kind, channels)
 
     def hh(lo=0.06, hi=0.2):
-        return float(np.round(rng.uniform(lo, hi), 3))
+        return _u(rng, lo, hi)
 
     return [
         Case((img(_size(rng, 9, 14), _size(rng, 10, 16)), hh(), 3, 5), {"border": "zero"},
@@ -915,10 +876,10 @@ def _nlm_hidden(rng):
 
 nl_means = Check(
     public=[
-        Case((_distinct(6, 7, scale=1 / 41), 0.25, 3, 5), {}, "6×7 image, h = 0.25, patch 3, search 5"),
-        Case((_distinct(5, 6, 3, scale=1 / 89), 0.2, 3, 5), {"border": "reflect"},
+        Case((_distinct((6, 7), scale=1 / 41), 0.25, 3, 5), {}, "6×7 image, h = 0.25, patch 3, search 5"),
+        Case((_distinct((5, 6, 3), scale=1 / 89), 0.2, 3, 5), {"border": "reflect"},
              "colour image, patch 3, search 5, reflect"),
-        Case((_distinct(6, 6, dtype=np.uint8, scale=7), 60.0, 3, 3), {"border": "zero"},
+        Case((_distinct((6, 6), dtype=np.uint8, scale=7), 60.0, 3, 3), {"border": "zero"},
              "uint8 image, h = 60, zero border"),
     ],
     hidden=_nlm_hidden,
