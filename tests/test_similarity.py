@@ -367,3 +367,15 @@ def test_the_vectorized_pre_check_gives_copydetects_own_values(ch03):
             assert (one.share(two), two.share(one)) == pytest.approx(shares, abs=1e-12)
             values.add(round(float(shares[0]), 3))
     assert len(values) > 5  # pairs from unrelated to identical
+
+
+def test_huge_answers_are_cut_and_padding_with_repeated_lines_hides_no_copy(ch03):
+    _, exercises, _ = ch03
+    huge = SALT_COPY + "\n".join(f"    waste_{i} = [{i}] * {i}" for i in range(20000))
+    assert len(huge) > 2 * similarity.MAX_ANSWER_CHARS
+    pairs = similarity.similar_pairs({"kim": {"add_salt_and_pepper_answer": huge},
+                                      "lee": {"add_salt_and_pepper_answer": huge}}, exercises)
+    assert (pairs[0].a, pairs[0].b) == ("kim", "lee") and pairs[0].similarity == pytest.approx(1.0)
+    assert pairs[0].a_source == huge[: similarity.MAX_ANSWER_CHARS]
+    # the 20000 lines read the same once normalised, and a repeated k-gram counts once
+    assert {(p.a, p.b) for p in pairs[1:]} == {("kim", SOLUTION), ("lee", SOLUTION)}

@@ -19,7 +19,9 @@ Each answer becomes a :class:`copydetect.CodeFingerprint` of its k-grams (:data:
 normalised characters, every k-gram kept: copydetect's window 1, since answers are short),
 without the k-grams of the released answer cell (the stub every student starts from: the
 ``def`` line, the docstring, ``raise NotImplementedError()``), passed as copydetect's
-boilerplate. :func:`copydetect.compare_files` gives, for each of the two answers, the fraction
+boilerplate (copydetect 0.5 then also keeps only the last occurrence of a repeated k-gram,
+so an answer padded with many copies of a line is measured as if the line were there once).
+:func:`copydetect.compare_files` gives, for each of the two answers, the fraction
 of its own code that is covered by matches; the **similarity of a pair is the mean of the two
 fractions** (symmetric; the mean, rather than the minimum, still reports a short answer pasted
 whole into a longer one, e.g. a reference with its input checks; rather than the maximum, it
@@ -28,6 +30,13 @@ does not report every answer that contains a short one).
 Renamed variables, other strings and numbers, changed comments and white space do not change
 the normalised text; reordering independent statements only breaks the k-grams that span the
 moved boundaries, which is why :data:`NOISE` is 20 rather than copydetect's 25.
+
+Every pair of distinct normalised texts is first measured by a vectorized equivalent of
+:func:`copydetect.compare_files` (copydetect's own ``get_copied_slices`` on the shared k-grams'
+positions; same values, tested), and :func:`~copydetect.compare_files` measures again the pairs
+that reach the threshold: its value is the one reported. Identical normalised texts (copies)
+are fingerprinted and compared once. Tokenizing (Pygments) costs a few milliseconds per answer,
+a pair well under one.
 
 What is skipped: unanswered cells (the released stub as it is, or nothing of the student's own
 left once the stub's k-grams are removed) and answers with fewer than ``min_size``
@@ -61,7 +70,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 __all__ = [
-    "NOISE", "THRESHOLD", "MIN_SIZE", "SOLUTION", "CODE_STUB", "MAX_NOTEBOOK_BYTES", "SimilarPair", "Exercise",
+    "NOISE", "THRESHOLD", "MIN_SIZE", "SOLUTION", "CODE_STUB", "MAX_NOTEBOOK_BYTES", "MAX_ANSWER_CHARS", "SimilarPair", "Exercise",
     "answer_sources", "exercise_algorithms", "exercises_from", "similar_pairs", "report",
     "write_csv", "write_html", "reference_label",
 ]
@@ -78,8 +87,9 @@ SOLUTION = "(instructor's solution)"
 CODE_STUB = "# YOUR CODE HERE\nraise NotImplementedError()"
 #: notebooks larger than this are not read (a notebook's answers are a few kB)
 MAX_NOTEBOOK_BYTES = 64 * 2**20
+#: answers are compared (and shown) up to this many characters
+MAX_ANSWER_CHARS = 100_000
 
-_BEGIN, _END = "### BEGIN SOLUTION", "### END SOLUTION"
 _SOLUTION_REGION = re.compile(r"^([ \t]*)### BEGIN SOLUTION[^\n]*\n(.*?)^[ \t]*### END SOLUTION[^\n]*$",
                               re.MULTILINE | re.DOTALL)
 _NUMBER = re.compile(r"(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?[jJ]?")
@@ -374,7 +384,7 @@ def similar_pairs(answers: Mapping[str, Mapping[str, str]], exercises: Mapping[s
         Smallest similarity reported, in [0, 1].
     min_size : int, default MIN_SIZE
         Answers (and references, solutions) with fewer normalised characters of their own are
-        not compared.
+        not compared. Answers longer than :data:`MAX_ANSWER_CHARS` are cut there.
     assignment : str, optional
         Copied into every pair.
 
@@ -398,6 +408,7 @@ def similar_pairs(answers: Mapping[str, Mapping[str, str]], exercises: Mapping[s
         for student in sorted(answers, key=str):
             text = answers[student].get(grade_id)
             if isinstance(text, str) and not _blank(text, exercise.stub):
+                text = text[:MAX_ANSWER_CHARS]
                 texts[str(student)] = (text, _normalised(text))
         students = [name for name in texts if comparer.size(texts[name][1]) >= max(min_size, 1)]
         targets = []
