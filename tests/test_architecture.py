@@ -1,0 +1,158 @@
+"""The import rules of docs/architecture.md, read from every ``import`` in cvkit/."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "cvkit"
+COMMANDS = {"cvkit.cli", "cvkit.scaffold", "cvkit.catalog"}
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {_module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+def _imports(name: str, path: Path) -> list[tuple[str, str, int]]:
+    """(imported module, imported name or "", line) for every import of a cvkit module."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            found += [(alias.name, "", node.lineno) for alias in node.names if alias.name.split(".")[0] == "cvkit"]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if target.split(".")[0] != "cvkit":
+                continue
+            for alias in node.names:
+                submodule = f"{target}.{alias.name}"
+                found.append((submodule, "", node.lineno) if submodule in MODULES else (target, alias.name, node.lineno))
+    return found
+
+
+def layer(name: str) -> int:
+    """The layer of a module, as in docs/architecture.md's table."""
+    parts = name.split(".")
+    if name == "cvkit._validation":
+        return 0
+    if name in ("cvkit", "cvkit.registry"):
+        return 1
+    if name.startswith("cvkit.grading.runtime"):
+        return 3
+    if name.startswith("cvkit.grading"):
+        return 4
+    if name.startswith("cvkit.course"):
+        return 6
+    if name in COMMANDS:
+        return 7
+    if len(parts) >= 3 and parts[2] == "checks":
+        return 5
+    return 2
+
+
+def _room(name: str) -> str:
+    """The package a module belongs to (``cvkit.filters`` for ``cvkit.filters._linear``; a
+    topic's checks and the sandbox runtime count as packages of their own)."""
+    parts = name.split(".")
+    if parts[:3] == ["cvkit", "grading", "runtime"] or len(parts) >= 3 and parts[2] == "checks" and parts[1] != "grading":
+        return ".".join(parts[:3])
+    return ".".join(parts[:2])
+
+
+def _package(name: str) -> str:
+    """The package that owns a private name: ``cvkit.<topic>`` or ``cvkit.grading``."""
+    return ".".join(name.split(".")[:2])
+
+
+EDGES = [(source, target, imported, line)
+         for source, path in MODULES.items() for target, imported, line in _imports(source, path)]
+
+
+def test_the_modules_and_imports_were_found():
+    assert {"cvkit.registry", "cvkit.grading.engine", "cvkit.filters._linear", "cvkit.filters.checks"} <= set(MODULES)
+    assert len(EDGES) > 100
+
+
+def _allowed(source: str, target: str) -> bool:
+    a, b = layer(source), layer(target)
+    if _room(source) == _room(target) or b < a or (source, target) == ("cvkit", "cvkit.registry"):
+        return True
+    if a == b and a in (2, 5, 7):  # topics build on topics, checks on checks, commands on each other
+        return True
+    return False
+
+
+def test_every_import_respects_the_layers():
+    wrong = [f"{s} (layer {layer(s)}) imports {t} (layer {layer(t)}) at line {line}"
+             for s, t, _, line in EDGES if not _allowed(s, t)]
+    assert not wrong, "imports against docs/architecture.md:\n" + "\n".join(wrong)
+
+
+def test_the_runtime_in_the_sandbox_is_self_contained():
+    outside = [f"{s} imports {t}" for s, t, _, _ in EDGES
+               if _room(s) == "cvkit.grading.runtime" and _room(t) != "cvkit.grading.runtime"]
+    assert not outside, outside
+
+
+def test_grading_reaches_the_library_only_through_the_registry():
+    direct = [f"{s} imports {t}" for s, t, _, _ in EDGES
+              if layer(s) == 4 and layer(t) == 2 and _room(t) != "cvkit.data"]
+    assert not direct, direct
+
+
+def test_the_library_never_imports_grading_course_or_commands():
+    upward = [f"{s} imports {t}" for s, t, _, _ in EDGES if layer(s) <= 2 and layer(t) >= 3]
+    assert not upward, upward
+
+
+def test_no_private_name_crosses_a_package():
+    crossing = [f"{s} imports {t}{'.' + n if n else ''} (line {line})" for s, t, n, line in EDGES
+                if _package(s) != _package(t) and (n.startswith("_") and not n.startswith("__")
+                                              or t.rpartition(".")[2].startswith("_") and _room(t) != t
+                                              and layer(t) != 0)]
+    assert not crossing, "private names used across packages:\n" + "\n".join(crossing)
+
+
+def test_no_import_cycles_between_packages():
+    graph: dict[str, set[str]] = {}
+    for s, t, _, _ in EDGES:
+        if _room(s) != _room(t) and t != "cvkit" and s != "cvkit":
+            graph.setdefault(_room(s), set()).add(_room(t))
+    state: dict[str, int] = {}
+    cycle: list[str] = []
+
+    def visit(node: str, path: list[str]) -> bool:
+        state[node] = 1
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                cycle.extend(path + [node, nxt])
+                return True
+            if nxt not in state and visit(nxt, path + [node]):
+                return True
+        state[node] = 2
+        return False
+
+    for node in sorted(graph):
+        if node not in state and visit(node, []):
+            break
+    assert not cycle, " -> ".join(cycle)
+
+
+@pytest.mark.parametrize("source, target, ok", [
+    ("cvkit.filters._linear", "cvkit.grading.engine", False),
+    ("cvkit.filters.checks", "cvkit.grading.compare", True),
+    ("cvkit.grading.engine", "cvkit.course", False),
+    ("cvkit.calibration._zhang", "cvkit.camera._projection", True),
+    ("cvkit.registry", "cvkit.filters", False),
+])
+def test_the_rules_themselves(source, target, ok):
+    assert _allowed(source, target) is ok
