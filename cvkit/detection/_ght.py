@@ -13,12 +13,19 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
+from collections.abc import Sequence
 
-from .._validation import as_float_array, check_int
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import MAX_ARRAY_BYTES, MAX_WORK, as_float_array, check_size
 from ..registry import algorithm, implementation
 
-__all__ = ["ght_build", "ght_detect"]
+__all__ = ["ght_build", "ght_detect", "MAX_BINS"]
+
+#: the most direction bins of an R-table (0.1° each)
+MAX_BINS = 3600
+_FLUSH = 1 << 24  # votes gathered before they are added to the accumulator (at least its size)
 
 
 def _direction_bins(gx: np.ndarray, gy: np.ndarray, bins: int, angle: float = 0.0) -> np.ndarray:
@@ -33,7 +40,8 @@ def _sobel(img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @algorithm("detection.ght_build", section="6.0.6", check="cvkit.detection.checks:ght_build")
-def ght_build(template_edges, template_image, bins=36, reference=None):
+def ght_build(template_edges: ArrayLike, template_image: ArrayLike, bins: int = 36,
+              reference: Sequence[float] | np.ndarray | None = None) -> dict:
     """The R-table of a shape: displacement vectors to the reference point, by gradient direction.
 
     Parameters
@@ -43,7 +51,8 @@ def ght_build(template_edges, template_image, bins=36, reference=None):
     template_image : (h, w) array_like
         The model image, for the gradient directions (finite values).
     bins : int
-        Number of direction bins over the full circle, ``>= 1`` (step Δφ = 2π / bins).
+        Number of direction bins over the full circle, ``1 <= bins <= 3600`` (:data:`MAX_BINS`;
+        step Δφ = 2π / bins).
     reference : (x, y) or None
         The reference point; ``None``: the barycentre (mean x, mean y) of the edge pixels.
 
@@ -85,7 +94,7 @@ def ght_build(template_edges, template_image, bins=36, reference=None):
     img = as_float_array(template_image, "template_image", ndim=2)
     if edges.shape != img.shape:
         raise ValueError(f"template_edges and template_image must have the same shape, got {edges.shape} and {img.shape}")
-    bins = check_int(bins, "bins", minimum=1)
+    bins = check_size(bins, "bins", maximum=MAX_BINS)
     rows, cols = np.nonzero(edges)
     if rows.size == 0:
         raise ValueError("template_edges has no edge pixel: the R-table would be empty")
@@ -105,12 +114,12 @@ def ght_build(template_edges, template_image, bins=36, reference=None):
     return {"bins": bins, "reference": ref, "table": table}
 
 
-def _check_rtable(rtable) -> tuple[int, list]:
+def _check_rtable(rtable: object) -> tuple[int, list[np.ndarray]]:
     if not isinstance(rtable, dict):
         raise TypeError(f"rtable must be the dict made by ght_build, got {type(rtable).__name__}")
     if "bins" not in rtable or "table" not in rtable:
         raise ValueError("rtable must have the keys 'bins' and 'table'")
-    bins = check_int(rtable["bins"], "rtable['bins']", minimum=1)
+    bins = check_size(rtable["bins"], "rtable['bins']", maximum=MAX_BINS)
     table = rtable["table"]
     if not isinstance(table, (list, tuple)) or len(table) != bins:
         raise ValueError(f"rtable['table'] must be a list of rtable['bins'] = {bins} arrays")
@@ -125,13 +134,14 @@ def _check_rtable(rtable) -> tuple[int, list]:
     return bins, rows
 
 
-def _values(values, name: str) -> np.ndarray:
+def _values(values: ArrayLike, name: str) -> np.ndarray:
     arr = as_float_array(values, name, ndim=1)
     return arr
 
 
 @algorithm("detection.ght_detect", section="6.0.7", check="cvkit.detection.checks:ght_detect")
-def ght_detect(image, rtable, scales=(1.0,), angles=(0.0,), edge_params=None):
+def ght_detect(image: ArrayLike, rtable: dict, scales: ArrayLike = (1.0,), angles: ArrayLike = (0.0,),
+               edge_params: dict | None = None) -> tuple[np.ndarray, tuple[int, int, float, float]]:
     """Vote for the reference point of the R-table's shape over positions, scales and angles.
 
     Parameters
@@ -145,7 +155,13 @@ def ght_detect(image, rtable, scales=(1.0,), angles=(0.0,), edge_params=None):
     angles : sequence of float
         Rotations a to try, radians (y down: a positive angle turns clockwise on screen).
     edge_params : dict or None
-        Keyword arguments of ``edges.canny`` (default: its defaults).
+        Keyword arguments of ``edges.canny`` (default: its defaults); an error of ``canny``
+        about them is raised again naming ``edge_params``.
+
+        Bounds: the accumulator, S·A·H·W floats, may take at most 2 GiB, and the voting
+        — about ``10·S·A·n·m / bins`` operations for n edge pixels and an R-table of m
+        vectors, plus a Python step per (angle, bin) — at most ``cvkit._validation.MAX_WORK``
+        (2**36, about a minute); otherwise ``ValueError`` naming ``scales`` and ``angles``.
 
     Returns
     -------
@@ -190,15 +206,31 @@ def ght_detect(image, rtable, scales=(1.0,), angles=(0.0,), edge_params=None):
         raise TypeError(f"edge_params must be a dict of edges.canny keyword arguments or None, got {type(edge_params).__name__}")
     H, W = img.shape
     S, A = s_values.size, a_values.size
-    edge_map = np.asarray(implementation("edges.canny")(img, **edge_params), dtype=bool)
+    size = S * A * H * W
+    if 8 * size > MAX_ARRAY_BYTES:
+        raise ValueError(
+            f"scales and angles ask for an accumulator of shape {(S, A, H, W)} ({8 * size / 1024**3:.3g} GiB), more "
+            f"than the {MAX_ARRAY_BYTES / 1024**3:g} GiB cvkit allows for one array; use fewer scales and angles")
+    try:
+        edge_map = np.asarray(implementation("edges.canny")(img, **edge_params), dtype=bool)
+    except (TypeError, ValueError) as error:
+        raise type(error)(f"edge_params: edges.canny refused them: {error}") from error
     gx, gy = _sobel(img)
     ey, ex = np.nonzero(edge_map)
-    acc = np.zeros(S * A * H * W, dtype=np.float64)
+    vectors = sum(r.shape[0] for r in rows_of)
+    work = 10 * S * A * ey.size * vectors // bins + 2000 * A * bins + 5 * A * ey.size
+    if work > MAX_WORK:
+        raise ValueError(
+            f"scales and angles: voting with {S} scales and {A} angles ({ey.size} edge pixels, {vectors} R-table "
+            f"vectors) needs about {work:.2g} elementary operations, more than the {MAX_WORK:.2g} (about a minute "
+            f"of work) cvkit allows for one call; use fewer scales and angles")
+    counts = np.zeros(size, dtype=np.int64)
     if ey.size:
         px = ex.astype(np.float64)
         py = ey.astype(np.float64)
         gxe, gye = gx[ey, ex], gy[ey, ex]
-        chunks = []
+        chunks: list[np.ndarray] = []
+        pending = 0
         layer = np.arange(S, dtype=np.int64)[None, :, None] * (A * H * W)
         for j, a in enumerate(a_values):
             c, s_ = math.cos(a), math.sin(a)
@@ -218,9 +250,13 @@ def ght_detect(image, rtable, scales=(1.0,), angles=(0.0,), edge_params=None):
                 inside = (vx >= 0) & (vx < W) & (vy >= 0) & (vy < H)
                 flat = layer + (j * H + vy) * W + vx
                 chunks.append(flat[inside])
+                pending += chunks[-1].size
+                if pending >= max(_FLUSH, size):   # bounded memory; the counts are exact integers
+                    counts += np.bincount(np.concatenate(chunks), minlength=size)
+                    chunks, pending = [], 0
         if chunks:
-            acc = np.bincount(np.concatenate(chunks), minlength=S * A * H * W).astype(np.float64)
-    acc = acc.reshape(S, A, H, W)
+            counts += np.bincount(np.concatenate(chunks), minlength=size)
+    acc = counts.astype(np.float64).reshape(S, A, H, W)
     flat = int(np.argmax(acc))
-    i, j, y, x = np.unravel_index(flat, acc.shape)
-    return acc, (int(x), int(y), float(s_values[i]), float(a_values[j]))
+    best = np.unravel_index(flat, acc.shape)
+    return acc, (int(best[3]), int(best[2]), float(s_values[best[0]]), float(a_values[best[1]]))

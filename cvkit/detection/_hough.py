@@ -10,28 +10,42 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, check_int, check_real
+from .._validation import MAX_ARRAY_BYTES, MAX_WORK, as_float_array, check_int, check_real
 from ..registry import algorithm
 
-__all__ = ["hough_lines", "hough_peaks", "theta_samples", "rho_samples"]
+__all__ = ["hough_lines", "hough_peaks", "theta_samples", "rho_samples", "MAX_THETAS"]
+
+#: the most θ samples (theta_step ≥ π / MAX_THETAS, 0.001°): each one is a pass over the edge pixels
+MAX_THETAS = 180_000
+
+
+def _theta_count(theta_step: float) -> int:
+    return max(1, math.ceil(math.pi / theta_step - 1e-9))
+
+
+def _rho_count(shape: tuple[int, ...], rho_step: float) -> int:
+    """Half the number of ρ bins less one, k = ceil(hypot(H, W) / rho_step) (saturated at 2**62)."""
+    reach = math.hypot(shape[0], shape[1]) / rho_step
+    return math.ceil(reach - 1e-9) if reach < 2.0**62 else 2**62
 
 
 def theta_samples(theta_step: float) -> np.ndarray:
     """θk = −π/2 + k·theta_step for k < ceil(π / theta_step) (a 1e-9 guard keeps π/step
     from rounding up a whole sample)."""
-    count = max(1, math.ceil(math.pi / theta_step - 1e-9))
-    return -math.pi / 2 + np.arange(count) * theta_step
+    return -math.pi / 2 + np.arange(_theta_count(theta_step)) * theta_step
 
 
 def rho_samples(shape: tuple[int, int], rho_step: float) -> np.ndarray:
     """Bin centres rho_step·k for |k| ≤ ceil(hypot(H, W) / rho_step)."""
-    k = math.ceil(math.hypot(shape[0], shape[1]) / rho_step - 1e-9)
+    k = _rho_count(shape, rho_step)
     return np.arange(-k, k + 1) * rho_step
 
 
 @algorithm("detection.hough_lines", section="6.0.5", check="cvkit.detection.checks:hough_lines")
-def hough_lines(edges, theta_step=math.pi / 180, rho_step=1.0):
+def hough_lines(edges: ArrayLike, theta_step: float = math.pi / 180,
+                rho_step: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Hough accumulator of the lines through the nonzero pixels of ``edges``.
 
     Parameters
@@ -39,9 +53,15 @@ def hough_lines(edges, theta_step=math.pi / 180, rho_step=1.0):
     edges : (H, W) array_like
         Edge map (bool or numeric); every nonzero pixel votes.
     theta_step : float
-        Sampling step of θ in radians, ``0 < theta_step <= π``.
+        Sampling step of θ in radians, ``π / 180000 <= theta_step <= π`` (at most
+        :data:`MAX_THETAS` samples, 0.001°: each is a pass over the edge pixels).
     rho_step : float
         Width of a ρ bin in pixels, ``> 0``.
+
+        Bounds: the accumulator may take at most 2 GiB, and the votes, about
+        ``T·(6·n + 2·R)`` operations for T θ samples, R ρ bins and n edge pixels, at most
+        ``cvkit._validation.MAX_WORK`` (2**36, about a minute): ``ValueError`` naming
+        ``theta_step`` and ``rho_step`` otherwise.
 
     Returns
     -------
@@ -82,6 +102,21 @@ def hough_lines(edges, theta_step=math.pi / 180, rho_step=1.0):
     if theta_step > math.pi:
         raise ValueError(f"theta_step must be <= π, got {theta_step}")
     rho_step = check_real(rho_step, "rho_step", positive=True)
+    n_theta, n_rho = _theta_count(theta_step), 2 * _rho_count(e.shape, rho_step) + 1
+    if n_theta > MAX_THETAS:
+        raise ValueError(f"theta_step must be >= π/{MAX_THETAS} (at most {MAX_THETAS} θ samples), got {theta_step:g} "
+                         f"({n_theta} samples)")
+    if 8 * n_rho * n_theta > MAX_ARRAY_BYTES:
+        raise ValueError(
+            f"theta_step = {theta_step:g} and rho_step = {rho_step:g} ask for an accumulator of {n_rho} × {n_theta} "
+            f"bins ({8 * n_rho * n_theta / 1024**3:.3g} GiB), more than the {MAX_ARRAY_BYTES / 1024**3:g} GiB cvkit "
+            f"allows for one array; use larger steps")
+    work = n_theta * (6 * int(np.count_nonzero(e)) + 2 * n_rho)
+    if work > MAX_WORK:
+        raise ValueError(
+            f"theta_step = {theta_step:g} and rho_step = {rho_step:g}: voting in {n_rho} × {n_theta} bins needs about "
+            f"{work:.2g} elementary operations, more than the {MAX_WORK:.2g} (about a minute of work) cvkit allows "
+            f"for one call; use larger steps")
     thetas = theta_samples(theta_step)
     rhos = rho_samples(e.shape, rho_step)
     offset = (rhos.size - 1) // 2
@@ -99,7 +134,8 @@ def hough_lines(edges, theta_step=math.pi / 180, rho_step=1.0):
 
 
 @algorithm("detection.hough_peaks", section="6.0.5", check="cvkit.detection.checks:hough_peaks")
-def hough_peaks(accumulator, thetas, rhos, count=10, threshold=None, min_distance=5):
+def hough_peaks(accumulator: ArrayLike, thetas: ArrayLike, rhos: ArrayLike, count: int = 10,
+                threshold: float | None = None, min_distance: int = 5) -> np.ndarray:
     """The strongest lines of a Hough accumulator, by greedy non-maximum suppression.
 
     Parameters
@@ -164,7 +200,7 @@ def hough_peaks(accumulator, thetas, rhos, count=10, threshold=None, min_distanc
     candidates = np.flatnonzero((flat >= threshold) & (flat > 0))
     order = candidates[np.argsort(-flat[candidates], kind="stable")]
     suppressed = np.zeros(acc.shape, dtype=bool)
-    peaks = []
+    peaks: list[tuple[float, float]] = []
     width = acc.shape[1]
     for index in order:
         if len(peaks) >= count:

@@ -10,9 +10,12 @@ whole-map multiply-add of two shifted views of the unit image gradient).
 """
 from __future__ import annotations
 
-import numpy as np
+from typing import Literal
 
-from .._validation import as_float_array, check_real
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import as_float_array, check_real, check_work
 from ..registry import algorithm, implementation
 
 __all__ = ["shape_model", "shape_match"]
@@ -28,7 +31,7 @@ def _sobel(img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @algorithm("detection.shape_model", section="6.0.3", check="cvkit.detection.checks:shape_model")
-def shape_model(template, threshold):
+def shape_model(template: ArrayLike, threshold: float) -> dict:
     """The model of shape-based matching: control points and their gradient directions.
 
     Parameters
@@ -84,7 +87,7 @@ def shape_model(template, threshold):
     return {"points": points, "directions": directions, "shape": (int(tpl.shape[0]), int(tpl.shape[1]))}
 
 
-def _check_model(model) -> tuple[np.ndarray, np.ndarray, int, int]:
+def _check_model(model: object) -> tuple[np.ndarray, np.ndarray, int, int]:
     if not isinstance(model, dict):
         raise TypeError(f"model must be the dict made by shape_model, got {type(model).__name__}")
     missing = [k for k in ("points", "directions", "shape") if k not in model]
@@ -110,7 +113,7 @@ def _check_model(model) -> tuple[np.ndarray, np.ndarray, int, int]:
 
 
 @algorithm("detection.shape_match", section="6.0.3", check="cvkit.detection.checks:shape_match")
-def shape_match(image, model, polarity="none"):
+def shape_match(image: ArrayLike, model: dict, polarity: Literal["none", "global", "local"] = "none") -> np.ndarray:
     """Similarity of the shape model at every placement over ``image``.
 
     Parameters
@@ -119,6 +122,9 @@ def shape_match(image, model, polarity="none"):
         Target image, any real dtype, finite values, at least the model's ``shape``.
     model : dict
         From :func:`shape_model`: ``points`` (x, y), unit ``directions``, ``shape`` (h, w).
+        Each of its N points is a pass over the placements: ``4·N·(H − h + 1)(W − w + 1)``
+        may be at most ``cvkit._validation.MAX_WORK`` (2**36, about a minute; ``ValueError``
+        naming ``model``).
     polarity : {"none", "global", "local"}
         ``none``: ``S = (1/n) Σ cos θk`` in [−1, 1]; ``global``: ``|Σ cos θk| / n``, invariant
         to inverting the contrast of the whole object; ``local``: ``Σ |cos θk| / n``, invariant
@@ -162,6 +168,7 @@ def shape_match(image, model, polarity="none"):
     ho, wo = H - h + 1, W - w + 1
     if n == 0:
         return np.zeros((ho, wo))
+    check_work(4 * n * ho * wo, "model", what=f"{n} control points at {ho}×{wo} placements")
     gx, gy = _sobel(img)
     mag = np.hypot(gx, gy)
     # "no gradient": zero up to the rounding of the Sobel sums (which depends on their order)

@@ -11,23 +11,26 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-import scipy.fft
+from typing import Callable, Literal, cast
 
-from .._validation import as_float_array
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import as_float_array, check_work
 from ..registry import algorithm
 
 __all__ = ["match_template", "best_match"]
 
 MEASURES = ("ssd", "sad", "ncc", "zncc")
+Measure = Literal["ssd", "sad", "ncc", "zncc"]
 #: relative size under which a norm or a variance counts as zero (see match_template)
 FLAT = 1e-12
 
 
-def _check_measure(measure) -> str:
+def _check_measure(measure: object) -> Measure:
     if not isinstance(measure, str) or measure not in MEASURES:
         raise ValueError(f"measure must be one of {', '.join(map(repr, MEASURES))}, got {measure!r}")
-    return measure
+    return cast(Measure, measure)
 
 
 def _window_sums(a: np.ndarray, h: int, w: int) -> np.ndarray:
@@ -42,7 +45,7 @@ def _window_sums(a: np.ndarray, h: int, w: int) -> np.ndarray:
     return out
 
 
-def _sliding(a: np.ndarray, size: int, axis: int, op) -> np.ndarray:
+def _sliding(a: np.ndarray, size: int, axis: int, op: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
     """Sliding ``op`` (np.maximum / np.minimum) over windows of ``size`` along ``axis``, by
     doubling: log2(size) whole-array steps."""
     out = a
@@ -78,6 +81,8 @@ def _correlate_valid(img: np.ndarray, tpl: np.ndarray) -> np.ndarray:
                 if tpl[m, n] != 0.0:
                     out += tpl[m, n] * img[m:m + ho, n:n + wo]
         return out
+    import scipy.fft  # here, not at import time: most calls take the loop above
+
     shape = tuple(scipy.fft.next_fast_len(int(s), real=True) for s in (H, W))
     spectrum = scipy.fft.rfft2(img, shape)
     spectrum *= scipy.fft.rfft2(tpl[::-1, ::-1], shape)
@@ -85,7 +90,7 @@ def _correlate_valid(img: np.ndarray, tpl: np.ndarray) -> np.ndarray:
     return full[h - 1:H, w - 1:W].copy()
 
 
-def _as_pair(image, template) -> tuple[np.ndarray, np.ndarray]:
+def _as_pair(image: ArrayLike, template: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     img = as_float_array(image, "image", ndim=2)
     tpl = as_float_array(template, "template", ndim=2)
     if tpl.shape[0] > img.shape[0] or tpl.shape[1] > img.shape[1]:
@@ -94,7 +99,7 @@ def _as_pair(image, template) -> tuple[np.ndarray, np.ndarray]:
 
 
 @algorithm("detection.match_template", section="6.0.2", check="cvkit.detection.checks:match_template")
-def match_template(image, template, measure="zncc"):
+def match_template(image: ArrayLike, template: ArrayLike, measure: Measure = "zncc") -> np.ndarray:
     """Score every placement of ``template`` over ``image``.
 
     Parameters
@@ -102,7 +107,10 @@ def match_template(image, template, measure="zncc"):
     image : (H, W) array_like
         Target image, any real dtype, finite values (not rescaled).
     template : (h, w) array_like
-        The model, ``h <= H`` and ``w <= W``.
+        The model, ``h <= H`` and ``w <= W``. For ``sad``, which visits every template pixel
+        at every placement, ``3·h·w·(H − h + 1)(W − w + 1)`` may be at most
+        ``cvkit._validation.MAX_WORK`` (2**36, about a minute; ``ValueError`` naming
+        ``template``); the other measures use an FFT when that is cheaper.
     measure : {"zncc", "ncc", "ssd", "sad"}
         ``ssd``: Σ (I − T)²; ``sad``: Σ |I − T| (both dissimilarities: lower is better);
         ``ncc``: Σ I·T / (‖I‖·‖T‖), the cosine of the angle between the window and the
@@ -157,6 +165,7 @@ def match_template(image, template, measure="zncc"):
     n = h * w
     if measure == "sad":
         ho, wo = img.shape[0] - h + 1, img.shape[1] - w + 1
+        check_work(3 * n * ho * wo, "template", what=f"SAD of a {h}×{w} template at {ho}×{wo} placements")
         out = np.zeros((ho, wo))
         scratch = np.empty((ho, wo))
         for m in range(h):
@@ -204,7 +213,7 @@ def match_template(image, template, measure="zncc"):
 
 
 @algorithm("detection.best_match", section="6.0.2", check="cvkit.detection.checks:best_match")
-def best_match(scores, measure):
+def best_match(scores: ArrayLike, measure: Measure) -> tuple[int, int]:
     """The best placement in a score map: the minimum for ssd/sad, the maximum for ncc/zncc.
 
     Parameters
