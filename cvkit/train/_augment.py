@@ -9,10 +9,13 @@ batch whose first axis is the sample.
 from __future__ import annotations
 
 import numbers
+from collections.abc import Sequence
+from typing import cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, as_image, as_rng, check_int, check_real
+from .._validation import as_float_array, as_image, as_rng, check_allocation, check_int, check_real
 from ..registry import algorithm
 
 __all__ = ["random_resized_crop", "cutout", "mixup", "cutmix"]
@@ -21,7 +24,7 @@ __all__ = ["random_resized_crop", "cutout", "mixup", "cutmix"]
 _ATTEMPTS = 100
 
 
-def _pair(value, name: str, *, positive: bool = True):
+def _pair(value: Sequence[float], name: str, *, positive: bool = True) -> tuple[float, float]:
     """A pair ``(lo, hi)`` of finite reals with lo <= hi."""
     if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
         raise TypeError(f"{name} must be a pair (low, high), got {value!r}")
@@ -32,19 +35,22 @@ def _pair(value, name: str, *, positive: bool = True):
     return lo, hi
 
 
-def _output_size(value):
+def _output_size(value: int | Sequence[int]) -> tuple[int, int]:
     if isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, (bool, np.bool_)):
         size = check_int(value, "output_size", minimum=1)
         return size, size
     if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
         raise TypeError(f"output_size must be an int or a pair (height, width), got {value!r}")
-    return check_int(value[0], "output_size[0]", minimum=1), check_int(value[1], "output_size[1]", minimum=1)
+    pair = cast(Sequence[int], value)
+    return check_int(pair[0], "output_size[0]", minimum=1), check_int(pair[1], "output_size[1]", minimum=1)
 
 
 # --------------------------------------------------------------------------------------------
 # random resized crop: box sampling and bilinear resampling (shared with the teaching model)
 # --------------------------------------------------------------------------------------------
-def _crop_boxes(n, height, width, scale, ratio, generator, attempts=_ATTEMPTS):
+def _crop_boxes(n: int, height: int, width: int, scale: tuple[float, float], ratio: tuple[float, float],
+                generator: np.random.Generator,
+                attempts: int = _ATTEMPTS) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``n`` crop boxes ``(top, left, h, w)`` (int arrays) of area fraction in ``scale`` and
     aspect ratio w/h in ``ratio`` (log-uniform), as torchvision's ``RandomResizedCrop`` draws
     them: for each box, the first of ``attempts`` candidates that fits in the image; if none
@@ -54,8 +60,10 @@ def _crop_boxes(n, height, width, scale, ratio, generator, attempts=_ATTEMPTS):
     log_ratio = generator.uniform(np.log(ratio[0]), np.log(ratio[1]), (n, attempts))
     aspect = np.exp(log_ratio)
     target = fractions * area
-    ws = np.round(np.sqrt(target * aspect)).astype(np.int64)
-    hs = np.round(np.sqrt(target / aspect)).astype(np.int64)
+    # sides beyond the image never fit: clipped to one more pixel, extreme ratios cast cleanly
+    with np.errstate(over="ignore"):
+        ws = np.round(np.minimum(np.sqrt(target * aspect), width + 1)).astype(np.int64)
+        hs = np.round(np.minimum(np.sqrt(target / aspect), height + 1)).astype(np.int64)
     fits = (ws >= 1) & (ws <= width) & (hs >= 1) & (hs <= height)
     first = np.argmax(fits, axis=1)
     rows = np.arange(n)
@@ -78,22 +86,24 @@ def _crop_boxes(n, height, width, scale, ratio, generator, attempts=_ATTEMPTS):
     return top, left, h, w
 
 
-def _sample_positions(start, length, out_length):
+def _sample_positions(start: np.ndarray, length: np.ndarray,
+                      out_length: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Source coordinates (N, out) of a half-pixel-centred resize of ``length`` pixels starting
     at ``start`` to ``out_length`` pixels, clamped to the crop: the two neighbours to blend and
     the weight of the second."""
     u = np.arange(out_length, dtype=np.float64)
-    length = length.astype(np.float64)[:, None]
-    src = (u[None, :] + 0.5) * (length / out_length) - 0.5
-    src = np.clip(src, 0.0, length - 1.0)
-    lower = np.floor(src)
-    frac = src - lower
-    lower = lower.astype(np.int64)
-    upper = np.minimum(lower + 1, length.astype(np.int64) - 1)
+    size = length.astype(np.float64)[:, None]
+    src = (u[None, :] + 0.5) * (size / out_length) - 0.5
+    src = np.clip(src, 0.0, size - 1.0)
+    floor = np.floor(src)
+    frac = src - floor
+    lower = floor.astype(np.int64)
+    upper = np.minimum(lower + 1, size.astype(np.int64) - 1)
     return start[:, None] + lower, start[:, None] + upper, frac
 
 
-def _resample_boxes(images, top, left, h, w, out_h, out_w):
+def _resample_boxes(images: np.ndarray, top: np.ndarray, left: np.ndarray, h: np.ndarray, w: np.ndarray,
+                    out_h: int, out_w: int) -> np.ndarray:
     """Bilinear resize of box ``n`` of image ``n`` to ``(out_h, out_w)`` for a batch
     ``images`` (N, H, W[, C]): OpenCV's ``INTER_LINEAR`` (half-pixel centres, the crop's edge
     pixels repeated, no anti-aliasing)."""
@@ -109,7 +119,9 @@ def _resample_boxes(images, top, left, h, w, out_h, out_w):
 
 
 @algorithm("train.random_resized_crop", section="12.4", check="cvkit.train.checks:random_resized_crop")
-def random_resized_crop(image, output_size, scale=(0.08, 1.0), ratio=(3 / 4, 4 / 3), rng=None):
+def random_resized_crop(image: ArrayLike, output_size: int | Sequence[int],
+                        scale: Sequence[float] = (0.08, 1.0), ratio: Sequence[float] = (3 / 4, 4 / 3),
+                        rng: np.random.Generator | int | None = None) -> np.ndarray:
     r"""Random crop of random size and shape, resized to ``output_size`` (multi-scale training).
 
     The crop's area is a fraction s ~ U(scale) of the image's, its aspect ratio
@@ -122,7 +134,8 @@ def random_resized_crop(image, output_size, scale=(0.08, 1.0), ratio=(3 / 4, 4 /
     image : (H, W) or (H, W, 3) array_like
         Any real dtype; values are not rescaled.
     output_size : int or (int, int)
-        ``(height, width)`` of the result (an int gives a square).
+        ``(height, width)`` of the result (an int gives a square), each ≥ 1; the result must
+        fit in 2 GiB (cvkit's limit for one array), else ``ValueError`` naming ``output_size``.
     scale : (float, float)
         Range of the area fraction, ``0 < low <= high <= 1``.
     ratio : (float, float)
@@ -154,13 +167,14 @@ def random_resized_crop(image, output_size, scale=(0.08, 1.0), ratio=(3 / 4, 4 /
     """
     img = as_image(image)
     out_h, out_w = _output_size(output_size)
-    scale = _pair(scale, "scale")
-    if scale[1] > 1.0:
-        raise ValueError(f"scale must lie in (0, 1] (a fraction of the image's area), got {scale!r}")
-    ratio = _pair(ratio, "ratio")
+    check_allocation((out_h, out_w) + img.shape[2:], "output_size", what="the resized crop")
+    scales = _pair(scale, "scale")
+    if scales[1] > 1.0:
+        raise ValueError(f"scale must lie in (0, 1] (a fraction of the image's area), got {scales!r}")
+    ratios = _pair(ratio, "ratio")
     generator = as_rng(rng)
     height, width = img.shape[:2]
-    top, left, h, w = _crop_boxes(1, height, width, scale, ratio, generator)
+    top, left, h, w = _crop_boxes(1, height, width, scales, ratios, generator)
     return _resample_boxes(img[None], top, left, h, w, out_h, out_w)[0]
 
 
@@ -168,7 +182,7 @@ def random_resized_crop(image, output_size, scale=(0.08, 1.0), ratio=(3 / 4, 4 /
 # cutout
 # --------------------------------------------------------------------------------------------
 @algorithm("train.cutout", section="12.4", check="cvkit.train.checks:cutout")
-def cutout(image, size, rng=None):
+def cutout(image: ArrayLike, size: int, rng: np.random.Generator | int | None = None) -> np.ndarray:
     r"""Cutout (random erasing): set one ``size × size`` square of the image to 0.
 
     The square's centre (cy, cx) is uniform over the pixels of the image; it covers rows
@@ -219,7 +233,7 @@ def cutout(image, size, rng=None):
 # --------------------------------------------------------------------------------------------
 # mixup and cutmix
 # --------------------------------------------------------------------------------------------
-def _batch(x, y_onehot, min_ndim):
+def _batch(x: ArrayLike, y_onehot: ArrayLike, min_ndim: int) -> tuple[np.ndarray, np.ndarray]:
     data = as_float_array(x, "x")
     if data.ndim < min_ndim:
         want = "(N, ..., H, W)" if min_ndim == 3 else "(N, ...)"
@@ -231,7 +245,8 @@ def _batch(x, y_onehot, min_ndim):
 
 
 @algorithm("train.mixup", section="12.4", check="cvkit.train.checks:mixup")
-def mixup(x, y_onehot, alpha=0.2, rng=None):
+def mixup(x: ArrayLike, y_onehot: ArrayLike, alpha: float = 0.2,
+          rng: np.random.Generator | int | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     r"""Mixup: blend every sample (and its label) with a partner from the same batch.
 
     .. math:: \tilde x_n = \lambda x_n + (1 - \lambda) x_{\pi(n)}, \qquad
@@ -280,7 +295,8 @@ def mixup(x, y_onehot, alpha=0.2, rng=None):
 
 
 @algorithm("train.cutmix", section="12.4", check="cvkit.train.checks:cutmix")
-def cutmix(x, y_onehot, alpha=1.0, rng=None):
+def cutmix(x: ArrayLike, y_onehot: ArrayLike, alpha: float = 1.0,
+           rng: np.random.Generator | int | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     r"""CutMix: paste one box from a permuted batch into every sample; mix labels by area.
 
     A :math:`\lambda_0 \sim \mathrm{Beta}(\alpha, \alpha)` sets the box size

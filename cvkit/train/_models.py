@@ -32,9 +32,12 @@ The building blocks are looked up through :func:`cvkit.registry.implementation`,
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any, ContextManager, Literal, overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 try:  # installed with scikit-learn, which the digits come from
     from threadpoolctl import threadpool_limits as _threadpool_limits
@@ -58,7 +61,7 @@ _SIDE = 8  # the digits are 8×8
 class Recipe:
     """Everything that defines one training run (see the module docstring)."""
 
-    hidden: tuple = (256,)
+    hidden: tuple[int, ...] = (256,)
     epochs: int = 30
     batch_size: int = 32
     lr: float = 0.05
@@ -67,14 +70,14 @@ class Recipe:
     weight_decay: float = 0.0
     label_smoothing: float = 0.0
     dropout: float = 0.0
-    augment: tuple = ()
+    augment: tuple[str, ...] = ()
     ema_decay: float | None = None
-    crop_scale: tuple = (0.7, 1.0)
+    crop_scale: tuple[float, float] = (0.7, 1.0)
     cutout_size: int = 3
     mixup_alpha: float = 0.2
     cutmix_alpha: float = 1.0
 
-    def but(self, **changes) -> "Recipe":
+    def but(self, **changes: Any) -> Recipe:
         """A copy with some options changed."""
         return replace(self, **changes)
 
@@ -83,8 +86,8 @@ class Recipe:
 class TrainResult:
     """Weights after training, their EMA (if asked for) and the training curves."""
 
-    params: list
-    ema_params: list | None
+    params: list[np.ndarray]
+    ema_params: list[np.ndarray] | None
     step_loss: np.ndarray                        # training objective of every mini-batch
     epoch_loss: np.ndarray                       # its mean over each epoch
     val_loss: np.ndarray = field(default_factory=lambda: np.zeros(0))   # after each epoch
@@ -93,13 +96,13 @@ class TrainResult:
     diverged: bool = False
 
 
-def _single_thread():
+def _single_thread() -> ContextManager[Any]:
     """BLAS limited to one thread: the matrices of this model are tiny, and extra threads only
     add overhead (and steal CPU from the rest of a busy machine)."""
     return _threadpool_limits(1) if _threadpool_limits is not None else contextlib.nullcontext()
 
 
-def init_params(sizes, rng) -> list:
+def init_params(sizes: Sequence[int], rng: np.random.Generator | int | None) -> list[np.ndarray]:
     """He-initialised weights ``[W1, b1, W2, b2, ...]`` for layer sizes ``(in, h1, ..., out)``."""
     generator = as_rng(rng)
     params = []
@@ -109,12 +112,27 @@ def init_params(sizes, rng) -> list:
     return params
 
 
-def forward(params, X, dropout: float = 0.0, rng=None, cache: bool = False):
+@overload
+def forward(params: list[np.ndarray], X: ArrayLike, dropout: float = ...,
+            rng: np.random.Generator | int | None = ..., cache: Literal[False] = ...) -> np.ndarray: ...
+
+
+@overload
+def forward(params: list[np.ndarray], X: ArrayLike, dropout: float = ...,
+            rng: np.random.Generator | int | None = ..., *,
+            cache: Literal[True]) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray]]: ...
+
+
+def forward(params: list[np.ndarray], X: ArrayLike, dropout: float = 0.0,
+            rng: np.random.Generator | int | None = None,
+            cache: bool = False) -> np.ndarray | tuple[np.ndarray, list[np.ndarray], list[np.ndarray]]:
     """Logits of the network; with ``dropout > 0`` (training) every hidden unit is dropped with
-    that probability and the kept ones divided by 1 − dropout (inverted dropout)."""
+    that probability and the kept ones divided by 1 − dropout (inverted dropout). With
+    ``cache`` also the activations and dropout masks that :func:`_backward` needs."""
     generator = as_rng(rng) if dropout > 0 else None
     h = np.asarray(X, dtype=np.float64)
-    activations, masks = [h], []
+    activations: list[np.ndarray] = [h]
+    masks: list[np.ndarray] = []
     n_layers = len(params) // 2
     for k in range(n_layers):
         z = h @ params[2 * k] + params[2 * k + 1]
@@ -122,7 +140,7 @@ def forward(params, X, dropout: float = 0.0, rng=None, cache: bool = False):
             h = z
             break
         h = np.maximum(z, 0.0)
-        if dropout > 0:
+        if generator is not None:  # dropout > 0
             mask = (generator.random(h.shape) >= dropout) / (1.0 - dropout)
             h = h * mask
             masks.append(mask)
@@ -130,35 +148,36 @@ def forward(params, X, dropout: float = 0.0, rng=None, cache: bool = False):
     return (h, activations, masks) if cache else h
 
 
-def predict(params, X) -> np.ndarray:
+def predict(params: list[np.ndarray], X: ArrayLike) -> np.ndarray:
     """Class predictions (argmax of the logits, dropout off)."""
     return np.argmax(forward(params, X), axis=1)
 
 
-def accuracy(params, X, y) -> float:
+def accuracy(params: list[np.ndarray], X: ArrayLike, y: ArrayLike) -> float:
     return float(np.mean(predict(params, X) == np.asarray(y)))
 
 
-def _log_softmax(logits):
+def _log_softmax(logits: np.ndarray) -> np.ndarray:
     shifted = logits - logits.max(axis=1, keepdims=True)
     return shifted - np.log(np.exp(shifted).sum(axis=1, keepdims=True))
 
 
-def cross_entropy(logits, targets) -> float:
+def cross_entropy(logits: ArrayLike, targets: ArrayLike) -> float:
     """Mean cross-entropy of soft ``targets`` (N, C) (or integer labels) under the logits."""
-    logits = np.asarray(logits, dtype=np.float64)
-    targets = np.asarray(targets)
-    if targets.ndim == 1:
-        targets = np.eye(logits.shape[1])[targets]
+    scores = np.asarray(logits, dtype=np.float64)
+    truth = np.asarray(targets)
+    if truth.ndim == 1:
+        truth = np.eye(scores.shape[1])[truth]
     with np.errstate(all="ignore"):
-        return float(-np.mean(np.sum(targets * _log_softmax(logits), axis=1)))
+        return float(-np.mean(np.sum(truth * _log_softmax(scores), axis=1)))
 
 
-def _backward(params, activations, masks, logits, targets):
+def _backward(params: list[np.ndarray], activations: list[np.ndarray], masks: list[np.ndarray],
+              logits: np.ndarray, targets: np.ndarray) -> list[np.ndarray]:
     """Gradients of the mean cross-entropy with respect to ``params``."""
     probs = np.exp(_log_softmax(logits))
     delta = (probs - targets) / logits.shape[0]
-    grads = [None] * len(params)
+    grads: list[np.ndarray] = [np.zeros(0)] * len(params)  # every entry is set below
     for k in range(len(params) // 2 - 1, -1, -1):
         a = activations[k]
         grads[2 * k] = a.T @ delta
@@ -171,9 +190,10 @@ def _backward(params, activations, masks, logits, targets):
     return grads
 
 
-def _augment(X, targets, recipe: Recipe, generator):
+def _augment(X: np.ndarray, targets: np.ndarray, recipe: Recipe,
+             generator: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Augment a batch of flattened 8×8 digits; returns the new batch and targets."""
-    n = X.shape[0]
+    n = int(X.shape[0])
     images = X.reshape(n, _SIDE, _SIDE)
     if "crop" in recipe.augment:
         top, left, h, w = _crop_boxes(n, _SIDE, _SIDE, recipe.crop_scale, (3 / 4, 4 / 3), generator, attempts=10)
@@ -193,23 +213,23 @@ def _augment(X, targets, recipe: Recipe, generator):
     return images.reshape(n, -1), targets
 
 
-def _sgd_fast(params, grads, lr, weight_decay):
+def _sgd_fast(params: list[np.ndarray], grads: list[np.ndarray], lr: float, weight_decay: float) -> list[np.ndarray]:
     shrink = 1.0 - lr * weight_decay
     return [shrink * p - lr * g for p, g in zip(params, grads)]
 
 
-def _ema_fast(ema, params, decay):
+def _ema_fast(ema: list[np.ndarray], params: list[np.ndarray], decay: float) -> list[np.ndarray]:
     return [decay * a + (1.0 - decay) * p for a, p in zip(ema, params)]
 
 
-def _building_block(algorithm_id, fast):
+def _building_block(algorithm_id: str, fast: Callable[..., Any]) -> Callable[..., Any]:
     """The active provider's implementation, or (for the reference) an unchecked fast twin:
     argument validation would cost more than the tiny matrix products of this model."""
     function = implementation(algorithm_id)
     return fast if function is get(algorithm_id).reference else function
 
 
-def _schedule(name):
+def _schedule(name: str) -> Callable[..., Any]:
     """A schedule function that takes an array of steps (the reference does; a student's
     version that only takes numbers is called step by step)."""
     function = implementation(name)
@@ -239,7 +259,8 @@ def learning_rates(recipe: Recipe, steps_per_epoch: int) -> np.ndarray:
     return np.concatenate([np.asarray(ramp, dtype=np.float64), np.asarray(main, dtype=np.float64)])
 
 
-def train(X, y, recipe: Recipe = Recipe(), rng=None, X_val=None, y_val=None, classes: int = 10) -> TrainResult:
+def train(X: ArrayLike, y: ArrayLike, recipe: Recipe = Recipe(), rng: np.random.Generator | int | None = None,
+          X_val: ArrayLike | None = None, y_val: ArrayLike | None = None, classes: int = 10) -> TrainResult:
     """Train the network on ``X`` (N, 64), labels ``y`` with ``recipe``.
 
     With ``X_val``/``y_val`` the validation loss and accuracy are recorded after each epoch.
@@ -257,7 +278,8 @@ def train(X, y, recipe: Recipe = Recipe(), rng=None, X_val=None, y_val=None, cla
     total = recipe.epochs * steps_per_epoch
     step_loss = np.full(total, np.nan)
     lrs = learning_rates(recipe, steps_per_epoch)
-    val_loss, val_acc = [], []
+    val_loss: list[float] = []
+    val_acc: list[float] = []
     sgd = _building_block("train.sgd_weight_decay_step", _sgd_fast)
     ema_update = _building_block("train.ema_update", _ema_fast)
     step = 0
@@ -284,8 +306,9 @@ def train(X, y, recipe: Recipe = Recipe(), rng=None, X_val=None, y_val=None, cla
                 step += 1
             if X_val is not None:
                 logits = forward(params, X_val)
-                val_loss.append(cross_entropy(logits, y_val) if not diverged else np.nan)
-                val_acc.append(float(np.mean(np.argmax(logits, axis=1) == y_val)) if not diverged else np.nan)
+                truth = np.asarray(y_val)
+                val_loss.append(cross_entropy(logits, truth) if not diverged else np.nan)
+                val_acc.append(float(np.mean(np.argmax(logits, axis=1) == truth)) if not diverged else np.nan)
             if diverged:
                 break
     if X_val is not None:
@@ -304,7 +327,7 @@ def train(X, y, recipe: Recipe = Recipe(), rng=None, X_val=None, y_val=None, cla
 BASELINE = Recipe()
 
 
-def _twice_as_long(recipe: Recipe) -> dict:
+def _twice_as_long(recipe: Recipe) -> dict[str, Any]:
     return {"epochs": 2 * recipe.epochs}
 
 
@@ -317,7 +340,7 @@ TUNED_LR = 1.0
 #: The training recipe is built up step by step, in the order of Karpathy's recipe
 #: (§12.5.4); the augmentations are alternatives, each tried alone on the recipe above them
 #: and not carried forward (stacking all of them is not a recipe anybody uses).
-RECIPE_STEPS = (
+RECIPE_STEPS: tuple[tuple[str, dict[str, Any] | Callable[[Recipe], dict[str, Any]], int, bool], ...] = (
     ("baseline: plain SGD, constant lr 0.05", {}, 1, True),
     ("+ learning rate from the sweep (constant lr 1.0)", {"lr": TUNED_LR}, 1, True),
     ("+ warm-up (2 epochs) and cosine decay", {"schedule": "cosine", "warmup_epochs": 2.0}, 1, True),
@@ -345,30 +368,33 @@ class RecipeRow:
     test: np.ndarray
     train: np.ndarray
 
-    def mean_std(self, which="test"):
+    def mean_std(self, which: str = "test") -> tuple[float, float]:
         values = getattr(self, which)
         return float(values.mean()), (float(values.std(ddof=1)) if values.size > 1 else 0.0)
 
 
-def split_validation(X, y, fraction=0.2, seed=12):
+def split_validation(X: np.ndarray, y: ArrayLike, fraction: float = 0.2,
+                     seed: int = 12) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """A fixed stratified split of a training set into ``(train, validation)`` pairs: the
     data on which hyper-parameters are chosen, so that the test set is never used for it."""
     generator = np.random.default_rng(seed)
-    y = np.asarray(y)
-    held = np.zeros(y.size, dtype=bool)
-    for label in np.unique(y):
-        members = np.flatnonzero(y == label)
+    labels = np.asarray(y)
+    held = np.zeros(labels.size, dtype=bool)
+    for label in np.unique(labels):
+        members = np.flatnonzero(labels == label)
         held[generator.choice(members, size=int(round(fraction * members.size)), replace=False)] = True
-    return (X[~held], y[~held]), (X[held], y[held])
+    return (X[~held], labels[~held]), (X[held], labels[held])
 
 
-def _evaluate_logits(result: TrainResult, X):
+def _evaluate_logits(result: TrainResult, X: ArrayLike) -> np.ndarray:
     weights = result.ema_params if result.ema_params is not None else result.params
     return forward(weights, X)
 
 
-def recipe_table(train_set, test_set, seeds=(0, 1, 2, 3, 4), steps=RECIPE_STEPS,
-                 baseline: Recipe = BASELINE, epochs: int | None = None, progress=None) -> list:
+def recipe_table(train_set: tuple[np.ndarray, np.ndarray], test_set: tuple[np.ndarray, np.ndarray],
+                 seeds: Sequence[int] = (0, 1, 2, 3, 4), steps: Sequence[tuple[Any, ...]] = RECIPE_STEPS,
+                 baseline: Recipe = BASELINE, epochs: int | None = None,
+                 progress: Callable[[], object] | None = None) -> list[RecipeRow]:
     """Measure the recipe table (see :data:`RECIPE_STEPS`).
 
     For each row and seed the network is trained from seed ``1000·seed + member`` (so every
@@ -387,7 +413,9 @@ def recipe_table(train_set, test_set, seeds=(0, 1, 2, 3, 4), steps=RECIPE_STEPS,
         return _recipe_rows(X_train, y_train, X_test, y_test, seeds, steps, baseline, epochs, progress)
 
 
-def _recipe_rows(X_train, y_train, X_test, y_test, seeds, steps, baseline, epochs, progress):
+def _recipe_rows(X_train: np.ndarray, y_train: np.ndarray, X_test: np.ndarray, y_test: np.ndarray,
+                 seeds: Sequence[int], steps: Sequence[tuple[Any, ...]], baseline: Recipe, epochs: int | None,
+                 progress: Callable[[], object] | None) -> list[RecipeRow]:
     current = baseline if epochs is None else baseline.but(epochs=epochs)
     current_members = 1
     average = implementation("train.ensemble_predict")
@@ -414,7 +442,7 @@ def _recipe_rows(X_train, y_train, X_test, y_test, seeds, steps, baseline, epoch
     return rows
 
 
-def format_recipe_table(rows) -> str:
+def format_recipe_table(rows: Sequence[RecipeRow]) -> str:
     """The table as Markdown: test accuracy (mean ± sample std over the seeds); its change
     from the last carried row above, as the mean ± std of the per-seed differences (every
     row uses the same seeds, so a step whose change is several std away from 0 helped or hurt

@@ -3,17 +3,23 @@ and exponential moving averages of weights."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, as_rng, check_int, check_real
+from .._validation import as_float_array, as_rng, check_real, check_size
 from ..registry import algorithm
-from ._regularization import _matching
+from ._regularization import Params, UpdatedParams, _matching
 
 __all__ = ["random_search", "ensemble_predict", "ema_update"]
 
+#: the most settings :func:`random_search` draws at once
+MAX_TRIALS = 1_000_000
 
-def _range_spec(name: str, spec: dict):
+
+def _range_spec(name: str, spec: dict[str, Any]) -> tuple[float, float, bool]:
     unknown = set(spec) - {"low", "high", "log"}
     if unknown or "low" not in spec or "high" not in spec:
         raise ValueError(
@@ -36,7 +42,8 @@ def _range_spec(name: str, spec: dict):
 # §12.5.1 random search
 # --------------------------------------------------------------------------------------------
 @algorithm("train.random_search", section="12.5.1", check="cvkit.train.checks:random_search")
-def random_search(space, trials, rng=None):
+def random_search(space: dict[str, Any], trials: int,
+                  rng: np.random.Generator | int | None = None) -> list[dict[str, Any]]:
     r"""Draw ``trials`` independent hyper-parameter settings from a search space.
 
     Parameters
@@ -49,7 +56,7 @@ def random_search(space, trials, rng=None):
           real number uniform on [a, b], or log-uniform (:math:`\log v \sim U(\log a, \log b)`,
           a > 0) when ``log`` is true.
     trials : int
-        Number of settings, >= 0.
+        Number of settings, 0 ≤ trials ≤ :data:`MAX_TRIALS` (10⁶).
     rng : numpy.random.Generator, int or None
         Source of randomness.
 
@@ -75,9 +82,9 @@ def random_search(space, trials, rng=None):
     """
     if not isinstance(space, dict) or not space:
         raise TypeError(f"space must be a non-empty dict {{name: choices or range}}, got {type(space).__name__}")
-    trials = check_int(trials, "trials", minimum=0)
+    trials = check_size(trials, "trials", minimum=0, maximum=MAX_TRIALS)
     generator = as_rng(rng)
-    columns = {}
+    columns: dict[str, list[Any]] = {}
     for name, spec in space.items():
         if not isinstance(name, str):
             raise TypeError(f"space keys must be hyper-parameter names (strings), got {name!r}")
@@ -106,7 +113,7 @@ def random_search(space, trials, rng=None):
 # §12.5.2 ensembles
 # --------------------------------------------------------------------------------------------
 @algorithm("train.ensemble_predict", section="12.5.2", check="cvkit.train.checks:ensemble_predict")
-def ensemble_predict(logits_list):
+def ensemble_predict(logits_list: Sequence[ArrayLike] | ArrayLike) -> np.ndarray:
     r"""The ensemble's prediction: the mean of the members' logits.
 
     .. math:: \bar s(x) = \frac1M \sum_{m=1}^{M} s_m(x)
@@ -154,7 +161,7 @@ def ensemble_predict(logits_list):
 # §12.5.3 exponential moving average
 # --------------------------------------------------------------------------------------------
 @algorithm("train.ema_update", section="12.5.3", check="cvkit.train.checks:ema_update")
-def ema_update(ema_params, params, decay=0.999):
+def ema_update(ema_params: Params, params: Params, decay: float = 0.999) -> UpdatedParams:
     r"""One step of the exponential moving average of a model's weights (Polyak averaging).
 
     .. math:: \theta_{EMA} \leftarrow \beta\, \theta_{EMA} + (1 - \beta)\, \theta

@@ -3,15 +3,25 @@ smoothing and stochastic depth. (Dropout, §12.3.6, is a layer: ``nn.dropout_*``
 """
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Callable, Sequence
+from typing import TypeAlias
 
-from .._validation import as_float_array, as_rng, check_int, check_real
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import as_float_array, as_rng, check_allocation, check_int, check_real
 from ..registry import algorithm
 
 __all__ = ["sgd_weight_decay_step", "early_stopping", "smooth_labels", "stochastic_depth"]
 
+#: a set of parameters: one array, or a list or tuple of them
+Params: TypeAlias = ArrayLike | Sequence[ArrayLike]
+#: what the updates return: new float64 arrays in the caller's container
+UpdatedParams: TypeAlias = np.ndarray | list[np.ndarray] | tuple[np.ndarray, ...]
+Rebuild: TypeAlias = Callable[[list[np.ndarray]], UpdatedParams]
 
-def _parameter_list(value, name: str):
+
+def _parameter_list(value: Params, name: str) -> tuple[list[np.ndarray], Rebuild]:
     """A parameter set as a list of float64 arrays, and how to rebuild the caller's container.
 
     A NumPy array (or a number) is one parameter; a list or tuple holds one parameter per item.
@@ -21,11 +31,16 @@ def _parameter_list(value, name: str):
             raise ValueError(f"{name} must hold at least one parameter array, got an empty {type(value).__name__}")
         arrays = [as_float_array(v, f"{name}[{i}]", allow_empty=True) for i, v in enumerate(value)]
         kind = type(value)
-        return arrays, (lambda items: kind(items))
+
+        def rebuild(items: list[np.ndarray]) -> UpdatedParams:
+            return kind(items)
+
+        return arrays, rebuild
     return [as_float_array(value, name, allow_empty=True)], (lambda items: items[0])
 
 
-def _matching(params, grads, names):
+def _matching(params: Params, grads: Params,
+              names: tuple[str, str]) -> tuple[list[np.ndarray], list[np.ndarray], Rebuild]:
     first, rebuild = _parameter_list(params, names[0])
     second, _ = _parameter_list(grads, names[1])
     if isinstance(params, (list, tuple)) != isinstance(grads, (list, tuple)) or len(first) != len(second):
@@ -44,7 +59,7 @@ def _matching(params, grads, names):
 # §12.3.3 weight decay
 # --------------------------------------------------------------------------------------------
 @algorithm("train.sgd_weight_decay_step", section="12.3.3", check="cvkit.train.checks:sgd_weight_decay_step")
-def sgd_weight_decay_step(params, grads, lr, weight_decay):
+def sgd_weight_decay_step(params: Params, grads: Params, lr: float, weight_decay: float) -> UpdatedParams:
     r"""One plain SGD step with weight decay: shrink the parameters, then step down the gradient.
 
     .. math:: \theta^{(i+1)} = (1 - \mathrm{lr}\cdot\lambda)\,\theta^{(i)}
@@ -94,7 +109,7 @@ def sgd_weight_decay_step(params, grads, lr, weight_decay):
 # §12.3.4 early stopping
 # --------------------------------------------------------------------------------------------
 @algorithm("train.early_stopping", section="12.3.4", check="cvkit.train.checks:early_stopping")
-def early_stopping(val_losses, patience):
+def early_stopping(val_losses: ArrayLike, patience: int) -> int | None:
     r"""The epoch at which early stopping halts training, or ``None`` if it never does.
 
     Training stops after epoch i, the first with
@@ -147,7 +162,7 @@ def early_stopping(val_losses, patience):
 # --------------------------------------------------------------------------------------------
 # §12.3.5 label smoothing
 # --------------------------------------------------------------------------------------------
-def _labels(y, classes):
+def _labels(y: ArrayLike, classes: int) -> tuple[np.ndarray, int]:
     if isinstance(y, (str, bytes)) or y is None:
         raise TypeError(f"y must be an array of integer class labels, got {type(y).__name__}")
     labels = np.asarray(y)
@@ -166,7 +181,7 @@ def _labels(y, classes):
 
 
 @algorithm("train.smooth_labels", section="12.3.5", check="cvkit.train.checks:smooth_labels")
-def smooth_labels(y, classes, eps):
+def smooth_labels(y: ArrayLike, classes: int, eps: float) -> np.ndarray:
     r"""Smoothed one-hot targets: 1 − ε on the true class, ε/(C − 1) on every other class.
 
     .. math:: t_{n,c} = \begin{cases} 1 - \varepsilon & c = y_n \\
@@ -177,7 +192,8 @@ def smooth_labels(y, classes, eps):
     y : (N,) array_like of int
         Class labels in ``0 … classes − 1`` (N may be 0).
     classes : int
-        Number of classes C >= 2.
+        Number of classes C >= 2; the targets, N·C values, must fit in 2 GiB (cvkit's limit
+        for one array), else ``ValueError`` naming ``classes``.
     eps : float
         ε in [0, 1]; 0 gives the one-hot targets.
 
@@ -202,6 +218,7 @@ def smooth_labels(y, classes, eps):
     eps = check_real(eps, "eps")
     if not 0.0 <= eps <= 1.0:
         raise ValueError(f"eps must be in [0, 1], got {eps}")
+    check_allocation((labels.size, classes), "classes", what="the targets")
     targets = np.full((labels.size, classes), eps / (classes - 1))
     targets[np.arange(labels.size), labels] = 1.0 - eps
     return targets
@@ -211,7 +228,8 @@ def smooth_labels(y, classes, eps):
 # §12.3.7 stochastic depth
 # --------------------------------------------------------------------------------------------
 @algorithm("train.stochastic_depth", section="12.3.7", check="cvkit.train.checks:stochastic_depth")
-def stochastic_depth(x, residual, survival_prob, training, rng=None):
+def stochastic_depth(x: ArrayLike, residual: ArrayLike, survival_prob: float, training: bool,
+                     rng: np.random.Generator | int | None = None) -> np.ndarray:
     r"""A residual connection whose branch is dropped at random, one coin per sample.
 
     Training: :math:`y_n = x_n + b_n\,F(x_n)` with :math:`b_n \sim \mathrm{Bernoulli}(p)`
@@ -268,5 +286,5 @@ def stochastic_depth(x, residual, survival_prob, training, rng=None):
     generator = as_rng(rng)
     if not training:
         return identity + p * branch
-    keep = generator.random(identity.shape[0]) < p
+    keep = generator.random(int(identity.shape[0])) < p
     return identity + np.where(keep.reshape((-1,) + (1,) * (identity.ndim - 1)), branch, 0.0)

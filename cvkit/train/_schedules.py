@@ -11,6 +11,7 @@ from __future__ import annotations
 import numbers
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import check_int, check_real
 from ..registry import algorithm
@@ -18,7 +19,7 @@ from ..registry import algorithm
 __all__ = ["step_decay", "cosine_decay", "warmup", "one_cycle"]
 
 
-def _times(value, name: str):
+def _times(value: ArrayLike, name: str) -> tuple[np.ndarray, bool]:
     """``value`` (a number >= 0 or an array of them) as a float64 array, and whether it was a
     scalar."""
     if isinstance(value, (bool, np.bool_)) or isinstance(value, (str, bytes)) or value is None:
@@ -35,7 +36,7 @@ def _times(value, name: str):
     return array, scalar or array.ndim == 0
 
 
-def _result(values: np.ndarray, scalar: bool):
+def _result(values: np.ndarray, scalar: bool) -> float | np.ndarray:
     return float(values) if scalar else values
 
 
@@ -43,7 +44,7 @@ def _result(values: np.ndarray, scalar: bool):
 # §12.2.3 step decay
 # --------------------------------------------------------------------------------------------
 @algorithm("train.step_decay", section="12.2.3", check="cvkit.train.checks:step_decay")
-def step_decay(epoch, lr0, drop=0.1, every=30):
+def step_decay(epoch: ArrayLike, lr0: float, drop: float = 0.1, every: int = 30) -> float | np.ndarray:
     r"""Step decay: multiply the learning rate by ``drop`` every ``every`` epochs.
 
     .. math:: \mathrm{lr}_e = \mathrm{lr}_0 \cdot \mathrm{drop}^{\lfloor e / \mathrm{every} \rfloor}
@@ -87,7 +88,7 @@ def step_decay(epoch, lr0, drop=0.1, every=30):
 # §12.2.4 cosine decay
 # --------------------------------------------------------------------------------------------
 @algorithm("train.cosine_decay", section="12.2.4", check="cvkit.train.checks:cosine_decay")
-def cosine_decay(epoch, epochs, lr0, lr_final=0.0):
+def cosine_decay(epoch: ArrayLike, epochs: int, lr0: float, lr_final: float = 0.0) -> float | np.ndarray:
     r"""Cosine decay from ``lr0`` at epoch 0 to ``lr_final`` at epoch ``epochs``.
 
     .. math:: \mathrm{lr}_e = \mathrm{lr}_E + \tfrac12(\mathrm{lr}_0 - \mathrm{lr}_E)
@@ -138,7 +139,7 @@ def cosine_decay(epoch, epochs, lr0, lr_final=0.0):
 # §12.2.5 warm-up
 # --------------------------------------------------------------------------------------------
 @algorithm("train.warmup", section="12.2.5", check="cvkit.train.checks:warmup")
-def warmup(step, warmup_steps, lr_target, lr_start=0.0):
+def warmup(step: ArrayLike, warmup_steps: int, lr_target: float, lr_start: float = 0.0) -> float | np.ndarray:
     r"""Linear warm-up from ``lr_start`` at step 0 to ``lr_target`` at step ``warmup_steps``.
 
     .. math:: \mathrm{lr}_t = \mathrm{lr}_{start} + (\mathrm{lr}_{target} - \mathrm{lr}_{start})
@@ -187,13 +188,14 @@ def warmup(step, warmup_steps, lr_target, lr_start=0.0):
 # --------------------------------------------------------------------------------------------
 # §12.2.6 one-cycle
 # --------------------------------------------------------------------------------------------
-def _anneal_cos(start, end, pct):
+def _anneal_cos(start: float, end: float, pct: np.ndarray) -> np.ndarray:
     """Cosine from ``start`` (pct = 0) to ``end`` (pct = 1), as PyTorch writes it."""
     return end + (start - end) / 2.0 * (np.cos(np.pi * pct) + 1.0)
 
 
 @algorithm("train.one_cycle", section="12.2.6", check="cvkit.train.checks:one_cycle")
-def one_cycle(step, total_steps, lr_max, pct_start=0.3, div=25.0, final_div=1e4):
+def one_cycle(step: ArrayLike, total_steps: int, lr_max: float, pct_start: float = 0.3, div: float = 25.0,
+              final_div: float = 1e4) -> float | np.ndarray:
     r"""The two-phase one-cycle schedule, exactly as PyTorch's ``OneCycleLR``.
 
     With :math:`T` = ``total_steps``, :math:`p` = ``pct_start``, the initial rate
@@ -221,9 +223,11 @@ def one_cycle(step, total_steps, lr_max, pct_start=0.3, div=25.0, final_div=1e4)
     pct_start : float
         Fraction p of the cycle spent increasing the rate, in [0, 1].
     div : float
-        ``lr_max / div`` is the rate at step 0 (PyTorch's ``div_factor``), > 0.
+        ``lr_max / div`` is the rate at step 0 (PyTorch's ``div_factor``), > 0; a ``div`` so
+        small that ``lr_max / div`` overflows raises ``ValueError``.
     final_div : float
-        ``lr_max / (div · final_div)`` is the rate at step T − 1 (``final_div_factor``), > 0.
+        ``lr_max / (div · final_div)`` is the rate at step T − 1 (``final_div_factor``), > 0;
+        likewise it must not overflow.
 
     Returns
     -------
@@ -261,6 +265,10 @@ def one_cycle(step, total_steps, lr_max, pct_start=0.3, div=25.0, final_div=1e4)
         raise ValueError(f"step must be in [0, total_steps] = [0, {total_steps}], got {step!r}")
     initial = lr_max / div
     minimum = initial / final_div
+    if not np.isfinite(initial):
+        raise ValueError(f"div = {div!r} is too small: lr_max / div overflows")
+    if not np.isfinite(minimum):
+        raise ValueError(f"final_div = {final_div!r} is too small: lr_max / (div · final_div) overflows")
     end_up = float(pct_start * total_steps) - 1.0   # the peak; PyTorch's first end_step
     end_down = float(total_steps - 1)
     up = t <= end_up
