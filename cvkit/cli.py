@@ -267,7 +267,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return args.func(args)
+        status = args.func(args)
+        sys.stdout.flush()  # here, so that a closed pipe is handled below and not at exit
+        return status
     except (FileNotFoundError, FileExistsError, RuntimeError, KeyError, ValueError) as exc:
         print(f"cvkit: error: {exc.args[0] if isinstance(exc, KeyError) and exc.args else exc}", file=sys.stderr)
         return 2
