@@ -3,6 +3,7 @@ and its refinement by minimising the reprojection error."""
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..camera._common import as_matrix, as_points
 from ..registry import algorithm, implementation
@@ -10,7 +11,7 @@ from ..registry import algorithm, implementation
 __all__ = ["homography_dlt", "refine_homography"]
 
 
-def _point_pairs(src, dst, minimum: int = 4) -> tuple[np.ndarray, np.ndarray]:
+def _point_pairs(src: ArrayLike, dst: ArrayLike, minimum: int = 4) -> tuple[np.ndarray, np.ndarray]:
     s = as_points(src, "src", 2)
     d = as_points(dst, "dst", 2)
     if s.shape != d.shape:
@@ -67,7 +68,7 @@ def _scaled(H: np.ndarray) -> np.ndarray:
 
 
 @algorithm("calibration.homography_dlt", section="8.3.2", check="cvkit.calibration.checks:homography_dlt")
-def homography_dlt(src, dst, normalize=True):
+def homography_dlt(src: ArrayLike, dst: ArrayLike, normalize: bool = True) -> np.ndarray:
     """The homography H with dst ≃ H·src, by the Direct Linear Transform.
 
     Parameters
@@ -142,7 +143,7 @@ def homography_dlt(src, dst, normalize=True):
 
 
 @algorithm("calibration.refine_homography", section="8.3.4", check="cvkit.calibration.checks:refine_homography")
-def refine_homography(H, src, dst):
+def refine_homography(H: ArrayLike, src: ArrayLike, dst: ArrayLike) -> np.ndarray:
     """Refine a homography by minimising the reprojection error in the destination image.
 
     Parameters
@@ -206,18 +207,18 @@ def refine_homography(H, src, dst):
     start = _scaled(start)
     x, y = sn[:, 0], sn[:, 1]
 
-    def project(h):
+    def project(h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         Hm = np.append(h, 1.0).reshape(3, 3)
         w = Hm[2, 0] * x + Hm[2, 1] * y + 1.0
         u = (Hm[0, 0] * x + Hm[0, 1] * y + Hm[0, 2]) / w
         v = (Hm[1, 0] * x + Hm[1, 1] * y + Hm[1, 2]) / w
         return u, v, w
 
-    def residuals(h):
+    def residuals(h: np.ndarray) -> np.ndarray:
         u, v, _ = project(h)
         return np.column_stack([u - dn[:, 0], v - dn[:, 1]]).ravel()
 
-    def jacobian(h):
+    def jacobian(h: np.ndarray) -> np.ndarray:
         u, v, w = project(h)
         J = np.zeros((2 * len(x), 8))
         J[0::2, 0], J[0::2, 1], J[0::2, 2] = x / w, y / w, 1.0 / w

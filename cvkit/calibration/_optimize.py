@@ -1,17 +1,24 @@
 """Non-linear least squares by Levenberg–Marquardt (§8.3.4, §8.3.8), written with NumPy only."""
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Callable
+from typing import Any
 
-from .._validation import as_float_array, check_int, check_real
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import as_float_array, check_allocation, check_real, check_size
 from ..registry import algorithm
 
 __all__ = ["levenberg_marquardt"]
 
 _EPS_STEP = np.sqrt(np.finfo(np.float64).eps)
+#: the most iterations levenberg_marquardt accepts (each one solves the damped system and
+#: evaluates the residuals once)
+MAX_ITER = 100_000
 
 
-def _residual_vector(residuals, x: np.ndarray, where: str) -> np.ndarray:
+def _residual_vector(residuals: Callable[[np.ndarray], ArrayLike], x: np.ndarray, where: str) -> np.ndarray:
     value = residuals(x.copy())
     try:
         r = np.asarray(value, dtype=np.float64).ravel()
@@ -20,7 +27,7 @@ def _residual_vector(residuals, x: np.ndarray, where: str) -> np.ndarray:
     return r
 
 
-def _forward_jacobian(residuals, x: np.ndarray, r: np.ndarray) -> np.ndarray:
+def _forward_jacobian(residuals: Callable[[np.ndarray], ArrayLike], x: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Forward differences: column j is (r(x + h_j e_j) − r(x)) / h_j, h_j = √ε·max(1, |x_j|)."""
     J = np.empty((r.size, x.size))
     for j in range(x.size):                   # one residual evaluation per parameter
@@ -33,7 +40,9 @@ def _forward_jacobian(residuals, x: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 @algorithm("calibration.levenberg_marquardt", section="8.3.4", check="cvkit.calibration.checks:levenberg_marquardt")
-def levenberg_marquardt(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
+def levenberg_marquardt(residuals: Callable[[np.ndarray], ArrayLike], x0: ArrayLike,
+                        jacobian: Callable[[np.ndarray], ArrayLike] | None = None, max_iter: int = 100,
+                        tol: float = 1e-10) -> tuple[np.ndarray, dict[str, Any]]:
     """Minimise ½‖r(x)‖² by the Levenberg–Marquardt method.
 
     Parameters
@@ -42,13 +51,14 @@ def levenberg_marquardt(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
         ``residuals(x)`` → the residual vector r(x) (any shape; it is flattened) for a
         parameter vector ``x`` of shape (n,). It is always called with a fresh copy of x.
     x0 : (n,) array_like
-        Starting point (finite).
+        Starting point (finite). The Jacobian (m, n) and JᵀJ (n, n) may take at most 2 GiB
+        each (``ValueError`` naming ``x0``, checked before they are built).
     jacobian : callable, optional
         ``jacobian(x)`` → the (m, n) matrix ∂r/∂x. Default: forward differences with steps
         h_j = √ε·max(1, |x_j|) (n extra residual evaluations per Jacobian).
     max_iter : int
-        Largest number of iterations (≥ 0); each solves the damped normal equations once and
-        tries the step.
+        Largest number of iterations, 0 ≤ max_iter ≤ 100 000 (:data:`MAX_ITER`); each solves
+        the damped normal equations once and tries the step.
     tol : float
         Tolerance of the three stopping tests (≥ 0).
 
@@ -105,13 +115,15 @@ def levenberg_marquardt(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
     if jacobian is not None and not callable(jacobian):
         raise TypeError(f"jacobian must be a callable J(x) or None, got {type(jacobian).__name__}")
     x = as_float_array(x0, "x0", ndim=1).copy()
-    max_iter = check_int(max_iter, "max_iter", minimum=0)
+    max_iter = check_size(max_iter, "max_iter", minimum=0, maximum=MAX_ITER)
     tol = check_real(tol, "tol", nonnegative=True)
     r = _residual_vector(residuals, x, "x0")
     if r.size == 0 or not np.all(np.isfinite(r)):
         raise ValueError("residuals(x0) must return a non-empty vector of finite numbers")
+    check_allocation((r.size, x.size), "x0", what="the Jacobian (len(residuals), len(x0))")
+    check_allocation((x.size, x.size), "x0", what="JᵀJ")
 
-    def jac(point, res):
+    def jac(point: np.ndarray, res: np.ndarray) -> np.ndarray:
         if jacobian is None:
             return _forward_jacobian(residuals, point, res)
         J = np.asarray(jacobian(point.copy()), dtype=np.float64)

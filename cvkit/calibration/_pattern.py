@@ -2,9 +2,12 @@
 in an image, to sub-pixel accuracy and in the order of the world points."""
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Callable
 
-from .._validation import as_float_array, as_image, check_int, check_real
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import as_float_array, as_image, check_allocation, check_int, check_real, check_work
 from ..registry import algorithm, implementation
 
 __all__ = ["chessboard_points", "chessboard_response", "corner_candidates", "grow_grid", "order_grid_corners",
@@ -14,7 +17,7 @@ _LUMA = np.array([0.299, 0.587, 0.114])
 
 
 @algorithm("calibration.chessboard_points", section="8.3", check="cvkit.calibration.checks:chessboard_points")
-def chessboard_points(cols, rows, square_size):
+def chessboard_points(cols: int, rows: int, square_size: float) -> np.ndarray:
     """World coordinates of the inner corners of a chessboard, in its own reference frame.
 
     Parameters
@@ -22,7 +25,8 @@ def chessboard_points(cols, rows, square_size):
     cols : int
         Inner corners along a row of the board (the board has ``cols + 1`` squares across), ≥ 1.
     rows : int
-        Inner corners along a column (``rows + 1`` squares down), ≥ 1.
+        Inner corners along a column (``rows + 1`` squares down), ≥ 1. The result, (cols·rows, 3)
+        floats, may take at most 2 GiB (``ValueError`` naming ``cols × rows``).
     square_size : float
         Side of a square (> 0), in the unit the calibration should use (mm, m, ...).
 
@@ -58,6 +62,7 @@ def chessboard_points(cols, rows, square_size):
     cols = check_int(cols, "cols", minimum=1)
     rows = check_int(rows, "rows", minimum=1)
     size = check_real(square_size, "square_size", positive=True)
+    check_allocation((cols * rows, 3), "cols × rows", what="the corners")
     j, i = np.mgrid[0:rows, 0:cols]
     return np.column_stack([i.ravel() * size, j.ravel() * size, np.zeros(cols * rows)])
 
@@ -96,8 +101,8 @@ def _local_maxima(response: np.ndarray, radius: int) -> np.ndarray:
     return (response >= best) & (response > 0)
 
 
-def _saddle_refine(points: np.ndarray, derivatives: tuple, iterations: int, max_shift: float,
-                   offset=(0.0, 0.0)) -> tuple:
+def _saddle_refine(points: np.ndarray, derivatives: tuple[np.ndarray, np.ndarray], iterations: int, max_shift: float,
+                   offset: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """Newton's method for the saddle point (zero gradient) of the smoothed image near each point.
 
     ``derivatives`` are those of :func:`_derivatives`, possibly of a crop whose top-left pixel
@@ -128,7 +133,7 @@ def _saddle_refine(points: np.ndarray, derivatives: tuple, iterations: int, max_
     return q + np.asarray(offset, dtype=np.float64), ok
 
 
-def _edge_directions(a, b, c) -> np.ndarray:
+def _edge_directions(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """The two directions along which the quadratic form [[a, b], [b, c]] (a saddle) vanishes:
     the edges of the X-junction. Shape (n, 2, 2): [point, direction, (x, y)]."""
     H = np.stack([np.stack([a, b], -1), np.stack([b, c], -1)], -2)
@@ -141,7 +146,8 @@ def _edge_directions(a, b, c) -> np.ndarray:
     return np.stack(directions, axis=1)
 
 
-def _ring_sign_changes(S: np.ndarray, points: np.ndarray, radius: float, samples: int = 32) -> tuple:
+def _ring_sign_changes(S: np.ndarray, points: np.ndarray, radius: float,
+                       samples: int = 32) -> tuple[np.ndarray, np.ndarray]:
     """How often the smoothed image crosses its ring mean on a circle around each point, and
     the ring's contrast. An X-junction crosses 4 times, an L-corner or an edge twice."""
     angles = 2 * np.pi * np.arange(samples) / samples
@@ -162,7 +168,8 @@ def _ring_sign_changes(S: np.ndarray, points: np.ndarray, radius: float, samples
 
 
 def _grow_grid(seed: int, points: np.ndarray, directions: np.ndarray, prune: bool = True,
-               parallelogram: bool = True, visit=None) -> dict | None:
+               parallelogram: bool = True,
+               visit: Callable[[int], int] | None = None) -> dict[tuple[int, int], int] | None:
     """Assign grid indices (i, j) to candidates, growing from ``seed`` along the (unit) edge
     directions. The keyword arguments exist for the check only: its mistakes, and ``visit``
     (the position in the queue of the next node to visit; default the last) to draw cases whose
@@ -231,7 +238,7 @@ def _grow_grid(seed: int, points: np.ndarray, directions: np.ndarray, prune: boo
     return grid
 
 
-def _ordered(grid: dict, points: np.ndarray, cols: int, rows: int) -> np.ndarray | None:
+def _ordered(grid: dict[tuple[int, int], int], points: np.ndarray, cols: int, rows: int) -> np.ndarray | None:
     """The grid as (rows, cols, 2) in the catalog's order, or None if it is not cols × rows."""
     keys = np.array(list(grid))
     i0, j0 = keys.min(axis=0)
@@ -280,7 +287,7 @@ def _hessian_map(S: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @algorithm("calibration.chessboard_response", section="8.3",
            check="cvkit.calibration.checks:chessboard_response")
-def chessboard_response(image, sigma=1.5):
+def chessboard_response(image: ArrayLike, sigma: float = 1.5) -> np.ndarray:
     """Saddle response of an image: large and positive at the X-junctions of a chessboard.
 
     Parameters
@@ -330,7 +337,7 @@ def chessboard_response(image, sigma=1.5):
 
 @algorithm("calibration.corner_candidates", section="8.3",
            check="cvkit.calibration.checks:corner_candidates")
-def corner_candidates(image, count, sigma=1.5):
+def corner_candidates(image: ArrayLike, count: int, sigma: float = 1.5) -> tuple[np.ndarray, np.ndarray]:
     """Candidate X-junctions of an image (integer pixels), with their two edge directions.
 
     Parameters
@@ -406,7 +413,7 @@ def corner_candidates(image, count, sigma=1.5):
     return np.column_stack([xs, ys]).astype(np.float64), _edge_directions(a, b, c)
 
 
-def _strongest_peaks(response, count, border=5):
+def _strongest_peaks(response: np.ndarray, count: int, border: int = 5) -> tuple[np.ndarray, np.ndarray]:
     """Columns and rows of the local maxima of ``response`` (changed in place: a ``border``-pixel
     frame is zeroed) above 1e-3 of its maximum and 5 % of the typical strength of the ``count``
     strongest, strongest first, at most ``4 count + 50`` of them."""
@@ -422,7 +429,7 @@ def _strongest_peaks(response, count, border=5):
     return xs[keep], ys[keep]
 
 
-def _candidate_arrays(points, directions) -> tuple[np.ndarray, np.ndarray]:
+def _candidate_arrays(points: ArrayLike, directions: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Validated (K, 2) points and (K, 2, 2) directions as float64 arrays (directions as given)."""
     pts = as_float_array(points, "points", ndim=2, allow_empty=True)
     if pts.size and pts.shape[1:] != (2,):
@@ -435,13 +442,15 @@ def _candidate_arrays(points, directions) -> tuple[np.ndarray, np.ndarray]:
 
 
 @algorithm("calibration.grow_grid", section="8.3", check="cvkit.calibration.checks:grow_grid")
-def grow_grid(points, directions, seed=0):
+def grow_grid(points: ArrayLike, directions: ArrayLike, seed: int = 0) -> np.ndarray | None:
     """Grow the lattice of chessboard corners that contains candidate ``seed``.
 
     Parameters
     ----------
     points : (K, 2) array_like
-        Candidate corners ``(x, y)``.
+        Candidate corners ``(x, y)``. Each node of the grid compares its prediction with all
+        K candidates: ``24·K²`` may be at most ``cvkit._validation.MAX_WORK`` (2**36, about a
+        minute; ``ValueError`` naming ``points``), i.e. K up to about 53 000.
     directions : (K, 2, 2) array_like
         The two edge directions (unit or not, any sign) at each candidate:
         ``directions[k, 0]`` and ``directions[k, 1]``.
@@ -497,6 +506,7 @@ def grow_grid(points, directions, seed=0):
     True
     """
     pts, dirs = _candidate_arrays(points, directions)
+    check_work(24 * len(pts) ** 2, "points", what=f"growing a grid among {len(pts)} candidates")
     seed = check_int(seed, "seed", minimum=0)
     if seed >= len(pts):
         raise ValueError(f"seed must be the index of a candidate (0 ≤ seed < {len(pts)}), got {seed}")
@@ -506,7 +516,7 @@ def grow_grid(points, directions, seed=0):
     return None if grid is None else _grid_rows(grid)
 
 
-def _grid_rows(grid: dict) -> np.ndarray:
+def _grid_rows(grid: dict[tuple[int, int], int]) -> np.ndarray:
     """A grid dict {(i, j): k} as the (N, 3) int64 rows (i, j, k) sorted by i, then j."""
     rows = np.array([(i, j, k) for (i, j), k in grid.items()], dtype=np.int64).reshape(-1, 3)
     return rows[np.lexsort((rows[:, 1], rows[:, 0]))]
@@ -514,7 +524,7 @@ def _grid_rows(grid: dict) -> np.ndarray:
 
 @algorithm("calibration.order_grid_corners", section="8.3",
            check="cvkit.calibration.checks:order_grid_corners")
-def order_grid_corners(points, directions, cols, rows):
+def order_grid_corners(points: ArrayLike, directions: ArrayLike, cols: int, rows: int) -> np.ndarray | None:
     """Pick a complete ``cols × rows`` grid out of candidate corners and put it in board order.
 
     Parameters
@@ -584,7 +594,7 @@ def order_grid_corners(points, directions, cols, rows):
 
 @algorithm("calibration.refine_corners", section="8.3",
            check="cvkit.calibration.checks:refine_corners")
-def refine_corners(image, corners, sigma):
+def refine_corners(image: ArrayLike, corners: ArrayLike, sigma: float) -> np.ndarray:
     """Move each corner to the saddle point of the smoothed image next to it (sub-pixel).
 
     Parameters
@@ -653,7 +663,7 @@ def refine_corners(image, corners, sigma):
 
 @algorithm("calibration.find_chessboard_corners", section="8.3",
            check="cvkit.calibration.checks:find_chessboard_corners")
-def find_chessboard_corners(image, cols, rows):
+def find_chessboard_corners(image: ArrayLike, cols: int, rows: int) -> np.ndarray | None:
     """Find the inner corners of a chessboard in an image, to sub-pixel accuracy.
 
     Parameters

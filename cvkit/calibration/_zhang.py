@@ -2,9 +2,14 @@
 view, radial distortion by linear least squares, and the global refinement of everything."""
 from __future__ import annotations
 
-import numpy as np
+import contextlib
+from collections.abc import Iterator, Sequence
+from typing import Any
 
-from .._validation import as_float_array
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import as_float_array, check_allocation
 from ..camera._common import as_intrinsics, as_matrix, as_points, as_rotation, as_translation
 from ..registry import algorithm, implementation
 
@@ -29,13 +34,13 @@ class CalibrationResult(dict):
     ``rotations``, ``translations``, ``rms``) and ``info`` (of the final Levenberg–Marquardt).
     """
 
-    def __getattr__(self, name):
+    def __getattr__(self, name: str) -> Any:
         try:
             return self[name]
         except KeyError:
             raise AttributeError(name) from None
 
-    def __dir__(self):
+    def __dir__(self) -> list[str]:
         return list(super().__dir__()) + list(self.keys())
 
 
@@ -46,7 +51,7 @@ def _cross_matrix(w: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
-def vector_to_rotation(w) -> np.ndarray:
+def vector_to_rotation(w: ArrayLike) -> np.ndarray:
     """Rodrigues' formula: the rotation by the angle ‖w‖ about the axis w/‖w‖."""
     w = np.asarray(w, dtype=np.float64).reshape(3)
     theta = float(np.linalg.norm(w))
@@ -70,7 +75,7 @@ def _rotations(W: np.ndarray) -> np.ndarray:
     return np.eye(3) + sin * K + one_minus_cos * (K @ K)
 
 
-def rotation_to_vector(R) -> np.ndarray:
+def rotation_to_vector(R: ArrayLike) -> np.ndarray:
     """The rotation vector w (angle·axis, angle in [0, π]) of a rotation matrix."""
     R = np.asarray(R, dtype=np.float64).reshape(3, 3)
     cosine = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
@@ -91,7 +96,7 @@ def rotation_to_vector(R) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 # §8.3.5 intrinsics
 # --------------------------------------------------------------------------------------------
-def _homography_stack(homographies) -> np.ndarray:
+def _homography_stack(homographies: object) -> np.ndarray:
     if isinstance(homographies, np.ndarray):
         Hs = as_float_array(homographies, "homographies", ndim=3)
     else:
@@ -115,7 +120,7 @@ def _v(H: np.ndarray, i: int, j: int) -> np.ndarray:
 
 @algorithm("calibration.intrinsics_from_homographies", section="8.3.5",
            check="cvkit.calibration.checks:intrinsics_from_homographies")
-def intrinsics_from_homographies(homographies):
+def intrinsics_from_homographies(homographies: Sequence[ArrayLike] | np.ndarray) -> np.ndarray:
     """The intrinsic matrix A from three or more homographies of a plane (Zhang's closed form).
 
     Parameters
@@ -211,7 +216,7 @@ def intrinsics_from_homographies(homographies):
 # --------------------------------------------------------------------------------------------
 @algorithm("calibration.extrinsics_from_homography", section="8.3.6",
            check="cvkit.calibration.checks:extrinsics_from_homography")
-def extrinsics_from_homography(A, H):
+def extrinsics_from_homography(A: ArrayLike, H: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """The pose (R, t) of the pattern in one view from its homography and the intrinsics.
 
     Parameters
@@ -275,7 +280,8 @@ def extrinsics_from_homography(A, H):
 # --------------------------------------------------------------------------------------------
 # §8.3.7 radial distortion
 # --------------------------------------------------------------------------------------------
-def _views(world_points, image_points_list, rotations, translations):
+def _views(world_points: ArrayLike, image_points_list: object, rotations: object,
+           translations: object) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
     world = as_points(world_points, "world_points", 3)
     if len(world) == 0:
         raise ValueError("world_points must hold at least one point")
@@ -294,7 +300,7 @@ def _views(world_points, image_points_list, rotations, translations):
     return world, images, Rs, ts
 
 
-def _image_point_sets(image_points_list, n_points: int) -> list:
+def _image_point_sets(image_points_list: object, n_points: int) -> list[np.ndarray]:
     if isinstance(image_points_list, np.ndarray):
         if image_points_list.ndim != 3:
             raise ValueError(f"image_points_list must be a list of (N, 2) arrays or an (n_views, N, 2) array, "
@@ -311,7 +317,9 @@ def _image_point_sets(image_points_list, n_points: int) -> list:
 
 @algorithm("calibration.estimate_radial_distortion", section="8.3.7",
            check="cvkit.calibration.checks:estimate_radial_distortion")
-def estimate_radial_distortion(A, world_points, image_points_list, rotations, translations):
+def estimate_radial_distortion(A: ArrayLike, world_points: ArrayLike, image_points_list: Sequence[ArrayLike] | np.ndarray,
+                               rotations: Sequence[ArrayLike] | np.ndarray,
+                               translations: Sequence[ArrayLike] | np.ndarray) -> np.ndarray:
     """Radial distortion (k1, k2) by linear least squares, given the rest of the camera.
 
     Parameters
@@ -384,7 +392,8 @@ def estimate_radial_distortion(A, world_points, image_points_list, rotations, tr
 # --------------------------------------------------------------------------------------------
 # §8.2–8.3.8 the whole calibration
 # --------------------------------------------------------------------------------------------
-def _unpack(x: np.ndarray, n_views: int, layout: tuple, fixed_k) -> tuple:
+def _unpack(x: np.ndarray, n_views: int, layout: tuple[str, ...],
+            fixed_k: np.ndarray) -> tuple[np.ndarray, tuple[float, ...], np.ndarray, np.ndarray]:
     """Camera and poses from the parameter vector: ``layout`` names its head (intrinsics and,
     when refined, distortion), then 6 numbers per view (rotation vector, translation)."""
     head = dict(zip(layout, x[:len(layout)]))
@@ -394,7 +403,27 @@ def _unpack(x: np.ndarray, n_views: int, layout: tuple, fixed_k) -> tuple:
     return A, k, _rotations(poses[:, :3]), poses[:, 3:]
 
 
-def _calibrate(world_points, image_points_list, refine=True, refine_distortion=True, free_skew=False):
+@contextlib.contextmanager
+def _blame(name: str, what: str) -> Iterator[None]:
+    """Raise a ``ValueError`` of a building block again, prefixed with the caller's argument
+    (``name``) and what failed, so that it does not speak of the block's own arguments only."""
+    try:
+        yield
+    except ValueError as error:
+        raise ValueError(f"{name}: {what}: {error}") from error
+
+
+def _check_spread(points: np.ndarray, name: str) -> None:
+    """Points of a plane that determine a homography: not all equal, not all on one line."""
+    singular = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+    if not singular[0] > 0:
+        raise ValueError(f"{name} must not all coincide: a homography needs points spread over the plane")
+    if singular[1] <= 1e-9 * singular[0]:
+        raise ValueError(f"{name} must not all lie on one line: a homography needs points spread over the plane")
+
+
+def _calibrate(world_points: ArrayLike, image_points_list: Sequence[ArrayLike] | np.ndarray, refine: bool = True,
+               refine_distortion: bool = True, free_skew: bool = False) -> CalibrationResult:
     """Zhang's method; the switches exist for the mistake bank of the check."""
     world = as_points(world_points, "world_points", 3)
     if len(world) < 4:
@@ -407,22 +436,31 @@ def _calibrate(world_points, image_points_list, refine=True, refine_distortion=T
     if n_views < 3:
         raise ValueError(f"Zhang's method needs at least 3 views of the pattern, got {n_views}")
     plane = world[:, :2]
+    _check_spread(plane, "world_points")
+    for i, m in enumerate(images):
+        _check_spread(m, f"image_points_list[{i}]")
+    layout = ("fu", "fv", "u0", "v0") + (("skew",) if free_skew else ()) + (("k1", "k2") if refine_distortion else ())
+    check_allocation((2 * n_views * len(world), len(layout) + 6 * n_views), "image_points_list",
+                     what="the Jacobian of the refinement (2·views·points, parameters)")
 
     # 1.-4. closed-form start
     dlt = implementation("calibration.homography_dlt")
     refine_h = implementation("calibration.refine_homography")
-    Hs = [refine_h(dlt(plane, m), plane, m) for m in images]
-    A0 = implementation("calibration.intrinsics_from_homographies")(Hs)
-    poses = [implementation("calibration.extrinsics_from_homography")(A0, H) for H in Hs]
-    Rs0, ts0 = [p[0] for p in poses], [p[1] for p in poses]
-    A_start = A0.copy()
-    if not free_skew:
-        A_start[0, 1] = 0.0
-    k0 = np.asarray(implementation("calibration.estimate_radial_distortion")(A_start, world, images, Rs0, ts0),
-                    dtype=np.float64).ravel()[:2]
+    Hs = []
+    for i, m in enumerate(images):
+        with _blame(f"image_points_list[{i}]", "no homography from the pattern to this view"):
+            Hs.append(refine_h(dlt(plane, m), plane, m))
+    with _blame("image_points_list", f"the {n_views} views do not determine the camera"):
+        A0 = implementation("calibration.intrinsics_from_homographies")(Hs)
+        poses = [implementation("calibration.extrinsics_from_homography")(A0, H) for H in Hs]
+        Rs0, ts0 = [p[0] for p in poses], [p[1] for p in poses]
+        A_start = A0.copy()
+        if not free_skew:
+            A_start[0, 1] = 0.0
+        k0 = np.asarray(implementation("calibration.estimate_radial_distortion")(A_start, world, images, Rs0, ts0),
+                        dtype=np.float64).ravel()[:2]
 
     # 5. global refinement
-    layout = ("fu", "fv", "u0", "v0") + (("skew",) if free_skew else ()) + (("k1", "k2") if refine_distortion else ())
     values = {"fu": A_start[0, 0], "fv": A_start[1, 1], "u0": A_start[0, 2], "v0": A_start[1, 2],
               "skew": A_start[0, 1], "k1": k0[0], "k2": k0[1]}
     observed = np.stack(images)                                  # (V, N, 2)
@@ -496,7 +534,8 @@ def _calibrate(world_points, image_points_list, refine=True, refine_distortion=T
     start_errors = predict(x0) - observed
     start_rms = float(np.sqrt(np.mean(np.sum(start_errors ** 2, axis=-1))))
     if refine:
-        x, info = implementation("calibration.levenberg_marquardt")(residuals, x0, jacobian=jacobian)
+        with _blame("image_points_list", "the refinement of the closed-form estimate failed"):
+            x, info = implementation("calibration.levenberg_marquardt")(residuals, x0, jacobian=jacobian)
     else:
         x, info = x0, {"iterations": 0, "cost": 0.5 * float(np.sum(start_errors ** 2)), "converged": False}
     A, k, Rs, ts = _unpack(x, n_views, layout, k0)
@@ -512,17 +551,21 @@ def _calibrate(world_points, image_points_list, refine=True, refine_distortion=T
 
 
 @algorithm("calibration.calibrate", section="8.2–8.3.8", check="cvkit.calibration.checks:calibrate")
-def calibrate(world_points, image_points_list):
+def calibrate(world_points: ArrayLike, image_points_list: Sequence[ArrayLike] | np.ndarray) -> CalibrationResult:
     """Calibrate a camera from views of a planar pattern (Zhang's method, §8.2–8.3.8).
 
     Parameters
     ----------
     world_points : (N, 3) array_like
         The pattern's points in its own frame, all with z = 0 (e.g. :func:`chessboard_points`),
-        N ≥ 4.
+        N ≥ 4, not all equal and not all on one line.
     image_points_list : list of (N, 2) array_like, or (n_views, N, 2) array
         The measured pixels of those points in each of n ≥ 3 views (e.g. from
-        :func:`find_chessboard_corners`).
+        :func:`find_chessboard_corners`), in each view not all equal nor on one line. The
+        Jacobian of the refinement, (2·n·N, 6 + 6n) floats, may take at most 2 GiB
+        (``ValueError`` naming ``image_points_list``). An error of a building block is raised
+        again naming the argument it comes from (``image_points_list[i]`` for the homography
+        of view i, ``image_points_list`` for the camera the views determine).
 
     Returns
     -------

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import numbers
 
-import numpy as np
+from collections.abc import Sequence
 
-from .._validation import as_float_array, as_image, check_int
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._validation import as_float_array, as_image, check_allocation, check_int
 from ..camera._common import as_intrinsics, as_matrix, distortion_coefficients
 from ..registry import algorithm, implementation
 
@@ -15,13 +18,13 @@ __all__ = ["bilinear_sample", "warp_homography", "undistort_image"]
 _CHUNK = 8192  # positions per block in bilinear_sample (64 KiB temporaries)
 
 
-def _fill_value(fill) -> float:
+def _fill_value(fill: object) -> float:
     if isinstance(fill, (bool, np.bool_)) or not isinstance(fill, (numbers.Real, np.integer, np.floating)):
         raise TypeError(f"fill must be a real number, got {type(fill).__name__} {fill!r}")
     return float(fill)  # NaN is allowed: it marks "outside" unmistakably
 
 
-def _output_shape(output_shape) -> tuple[int, int]:
+def _output_shape(output_shape: object) -> tuple[int, int]:
     if isinstance(output_shape, np.ndarray):
         output_shape = tuple(output_shape.tolist())
     if not isinstance(output_shape, (tuple, list)) or len(output_shape) != 2:
@@ -31,7 +34,7 @@ def _output_shape(output_shape) -> tuple[int, int]:
 
 
 @algorithm("warp.bilinear_sample", section="8.4.2", check="cvkit.warp.checks:bilinear_sample")
-def bilinear_sample(image, x, y, fill=0.0):
+def bilinear_sample(image: ArrayLike, x: ArrayLike, y: ArrayLike, fill: float = 0.0) -> np.ndarray:
     """Values of an image at real-valued positions by bilinear interpolation.
 
     Parameters
@@ -40,7 +43,8 @@ def bilinear_sample(image, x, y, fill=0.0):
         Grey or colour image, any real dtype (computed in float64, not rescaled).
     x, y : array_like
         Positions ``(x, y) = (col, row)``, in pixels, of any (common, broadcastable) shape.
-        Non-finite positions count as outside.
+        Non-finite positions count as outside. The result, of their broadcast shape (× 3 for
+        colour), may take at most 2 GiB (``ValueError`` naming ``x and y``).
     fill : float
         Value returned for positions outside the image.
 
@@ -86,6 +90,7 @@ def bilinear_sample(image, x, y, fill=0.0):
         xs, ys = np.broadcast_arrays(xs, ys)
     except ValueError:
         raise ValueError(f"x and y must have the same (or broadcastable) shapes, got {xs.shape} and {ys.shape}") from None
+    check_allocation(xs.shape + img.shape[2:], "x and y", what="samples")
     H, W = img.shape[:2]
     flat = img.reshape(H * W, -1) if img.ndim == 3 else img.reshape(-1)
     dx, dy = (1 if W > 1 else 0), (W if H > 1 else 0)
@@ -126,7 +131,8 @@ def _pixel_grid(rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 @algorithm("warp.warp_homography", section="8.4.2", check="cvkit.warp.checks:warp_homography")
-def warp_homography(image, H, output_shape, fill=0.0):
+def warp_homography(image: ArrayLike, H: ArrayLike, output_shape: Sequence[int] | np.ndarray,
+                    fill: float = 0.0) -> np.ndarray:
     """Warp an image through a homography by backward mapping and bilinear interpolation.
 
     Parameters
@@ -137,7 +143,8 @@ def warp_homography(image, H, output_shape, fill=0.0):
         Homography mapping *input* pixel coordinates (x, y, 1) to *output* ones (any non-zero
         scale; it must be invertible).
     output_shape : (rows, cols)
-        Size of the output image.
+        Size of the output image (positive integers); the output may take at most 2 GiB
+        (``ValueError`` naming ``output_shape``, before anything is allocated).
     fill : float
         Value of output pixels whose source lies outside the input.
 
@@ -176,6 +183,7 @@ def warp_homography(image, H, output_shape, fill=0.0):
     img = as_image(image)
     M = as_matrix(H, "H", (3, 3))
     rows, cols = _output_shape(output_shape)
+    check_allocation((rows, cols) + img.shape[2:], "output_shape", what="an output image")
     fill = _fill_value(fill)
     singular = np.linalg.svd(M, compute_uv=False)
     if singular[0] == 0.0 or singular[-1] <= 1e-13 * singular[0]:
@@ -191,7 +199,7 @@ def warp_homography(image, H, output_shape, fill=0.0):
 
 
 @algorithm("warp.undistort_image", section="8.4.1", check="cvkit.warp.checks:undistort_image")
-def undistort_image(image, A, k, p=(0.0, 0.0)):
+def undistort_image(image: ArrayLike, A: ArrayLike, k: ArrayLike, p: ArrayLike = (0.0, 0.0)) -> np.ndarray:
     """Remove lens distortion from an image: what a distortion-free camera would see.
 
     Parameters

@@ -3,6 +3,7 @@ camera, and the bird's-eye view of a plane (inverse perspective mapping)."""
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._validation import check_real
 from ..camera._common import as_intrinsics, as_points, as_rotation
@@ -12,7 +13,7 @@ __all__ = ["rotation_homography", "birds_eye_homography"]
 
 
 @algorithm("warp.rotation_homography", section="8.4.3", check="cvkit.warp.checks:rotation_homography")
-def rotation_homography(A, R):
+def rotation_homography(A: ArrayLike, R: ArrayLike) -> np.ndarray:
     """The homography between the images of a camera and of the same camera rotated by R.
 
     Parameters
@@ -67,7 +68,7 @@ def rotation_homography(A, R):
 
 
 @algorithm("warp.birds_eye_homography", section="8.4.3", check="cvkit.warp.checks:birds_eye_homography")
-def birds_eye_homography(image_points, ground_points, pixels_per_unit):
+def birds_eye_homography(image_points: ArrayLike, ground_points: ArrayLike, pixels_per_unit: float) -> np.ndarray:
     """The homography from an image of a plane to its bird's-eye view (inverse perspective mapping).
 
     Parameters
@@ -92,8 +93,9 @@ def birds_eye_homography(image_points, ground_points, pixels_per_unit):
     Raises
     ------
     ValueError
-        Shapes other than (4, 2), non-finite values, a non-positive scale, or three collinear
-        points in either set.
+        Shapes other than (4, 2), non-finite values, a non-positive scale, three collinear
+        points in either set, or a pixel (0, 0) on the horizon of the ground plane (it would
+        map to infinity: H[2, 2] = 0).
 
     Notes
     -----
@@ -123,7 +125,11 @@ def birds_eye_homography(image_points, ground_points, pixels_per_unit):
             raise ValueError(f"{name} must have shape (4, 2) (four points), got {pts.shape}")
         _no_three_collinear(pts, name)
     scale = check_real(pixels_per_unit, "pixels_per_unit", positive=True)
-    return implementation("calibration.homography_dlt")(img, ground * scale, normalize=True)
+    try:
+        return implementation("calibration.homography_dlt")(img, ground * scale, normalize=True)
+    except ValueError as error:   # e.g. the pixel (0, 0) on the ground's horizon: H[2, 2] = 0
+        raise ValueError(f"image_points and ground_points give no bird's-eye homography with H[2, 2] = 1 "
+                         f"(homography_dlt: {error})") from error
 
 
 def _no_three_collinear(points: np.ndarray, name: str) -> None:
