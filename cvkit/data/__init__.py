@@ -1,7 +1,10 @@
 """Images and data sets for the notebooks, made by code or shipped with installed packages.
 
 Every loader returns float64 arrays in [0, 1] (grayscale ``(H, W)`` or RGB ``(H, W, 3)``)
-unless it says otherwise; nothing is downloaded. The loaders live in private submodules by
+unless it says otherwise; nothing is downloaded. The sample pictures and the stereo pair are
+scikit-image's (the optional extra ``pip install "cvkit[data]"``), the digits scikit-learn's
+(``pip install "cvkit[learn]"``): without them those loaders raise an ``ImportError`` that says
+so, and everything made by code works without either. The loaders live in private submodules by
 theme (``_images``: scikit-image's bundled pictures and noise helpers; further modules add
 stereo pairs, chessboard views, digits, synthetic shapes); every public name of every
 submodule (its ``__all__``) is available here.

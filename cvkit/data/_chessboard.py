@@ -27,15 +27,21 @@ Conventions (those of :mod:`cvkit.camera` and of the catalog):
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .._validation import as_rng, check_int, check_real
+from .._validation import as_rng, check_allocation, check_int, check_real, check_size
 
 __all__ = ["ChessboardViews", "render_chessboard", "random_board_poses", "chessboard_views"]
 
 #: default camera of the chapter: fu = 800, fv = 820, principal point (320, 240), 640×480
 DEFAULT_A = ((800.0, 0.0, 320.0), (0.0, 820.0, 240.0), (0.0, 0.0, 1.0))
+#: the most samples per pixel side :func:`render_chessboard` takes (1/4096 of a grey step)
+MAX_SUPERSAMPLE = 64
+#: the most rejection-sampling attempts :func:`random_board_poses` makes (about 10 s)
+MAX_TRIES = 100_000
 
 
 class ChessboardViews(dict):
@@ -48,40 +54,43 @@ class ChessboardViews(dict):
     ``rows``, ``square_size``, ``image_size`` (rows, cols) and ``noise``.
     """
 
-    def __getattr__(self, name):
+    def __getattr__(self, name: str) -> Any:
         try:
             return self[name]
         except KeyError:
             raise AttributeError(name) from None
 
-    def __dir__(self):
+    def __dir__(self) -> list[str]:
         return list(super().__dir__()) + list(self.keys())
 
 
 # --------------------------------------------------------------------------------------------
 # argument checks
 # --------------------------------------------------------------------------------------------
-def _camera(A) -> np.ndarray:
+def _camera(A: ArrayLike) -> np.ndarray:
     from ..camera._common import as_intrinsics
 
     A = as_intrinsics(A, "A")
     return A / A[2, 2]
 
 
-def _pose(R, t) -> tuple[np.ndarray, np.ndarray]:
+def _pose(R: ArrayLike, t: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     from ..camera._common import as_rotation, as_translation
 
     return as_rotation(R, "R"), as_translation(t, "t")
 
 
-def _image_size(image_size) -> tuple[int, int]:
+def _image_size(image_size: object) -> tuple[int, int]:
+    """``(rows, cols)`` >= 2, with the rays of every pixel corner (three float64 each) in 2 GiB."""
     if not isinstance(image_size, (tuple, list)) or len(image_size) != 2:
         raise ValueError(f"image_size must be a pair (rows, cols), got {image_size!r}")
-    return (check_int(image_size[0], "image_size[0] (rows)", minimum=2),
-            check_int(image_size[1], "image_size[1] (cols)", minimum=2))
+    rows = check_int(image_size[0], "image_size[0] (rows)", minimum=2)
+    cols = check_int(image_size[1], "image_size[1] (cols)", minimum=2)
+    check_allocation((rows + 1, cols + 1, 3), "image_size", what="the rays of the pixel corners")
+    return rows, cols
 
 
-def _board(cols, rows, square_size, margin) -> tuple[int, int, float, float]:
+def _board(cols: int, rows: int, square_size: float, margin: float) -> tuple[int, int, float, float]:
     cols = check_int(cols, "cols", minimum=2)
     rows = check_int(rows, "rows", minimum=2)
     square_size = check_real(square_size, "square_size", positive=True)
@@ -89,7 +98,7 @@ def _board(cols, rows, square_size, margin) -> tuple[int, int, float, float]:
     return cols, rows, square_size, margin
 
 
-def _distortion(k, p) -> tuple[tuple, tuple]:
+def _distortion(k: ArrayLike, p: ArrayLike) -> tuple[tuple[float, ...], tuple[float, ...]]:
     from ..camera._common import distortion_coefficients
 
     kk, pp = distortion_coefficients(k, p)
@@ -100,7 +109,7 @@ def _distortion(k, p) -> tuple[tuple, tuple]:
 # rendering
 # --------------------------------------------------------------------------------------------
 @functools.lru_cache(maxsize=8)
-def _rays(A_key: tuple, k: tuple, p: tuple, rows: int, cols: int) -> np.ndarray:
+def _rays(A_key: tuple[float, ...], k: tuple[float, ...], p: tuple[float, ...], rows: int, cols: int) -> np.ndarray:
     """Ideal normalised coordinates (x, y) of the pixel *corners*: shape (rows + 1, cols + 1, 2).
 
     The distortion is inverted by Newton's method on the 2×2 system (converges in a few
@@ -134,13 +143,32 @@ def _rays(A_key: tuple, k: tuple, p: tuple, rows: int, cols: int) -> np.ndarray:
     return out
 
 
-def _levels(color: bool, dark, light, background):
-    if color:
-        return (np.array([0.10, 0.10, 0.13]) if dark is None else np.broadcast_to(np.asarray(dark, float), (3,)),
-                np.array([0.93, 0.91, 0.86]) if light is None else np.broadcast_to(np.asarray(light, float), (3,)),
-                np.array([0.30, 0.42, 0.55]) if background is None else np.broadcast_to(np.asarray(background, float), (3,)))
-    return (np.array([0.1 if dark is None else float(dark)]), np.array([0.9 if light is None else float(light)]),
-            np.array([0.45 if background is None else float(background)]))
+def _level(value: ArrayLike | None, name: str, color: bool, grey: float, rgb: tuple[float, float, float]) -> np.ndarray:
+    """One intensity: ``(3,)`` for colour (a grey level is repeated), ``(1,)`` otherwise."""
+    if value is None:
+        return np.array(rgb) if color else np.array([grey])
+    what = "a grey level or an RGB triple" if color else "a grey level"
+    try:
+        level = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be {what} or None, got {value!r}") from None
+    if not np.all(np.isfinite(level)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    if not color:
+        if level.size != 1:
+            raise ValueError(f"{name} must be {what} or None, got shape {level.shape}")
+        return np.array([float(level.reshape(-1)[0])])
+    try:
+        return np.broadcast_to(level, (3,))
+    except ValueError:
+        raise ValueError(f"{name} must be {what} or None, got shape {level.shape}") from None
+
+
+def _levels(color: bool, dark: ArrayLike | None, light: ArrayLike | None,
+            background: ArrayLike | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    return (_level(dark, "dark", color, 0.1, (0.10, 0.10, 0.13)),
+            _level(light, "light", color, 0.9, (0.93, 0.91, 0.86)),
+            _level(background, "background", color, 0.45, (0.30, 0.42, 0.55)))
 
 
 def _plane_homography(R: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -150,7 +178,7 @@ def _plane_homography(R: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.linalg.inv(M)
 
 
-def _board_xy(X, Y, Wh) -> tuple[np.ndarray, np.ndarray]:
+def _board_xy(X: np.ndarray, Y: np.ndarray, Wh: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Euclidean board coordinates from homogeneous ones; +inf where the plane is behind."""
     hit = Wh > 0
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -159,7 +187,7 @@ def _board_xy(X, Y, Wh) -> tuple[np.ndarray, np.ndarray]:
     return xw, yw
 
 
-def _labels(xw, yw, cols, rows, s, margin) -> np.ndarray:
+def _labels(xw: np.ndarray, yw: np.ndarray, cols: int, rows: int, s: float, margin: float) -> np.ndarray:
     """0 dark square, 1 light square or paper margin, 2 background (int8)."""
     with np.errstate(invalid="ignore"):
         u = xw / s
@@ -171,9 +199,12 @@ def _labels(xw, yw, cols, rows, s, margin) -> np.ndarray:
     return np.where(dark, 0, np.where(on_paper, 1, 2)).astype(np.int8)
 
 
-def render_chessboard(A, R, t, cols=9, rows=6, square_size=25.0, image_size=(480, 640), k=(0.0, 0.0, 0.0),
-                      p=(0.0, 0.0), noise=0.0, rng=None, margin=0.6, supersample=8, color=False,
-                      dark=None, light=None, background=None):
+def render_chessboard(A: ArrayLike, R: ArrayLike, t: ArrayLike, cols: int = 9, rows: int = 6,
+                      square_size: float = 25.0, image_size: tuple[int, int] = (480, 640),
+                      k: ArrayLike = (0.0, 0.0, 0.0), p: ArrayLike = (0.0, 0.0), noise: float = 0.0,
+                      rng: np.random.Generator | int | None = None, margin: float = 0.6, supersample: int = 8,
+                      color: bool = False, dark: ArrayLike | None = None, light: ArrayLike | None = None,
+                      background: ArrayLike | None = None) -> np.ndarray:
     """Render one view of a chessboard through a camera with lens distortion.
 
     Parameters
@@ -188,7 +219,8 @@ def render_chessboard(A, R, t, cols=9, rows=6, square_size=25.0, image_size=(480
     square_size : float
         Side of a square in world units (> 0).
     image_size : (rows, cols)
-        Size of the image in pixels.
+        Size of the image in pixels, each >= 2; the rays of the ``(rows + 1)(cols + 1)``
+        pixel corners may take at most 2 GiB (``ValueError`` naming ``image_size``).
     k, p : sequences
         Radial ``(k1[, k2[, k3]])`` and tangential ``(p1, p2)`` distortion (OpenCV's model,
         :func:`cvkit.camera.distort`).
@@ -201,7 +233,8 @@ def render_chessboard(A, R, t, cols=9, rows=6, square_size=25.0, image_size=(480
         Width of the light paper border around the squares, in squares.
     supersample : int
         Samples per side of a pixel that straddles an edge (the area average is taken over
-        ``supersample²`` points); pixels entirely inside one region are not sampled.
+        ``supersample²`` points), 1..64 (:data:`MAX_SUPERSAMPLE`; 64 already resolves 1/4096
+        of the contrast); pixels entirely inside one region are not sampled.
     color : bool
         Return an RGB image ``(H, W, 3)`` (a bluish background, slightly warm paper).
     dark, light, background : float or RGB triple, optional
@@ -237,7 +270,7 @@ def render_chessboard(A, R, t, cols=9, rows=6, square_size=25.0, image_size=(480
     H, W = _image_size(image_size)
     kk, pp = _distortion(k, p)
     noise = check_real(noise, "noise", nonnegative=True)
-    ss = check_int(supersample, "supersample", minimum=1)
+    ss = check_size(supersample, "supersample", maximum=MAX_SUPERSAMPLE)
     levels = _levels(bool(color), dark, light, background)
     values = np.stack(levels)                              # (3 labels, channels)
 
@@ -258,8 +291,8 @@ def render_chessboard(A, R, t, cols=9, rows=6, square_size=25.0, image_size=(480
     r_idx, c_idx = np.nonzero(grown)
     if r_idx.size:
         offsets = (np.arange(ss) + 0.5) / ss                # fractions inside the pixel
-        fy, fx = np.meshgrid(offsets, offsets, indexing="ij")
-        fx, fy = fx.ravel(), fy.ravel()                      # (ss²,)
+        grid_y, grid_x = np.meshgrid(offsets, offsets, indexing="ij")
+        fx, fy = grid_x.ravel(), grid_y.ravel()              # (ss²,)
         fxy = fx * fy
         chunk = max(1, 250_000 // (ss * ss))
         for start in range(0, r_idx.size, chunk):
@@ -285,27 +318,31 @@ def render_chessboard(A, R, t, cols=9, rows=6, square_size=25.0, image_size=(480
 # --------------------------------------------------------------------------------------------
 # poses and views
 # --------------------------------------------------------------------------------------------
-def _rotation(roll, pitch, yaw) -> np.ndarray:
+def _rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
     from ..camera import rotation_matrix
 
     return rotation_matrix(roll, pitch, yaw)
 
 
-def _project(points, A, R, t, k, p) -> np.ndarray:
+def _project(points: np.ndarray, A: np.ndarray, R: np.ndarray, t: np.ndarray, k: ArrayLike,
+             p: ArrayLike) -> np.ndarray:
     from ..camera import project_full
 
     return project_full(points, A, R, t, k, p)
 
 
-def random_board_poses(n, A, image_size=(480, 640), cols=9, rows=6, square_size=25.0, k=(0.0, 0.0, 0.0),
-                       p=(0.0, 0.0), rng=None, tilt=0.7, spin=0.35, fill=(0.55, 0.95), margin=0.6,
-                       border=8.0, flip=False, max_tries=2000):
+def random_board_poses(n: int, A: ArrayLike, image_size: tuple[int, int] = (480, 640), cols: int = 9,
+                       rows: int = 6, square_size: float = 25.0, k: ArrayLike = (0.0, 0.0, 0.0),
+                       p: ArrayLike = (0.0, 0.0), rng: np.random.Generator | int | None = None, tilt: float = 0.7,
+                       spin: float = 0.35, fill: tuple[float, float] = (0.55, 0.95), margin: float = 0.6,
+                       border: float = 8.0, flip: bool = False,
+                       max_tries: int = 2000) -> tuple[np.ndarray, np.ndarray]:
     """Random poses of a chessboard that keep the whole sheet of paper inside the image.
 
     Parameters
     ----------
     n : int
-        Number of poses.
+        Number of poses, 0 <= n <= ``max_tries`` (each pose takes at least one try).
     A, image_size, cols, rows, square_size, k, p, margin :
         Camera and board, as for :func:`render_chessboard`.
     rng : numpy.random.Generator, int or None
@@ -315,13 +352,14 @@ def random_board_poses(n, A, image_size=(480, 640), cols=9, rows=6, square_size=
         Largest rotation about the board's normal (radians, uniform in ±spin).
     fill : (float, float)
         Range of the apparent diagonal of the paper as a fraction of the image diagonal (before
-        perspective); sets the distance. Reduced gradually when poses keep failing.
+        perspective), both > 0; sets the distance. Reduced gradually when poses keep failing.
     border : float
         Minimal distance in pixels between the projected paper corners and the image border.
     flip : bool
         Also turn half of the boards by π about their normal (upside down).
     max_tries : int
-        Rejection-sampling attempts before giving up (ValueError).
+        Rejection-sampling attempts, for all the poses together, before giving up
+        (ValueError); 1 <= max_tries <= 100000 (:data:`MAX_TRIES`, about 10 s).
 
     Returns
     -------
@@ -333,7 +371,9 @@ def random_board_poses(n, A, image_size=(480, 640), cols=9, rows=6, square_size=
     A = _camera(A)
     H, W = _image_size(image_size)
     cols, rows, s, margin = _board(cols, rows, square_size, margin)
-    n = check_int(n, "n", minimum=0)
+    max_tries = check_size(max_tries, "max_tries", maximum=MAX_TRIES)
+    n = check_size(n, "n", minimum=0, maximum=max_tries)
+    lo, hi = _fill(fill)
     tilt = check_real(tilt, "tilt", nonnegative=True)
     spin = check_real(spin, "spin", nonnegative=True)
     border = check_real(border, "border", nonnegative=True)
@@ -346,7 +386,8 @@ def random_board_poses(n, A, image_size=(480, 640), cols=9, rows=6, square_size=
     centre = np.array([(cols - 1) * s / 2, (rows - 1) * s / 2, 0.0])
     board_width = float(np.hypot((cols + 1 + 2 * margin) * s, (rows + 1 + 2 * margin) * s))  # the paper
     diagonal = float(np.hypot(H, W))
-    rotations, translations = [], []
+    rotations: list[np.ndarray] = []
+    translations: list[np.ndarray] = []
     tries = 0
     while len(rotations) < n:
         tries += 1
@@ -357,7 +398,7 @@ def random_board_poses(n, A, image_size=(480, 640), cols=9, rows=6, square_size=
         yaw = rng.uniform(-spin, spin) + (np.pi if flip and rng.random() < 0.5 else 0.0)
         R = _rotation(rng.uniform(-tilt, tilt), rng.uniform(-tilt, tilt), yaw)
         shrink = 0.97 ** (tries // 50)            # when the board keeps sticking out, try smaller
-        depth = A[0, 0] * board_width / (diagonal * rng.uniform(*fill) * shrink)
+        depth = A[0, 0] * board_width / (diagonal * rng.uniform(lo, hi) * shrink)
         target = np.array([rng.uniform(-0.25, 0.25) * W / A[0, 0], rng.uniform(-0.25, 0.25) * H / A[1, 1], 1.0]) * depth
         t = target - R @ centre
         if R[2, 2] <= 0.2:  # seen too edge-on (or from behind)
@@ -371,14 +412,25 @@ def random_board_poses(n, A, image_size=(480, 640), cols=9, rows=6, square_size=
     return np.array(rotations).reshape(n, 3, 3), np.array(translations).reshape(n, 3)
 
 
-def chessboard_views(n_views=15, cols=9, rows=6, square_size=25.0, image_size=(480, 640), A=None,
-                     k=(-0.2, 0.05), p=(0.0, 0.0), noise=0.01, rng=0, render=True, **pose_options):
+def _fill(fill: object) -> tuple[float, float]:
+    if not isinstance(fill, (tuple, list, np.ndarray)) or len(fill) != 2:
+        raise ValueError(f"fill must be a pair (low, high) of fractions, got {fill!r}")
+    return check_real(fill[0], "fill[0]", positive=True), check_real(fill[1], "fill[1]", positive=True)
+
+
+def chessboard_views(n_views: int = 15, cols: int = 9, rows: int = 6, square_size: float = 25.0,
+                     image_size: tuple[int, int] = (480, 640), A: ArrayLike | None = None,
+                     k: ArrayLike = (-0.2, 0.05), p: ArrayLike = (0.0, 0.0), noise: float = 0.01,
+                     rng: np.random.Generator | int | None = 0, render: bool = True,
+                     **pose_options: Any) -> ChessboardViews:
     """Views of a chessboard through a known camera: images and their ground truth.
 
     Parameters
     ----------
     n_views : int
-        Number of views (random poses, :func:`random_board_poses`).
+        Number of views (random poses, :func:`random_board_poses`), at most its ``max_tries``
+        (2000 by default); the rendered images together, and the corner positions of all
+        views, may take at most 2 GiB (``ValueError`` naming ``n_views``, ``cols`` or ``rows``).
     cols, rows, square_size :
         The board: 9 × 6 inner corners of 25 mm by default.
     image_size : (rows, cols)
@@ -415,6 +467,14 @@ def chessboard_views(n_views=15, cols=9, rows=6, square_size=25.0, image_size=(4
     A = _camera(np.array(DEFAULT_A) if A is None else A)
     H, W = _image_size(image_size)
     cols, rows, s, margin = _board(cols, rows, square_size, pose_options.get("margin", 0.6))
+    max_tries = pose_options.get("max_tries", 2000)
+    if isinstance(max_tries, int) and n_views > max_tries:
+        raise ValueError(f"n_views must be <= max_tries ({max_tries}: each view takes at least one try), got {n_views}")
+    corners = "cols" if cols >= rows else "rows"
+    check_allocation((n_views, cols * rows, 2), corners if cols * rows > n_views else "n_views",
+                     what=f"the image points of n_views={n_views} views of cols × rows = {cols}×{rows} corners")
+    if render:
+        check_allocation((n_views, H, W), "n_views", what=f"n_views={n_views} rendered images")
     kk, pp = _distortion(k, p)
     rotations, translations = random_board_poses(n_views, A, (H, W), cols, rows, s, kk, pp, rng=rng, **pose_options)
     jj, ii = np.mgrid[0:rows, 0:cols]

@@ -5,11 +5,14 @@ import numpy as np
 
 __all__ = ["digits"]
 
+#: ``(X_train, y_train), (X_test, y_test)``
+Split = tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
 _TEST_FRACTION = 0.3
 _SPLIT_SEED = 2026
 
 
-def digits(flatten: bool = True):
+def digits(flatten: bool = True) -> Split:
     """The 8×8 digits shipped with scikit-learn, with a fixed stratified train/test split.
 
     Parameters
@@ -24,6 +27,11 @@ def digits(flatten: bool = True):
         labels 0..9. The split is the same on every machine: 30 % of each class for testing
         (1258 training and 539 test images), drawn once with a fixed seed.
 
+    Raises
+    ------
+    ImportError
+        Without scikit-learn, an optional extra: ``pip install "cvkit[learn]"``.
+
     Examples
     --------
     >>> (X_train, y_train), (X_test, y_test) = digits()
@@ -32,8 +40,10 @@ def digits(flatten: bool = True):
     """
     try:
         from sklearn.datasets import load_digits
-    except ImportError as exc:  # pragma: no cover - scikit-learn is the `learn` extra
-        raise ImportError("cvkit.data.digits needs scikit-learn (pip install 'cvkit[learn]')") from exc
+    except ImportError as exc:  # scikit-learn is the `learn` extra
+        raise ImportError(
+            'cvkit.data.digits loads scikit-learn\'s digits, and scikit-learn is not installed: '
+            'pip install "cvkit[learn]"') from exc
     bunch = load_digits()
     images = bunch.images.astype(np.float64) / 16.0
     labels = bunch.target.astype(np.int64)

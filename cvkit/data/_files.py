@@ -21,13 +21,19 @@ import os
 import pickle
 import struct
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+
+from ._digits import Split
 
 __all__ = ["read_idx", "mnist", "read_cifar_batch", "cifar10", "CIFAR10_CLASSES"]
 
 #: the CIFAR-10 class names in label order (also in the ``batches.meta`` file)
 CIFAR10_CLASSES = ("airplane", "automobile", "bird", "cat", "deer", "dog", "frog", "horse", "ship", "truck")
+
+#: a file or folder path
+PathLike = str | os.PathLike[str]
 
 _IDX_TYPES = {0x08: ">u1", 0x09: ">i1", 0x0B: ">i2", 0x0C: ">i4", 0x0D: ">f4", 0x0E: ">f8"}
 _MNIST_FILES = {
@@ -38,7 +44,7 @@ _MNIST_FILES = {
 }
 
 
-def _path(path, name: str = "path") -> Path:
+def _path(path: PathLike, name: str = "path") -> Path:
     if not isinstance(path, (str, os.PathLike)):
         raise TypeError(f"{name} must be a file path (str or os.PathLike), got {type(path).__name__}")
     return Path(path)
@@ -51,7 +57,7 @@ def _read_bytes(path: Path) -> bytes:
     return raw
 
 
-def read_idx(path) -> np.ndarray:
+def read_idx(path: PathLike) -> np.ndarray:
     """Read one IDX file (gzip-compressed or not) into an array.
 
     Parameters
@@ -113,7 +119,7 @@ def _find(folder: Path, stem: str) -> Path:
     raise FileNotFoundError(f"{folder}: no file {stem}[.gz] (looked for {', '.join(variants)})")
 
 
-def mnist(folder, flatten: bool = False, raw: bool = False):
+def mnist(folder: PathLike, flatten: bool = False, raw: bool = False) -> Split:
     """The MNIST training and test sets from the four official IDX files in ``folder``.
 
     Parameters
@@ -137,7 +143,7 @@ def mnist(folder, flatten: bool = False, raw: bool = False):
     if not folder.is_dir():
         raise FileNotFoundError(f"folder {folder} does not exist")
     parts = {key: read_idx(_find(folder, stem)) for key, stem in _MNIST_FILES.items()}
-    out = []
+    out: list[tuple[np.ndarray, np.ndarray]] = []
     for split in ("train", "test"):
         images, labels = parts[f"{split}_images"], parts[f"{split}_labels"]
         if images.ndim != 3 or labels.ndim != 1 or len(images) != len(labels):
@@ -146,7 +152,7 @@ def mnist(folder, flatten: bool = False, raw: bool = False):
         if flatten:
             X = X.reshape(len(X), -1)
         out.append((X, labels.astype(np.int64)))
-    return tuple(out)
+    return out[0], out[1]
 
 
 class _SafeUnpickler(pickle.Unpickler):
@@ -168,25 +174,25 @@ class _SafeUnpickler(pickle.Unpickler):
         ("builtins", "object"),
     }
 
-    def find_class(self, module, name):
+    def find_class(self, module: str, name: str) -> Any:
         if (module, name) in self._ALLOWED:
             return super().find_class(module, name)
         raise pickle.UnpicklingError(f"refusing to load {module}.{name} from a data file")
 
 
-def _load_pickle(path: Path):
+def _load_pickle(path: Path) -> Any:
     with io.BytesIO(_read_bytes(path)) as stream:
         return _SafeUnpickler(stream, encoding="bytes").load()
 
 
-def _get(batch: dict, key: str):
+def _get(batch: dict[Any, Any], key: str) -> Any:
     for k in (key.encode(), key):
         if k in batch:
             return batch[k]
     raise KeyError(key)
 
 
-def read_cifar_batch(path):
+def read_cifar_batch(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
     """Read one CIFAR-10 (or CIFAR-100) python batch file.
 
     Parameters
@@ -240,7 +246,7 @@ def read_cifar_batch(path):
     return np.ascontiguousarray(images), labels
 
 
-def cifar10(folder, flatten: bool = False, raw: bool = False):
+def cifar10(folder: PathLike, flatten: bool = False, raw: bool = False) -> Split:
     """The CIFAR-10 training and test sets from the python batches in ``folder``.
 
     Parameters
@@ -269,7 +275,7 @@ def cifar10(folder, flatten: bool = False, raw: bool = False):
         raise FileNotFoundError(f"{folder}: no data_batch_1 … data_batch_5")
     if not (folder / "test_batch").is_file():
         raise FileNotFoundError(f"{folder}: no test_batch")
-    out = []
+    out: list[tuple[np.ndarray, np.ndarray]] = []
     for files in (train, [folder / "test_batch"]):
         parts = [read_cifar_batch(f) for f in files]
         images = np.concatenate([p[0] for p in parts])
@@ -278,4 +284,4 @@ def cifar10(folder, flatten: bool = False, raw: bool = False):
         if flatten:
             X = X.reshape(len(X), -1)
         out.append((X, labels))
-    return tuple(out)
+    return out[0], out[1]

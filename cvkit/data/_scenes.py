@@ -17,40 +17,24 @@ positive angle turns clockwise on screen).
 from __future__ import annotations
 
 import math
+from typing import Any, Literal, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .._validation import as_rng, check_int, check_real
+from .._validation import as_rng, check_int, check_real, check_size
+from ._common import Inside, as_points, centre_point, check_drawing, coverage, image_shape, samples
 
 __all__ = ["polygon_image", "part_outline", "part_template", "part_scene", "to_scene", "segments_image"]
 
 POLARITIES = ("normal", "inverted", "mixed")
+#: the most clutter shapes :func:`part_scene` draws
+MAX_CLUTTER = 1000
 
 
-def _shape(shape) -> tuple[int, int]:
-    if not isinstance(shape, (tuple, list)) or len(shape) != 2:
-        raise ValueError(f"shape must be a pair (rows, cols), got {shape!r}")
-    return check_int(shape[0], "shape[0] (rows)", minimum=1), check_int(shape[1], "shape[1] (cols)", minimum=1)
-
-
-def _samples(rows: int, cols: int, supersample: int) -> tuple[np.ndarray, np.ndarray]:
-    s = check_int(supersample, "supersample", minimum=1)
-    offsets = (np.arange(s) + 0.5) / s - 0.5
-    y = (np.arange(rows)[:, None] + offsets[None, :]).reshape(-1)
-    x = (np.arange(cols)[:, None] + offsets[None, :]).reshape(-1)
-    return x[None, :], y[:, None]
-
-
-def _coverage(rows: int, cols: int, inside, supersample: int) -> np.ndarray:
-    x, y = _samples(rows, cols, supersample)
-    hit = inside(x, y)
-    s = supersample
-    return hit.reshape(rows, s, cols, s).mean(axis=(1, 3))
-
-
-def _inside_polygon(vertices: np.ndarray):
+def _inside_polygon(vertices: np.ndarray) -> Inside:
     """Even-odd rule, vectorised over the sample grid (a loop over the polygon's edges)."""
-    def inside(x, y):
+    def inside(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         hit = np.zeros(np.broadcast(x, y).shape, dtype=bool)
         n = len(vertices)
         for k in range(n):
@@ -65,14 +49,15 @@ def _inside_polygon(vertices: np.ndarray):
     return inside
 
 
-def _vertices(vertices) -> np.ndarray:
+def _vertices(vertices: ArrayLike) -> np.ndarray:
     v = np.asarray(vertices, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] != 2 or v.shape[0] < 3 or not np.all(np.isfinite(v)):
         raise ValueError(f"vertices must be an (N, 2) array of finite (x, y) with N >= 3, got shape {v.shape}")
     return v
 
 
-def polygon_image(shape, vertices, inside=1.0, outside=0.0, supersample=4):
+def polygon_image(shape: tuple[int, int], vertices: ArrayLike, inside: float = 1.0, outside: float = 0.0,
+                  supersample: int = 4) -> np.ndarray:
     """A filled polygon (even-odd rule), anti-aliased.
 
     Parameters
@@ -85,6 +70,10 @@ def polygon_image(shape, vertices, inside=1.0, outside=0.0, supersample=4):
     supersample : int
         Samples per pixel along each axis.
 
+    The image and its grid of ``supersample²`` samples per pixel may each take at most
+    2 GiB (``ValueError`` naming ``shape`` or ``supersample``), and the drawing, about ten
+    operations per sample and vertex, at most 2**36 (naming ``vertices``).
+
     Returns
     -------
     (rows, cols) float64 ndarray
@@ -95,15 +84,16 @@ def polygon_image(shape, vertices, inside=1.0, outside=0.0, supersample=4):
            [0.25, 0.5 , 0.5 , 0.25, 0.  ],
            [0.  , 0.  , 0.  , 0.  , 0.  ]])
     """
-    rows, cols = _shape(shape)
+    rows, cols = image_shape(shape)
     v = _vertices(vertices)
-    cov = _coverage(rows, cols, _inside_polygon(v), supersample)
     inside = check_real(inside, "inside")
     outside = check_real(outside, "outside")
+    check_drawing(rows, cols, supersample, len(v), "vertices", f"a polygon of {len(v)} vertices")
+    cov = coverage(rows, cols, _inside_polygon(v), supersample)
     return outside + (inside - outside) * cov
 
 
-def part_outline(size=40.0):
+def part_outline(size: float = 40.0) -> np.ndarray:
     """Corners ``(x, y)`` of the "part": a bracket with a rounded head, a notch and a slanted
     side, no symmetry, centred on the origin and ``size`` wide (``0.75·size`` tall).
 
@@ -123,8 +113,12 @@ def part_outline(size=40.0):
     return v * (size / np.ptp(v[:, 0]))
 
 
-def part_template(size=40, inside=0.8, outside=0.2, margin=4, supersample=4):
+def part_template(size: int = 40, inside: float = 0.8, outside: float = 0.2, margin: int = 4,
+                  supersample: int = 4) -> tuple[np.ndarray, np.ndarray]:
     """The model image: the part, ``size − 2·margin`` wide, centred in a ``size × size`` square.
+
+    ``size`` >= 8 and ``supersample`` are bounded as the ``shape`` and ``supersample`` of
+    :func:`polygon_image` (``ValueError`` naming them).
 
     Returns
     -------
@@ -136,11 +130,12 @@ def part_template(size=40, inside=0.8, outside=0.2, margin=4, supersample=4):
     margin = check_int(margin, "margin", minimum=0)
     if 2 * margin >= size - 4:
         raise ValueError(f"margin must leave room for the part: size={size}, margin={margin}")
+    image_shape((size, size), "size")
     outline = part_outline(size - 2 * margin) + (size - 1) / 2.0
     return polygon_image((size, size), outline, inside, outside, supersample), outline
 
 
-def to_scene(pose, point):
+def to_scene(pose: dict[str, Any], point: Sequence[float]) -> tuple[float, float]:
     """Where the template point ``(x, y)`` lands in the scene of ``pose`` (from :func:`part_scene`):
     ``centre + scale·R(angle)·(point − template_centre)``."""
     cx, cy = pose["centre"]
@@ -150,9 +145,10 @@ def to_scene(pose, point):
     return (cx + s * (math.cos(a) * dx - math.sin(a) * dy), cy + s * (math.sin(a) * dx + math.cos(a) * dy))
 
 
-def _random_clutter(rng, rows, cols, keep_out, count):
+def _random_clutter(rng: np.random.Generator, rows: int, cols: int, keep_out: tuple[float, float, float],
+                    count: int) -> list[tuple[np.ndarray, float]]:
     """Random disks, rotated rectangles and triangles outside the disk ``keep_out``."""
-    shapes = []
+    shapes: list[tuple[np.ndarray, float]] = []
     cx, cy, radius = keep_out
     tries = 0
     while len(shapes) < count and tries < 200 * max(1, count):
@@ -178,8 +174,11 @@ def _random_clutter(rng, rows, cols, keep_out, count):
     return shapes
 
 
-def part_scene(shape=(128, 128), centre=None, scale=1.0, angle=0.0, size=40, clutter=6, occlusion=0.0,
-               noise=0.02, polarity="normal", rng=None, supersample=4, margin=4):
+def part_scene(shape: tuple[int, int] = (128, 128), centre: tuple[float, float] | None = None, scale: float = 1.0,
+               angle: float = 0.0, size: int = 40, clutter: int = 6, occlusion: float = 0.0, noise: float = 0.02,
+               polarity: Literal["normal", "inverted", "mixed"] = "normal",
+               rng: np.random.Generator | int | None = None, supersample: int = 4,
+               margin: int = 4) -> tuple[np.ndarray, dict[str, Any]]:
     """A scene with the part of :func:`part_template` at a known pose.
 
     Parameters
@@ -193,7 +192,9 @@ def part_scene(shape=(128, 128), centre=None, scale=1.0, angle=0.0, size=40, clu
         Size and margin of the template the pose refers to (as :func:`part_template`).
     clutter : int
         Number of random shapes (disks, rectangles, triangles) of random grey levels around,
-        not overlapping the part.
+        not overlapping the part; 0 <= clutter <= 1000 (:data:`MAX_CLUTTER`), and drawing
+        them, about 240 operations per sample each, at most 2**36 (``ValueError`` naming
+        ``clutter``).
     occlusion : float
         Fraction (0 ≤ f < 1) of the part's outline hidden behind a flat occluder (a half-plane
         in a random direction, clipped to a disk around the part).
@@ -205,6 +206,9 @@ def part_scene(shape=(128, 128), centre=None, scale=1.0, angle=0.0, size=40, clu
         background that is dark on one side of a line through the part and bright on the other
         (contrast polarity inverted along part of the outline).
     rng : Generator, int or None
+    supersample : int
+        Samples per pixel along each axis; ``shape`` and ``supersample`` are bounded as for
+        :func:`polygon_image`.
 
     Returns
     -------
@@ -213,17 +217,19 @@ def part_scene(shape=(128, 128), centre=None, scale=1.0, angle=0.0, size=40, clu
         ``centre`` (x, y), ``scale``, ``angle``, ``template_centre`` (x, y) and ``outline``,
         the part's corners in the scene; map template points with :func:`to_scene`.
     """
-    rows, cols = _shape(shape)
+    rows, cols = image_shape(shape)
     rng = as_rng(rng)
     size = check_int(size, "size", minimum=8)
     scale = check_real(scale, "scale", positive=True)
     angle = check_real(angle, "angle")
-    clutter = check_int(clutter, "clutter", minimum=0)
+    clutter = check_size(clutter, "clutter", minimum=0, maximum=MAX_CLUTTER)
+    samples(rows, cols, supersample)  # the grid fits
+    check_drawing(rows, cols, supersample, 24 * clutter + 40, "clutter", f"{clutter} clutter shapes and the part")
     occlusion = check_real(occlusion, "occlusion", nonnegative=True)
     if occlusion >= 1:
         raise ValueError(f"occlusion must be < 1, got {occlusion}")
     noise = check_real(noise, "noise", nonnegative=True)
-    if polarity not in POLARITIES:
+    if not isinstance(polarity, str) or polarity not in POLARITIES:
         raise ValueError(f"polarity must be one of {', '.join(map(repr, POLARITIES))}, got {polarity!r}")
     _, outline_t = part_template(size, margin=margin, supersample=1)
     c_t = ((size - 1) / 2.0, (size - 1) / 2.0)
@@ -235,15 +241,15 @@ def part_scene(shape=(128, 128), centre=None, scale=1.0, angle=0.0, size=40, clu
             raise ValueError(f"the part (scale {scale}, size {size}) does not fit in an image of shape {(rows, cols)}")
         centre = (float(rng.uniform(lo_x, hi_x)), float(rng.uniform(lo_y, hi_y)))
     else:
-        centre = (check_real(centre[0], "centre[0] (x)"), check_real(centre[1], "centre[1] (y)"))
-    pose = {"centre": centre, "scale": scale, "angle": angle, "template_centre": c_t}
+        centre = centre_point(centre, rows, cols)
+    pose: dict[str, Any] = {"centre": centre, "scale": scale, "angle": angle, "template_centre": c_t}
     outline = np.array([to_scene(pose, p) for p in outline_t])
     pose["outline"] = outline
 
-    x, y = _samples(rows, cols, supersample)
+    x, y = samples(rows, cols, supersample)
     s = supersample
 
-    def down(hit):
+    def down(hit: np.ndarray) -> np.ndarray:
         return hit.reshape(rows, s, cols, s).mean(axis=(1, 3))
 
     if polarity == "mixed":
@@ -281,26 +287,39 @@ def part_scene(shape=(128, 128), centre=None, scale=1.0, angle=0.0, size=40, clu
     return image, pose
 
 
-def segments_image(shape, segments, width=1.0, inside=1.0, outside=0.0, supersample=4):
+def segments_image(shape: tuple[int, int], segments: ArrayLike, width: float = 1.0, inside: float = 1.0,
+                   outside: float = 0.0, supersample: int = 4) -> np.ndarray:
     """Straight segments drawn with a given width, anti-aliased.
 
     Parameters
     ----------
     shape : (rows, cols)
     segments : (N, 4) array_like
-        ``(x0, y0, x1, y1)`` of each segment.
+        ``(x0, y0, x1, y1)`` of each segment, finite (any array of 4·N values, read row by
+        row).
     width : float
         Stroke width in pixels.
+    inside, outside : float
+        Levels of the strokes and of the background.
+    supersample : int
+        Samples per pixel along each axis.
+
+    ``shape`` and ``supersample`` are bounded as for :func:`polygon_image`, and drawing the
+    segments, about twenty operations per sample each, at most 2**36 operations
+    (``ValueError`` naming ``segments``).
 
     >>> img = segments_image((5, 7), [(1, 2, 5, 2)], width=1.0, supersample=2)
     >>> img[2], float(img[1].max())
     (array([0., 1., 1., 1., 1., 1., 0.]), 0.0)
     """
-    rows, cols = _shape(shape)
-    seg = np.asarray(segments, dtype=np.float64).reshape(-1, 4)
+    rows, cols = image_shape(shape)
+    seg = as_points(segments, "segments", 4)
     width = check_real(width, "width", positive=True)
+    inside = check_real(inside, "inside")
+    outside = check_real(outside, "outside")
+    check_drawing(rows, cols, supersample, 2 * len(seg), "segments", f"{len(seg)} segments")
 
-    def inside_fn(x, y):
+    def inside_fn(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         hit = np.zeros(np.broadcast(x, y).shape, dtype=bool)
         for x0, y0, x1, y1 in seg:
             dx, dy = x1 - x0, y1 - y0
@@ -309,5 +328,5 @@ def segments_image(shape, segments, width=1.0, inside=1.0, outside=0.0, supersam
             hit |= np.hypot(x - (x0 + t * dx), y - (y0 + t * dy)) <= width / 2
         return hit
 
-    cov = _coverage(rows, cols, inside_fn, supersample)
-    return check_real(outside, "outside") + (check_real(inside, "inside") - outside) * cov
+    cov = coverage(rows, cols, inside_fn, supersample)
+    return outside + (inside - outside) * cov

@@ -7,6 +7,9 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from ._common import skimage_data
 
 __all__ = ["stereo_motorcycle", "MOTORCYCLE_CALIBRATION"]
 
@@ -26,7 +29,7 @@ MOTORCYCLE_CALIBRATION = {
 _LUMA = np.array([0.299, 0.587, 0.114])
 
 
-def _to_gray(rgb) -> np.ndarray:
+def _to_gray(rgb: ArrayLike) -> np.ndarray:
     """Luma ``0.299 R + 0.587 G + 0.114 B`` of an ``(H, W, 3)`` image (float64, not rescaled)."""
     arr = np.asarray(rgb, dtype=np.float64)
     if arr.ndim != 3 or arr.shape[2] != 3:
@@ -34,7 +37,7 @@ def _to_gray(rgb) -> np.ndarray:
     return arr @ _LUMA
 
 
-def stereo_motorcycle(gray: bool = False):
+def stereo_motorcycle(gray: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The rectified 'motorcycle' stereo pair of Middlebury 2014 with its ground truth.
 
     Parameters
@@ -62,11 +65,10 @@ def stereo_motorcycle(gray: bool = False):
     baseline (193.001 mm) and ``doffs`` (31.086 px): the depth of a pixel is
     ``baseline · focal / (disparity + doffs)`` because the principal points of the two
     cameras are not at the same column. The exposures of the two views differ slightly,
-    which costs SAD and SSD matching accuracy but not ZNCC.
+    which costs SAD and SSD matching accuracy but not ZNCC. Needs scikit-image, an optional
+    extra (``pip install "cvkit[data]"``; ``ImportError`` saying so otherwise).
     """
-    import skimage.data
-
-    left, right, disparity = skimage.data.stereo_motorcycle()
+    left, right, disparity = skimage_data().stereo_motorcycle()
     left = left.astype(np.float64) / 255.0
     right = right.astype(np.float64) / 255.0
     disparity = np.asarray(disparity, dtype=np.float64)

@@ -18,42 +18,21 @@ import math
 
 import numpy as np
 
-from .._validation import check_int, check_real
+from .._validation import check_real, check_size
+from ._common import centre_point, coverage, image_shape
 
 __all__ = ["disk_image", "square_image", "oriented_step_image", "step_signal"]
 
-
-def _shape(shape) -> tuple[int, int]:
-    if not isinstance(shape, (tuple, list)) or len(shape) != 2:
-        raise ValueError(f"shape must be a pair (rows, cols), got {shape!r}")
-    return check_int(shape[0], "shape[0] (rows)", minimum=1), check_int(shape[1], "shape[1] (cols)", minimum=1)
+#: the most samples :func:`step_signal` makes (one ``math.erf`` call each)
+MAX_SIGNAL = 10**7
 
 
-def _centre(centre, rows: int, cols: int) -> tuple[float, float]:
-    if centre is None:
-        return (cols - 1) / 2.0, (rows - 1) / 2.0
-    if not isinstance(centre, (tuple, list, np.ndarray)) or len(centre) != 2:
-        raise ValueError(f"centre must be a pair (x, y) or None, got {centre!r}")
-    return check_real(centre[0], "centre[0] (x)"), check_real(centre[1], "centre[1] (y)")
+def _levels(inside: float, outside: float, names: tuple[str, str] = ("inside", "outside")) -> tuple[float, float]:
+    return check_real(inside, names[0]), check_real(outside, names[1])
 
 
-def _coverage(rows: int, cols: int, inside, supersample: int) -> np.ndarray:
-    """Fraction of each pixel for which ``inside(x, y)`` holds, on an s × s grid of samples."""
-    s = check_int(supersample, "supersample", minimum=1)
-    offsets = (np.arange(s) + 0.5) / s - 0.5
-    y = (np.arange(rows)[:, None] + offsets[None, :]).reshape(-1)
-    x = (np.arange(cols)[:, None] + offsets[None, :]).reshape(-1)
-    hit = inside(x[None, :], y[:, None])  # (rows·s, cols·s) bool
-    return hit.reshape(rows, s, cols, s).mean(axis=(1, 3))
-
-
-def _levels(coverage: np.ndarray, inside: float, outside: float) -> np.ndarray:
-    inside = check_real(inside, "inside")
-    outside = check_real(outside, "outside")
-    return outside + (inside - outside) * coverage
-
-
-def disk_image(shape=(64, 64), centre=None, radius=20.0, inside=1.0, outside=0.0, supersample=8):
+def disk_image(shape: tuple[int, int] = (64, 64), centre: tuple[float, float] | None = None, radius: float = 20.0,
+               inside: float = 1.0, outside: float = 0.0, supersample: int = 8) -> np.ndarray:
     """A filled disk, anti-aliased: its boundary contains every edge orientation.
 
     Parameters
@@ -70,6 +49,9 @@ def disk_image(shape=(64, 64), centre=None, radius=20.0, inside=1.0, outside=0.0
     supersample : int
         Samples per pixel side for the anti-aliasing (1: a hard, aliased disk).
 
+    The image and its grid of ``supersample²`` samples per pixel may each take at most
+    2 GiB (``ValueError`` naming ``shape`` or ``supersample``).
+
     Returns
     -------
     (rows, cols) float64 ndarray
@@ -80,18 +62,21 @@ def disk_image(shape=(64, 64), centre=None, radius=20.0, inside=1.0, outside=0.0
     >>> img.shape, round(float(img.max()), 3), round(float(img.min()), 3)
     ((32, 40), 0.8, 0.2)
     """
-    rows, cols = _shape(shape)
-    cx, cy = _centre(centre, rows, cols)
+    rows, cols = image_shape(shape)
+    cx, cy = centre_point(centre, rows, cols)
     radius = check_real(radius, "radius", positive=True)
-    cover = _coverage(rows, cols, lambda x, y: (x - cx) ** 2 + (y - cy) ** 2 <= radius * radius, supersample)
-    return _levels(cover, inside, outside)
+    inside, outside = _levels(inside, outside)
+    cover = coverage(rows, cols, lambda x, y: (x - cx) ** 2 + (y - cy) ** 2 <= radius * radius, supersample)
+    return outside + (inside - outside) * cover
 
 
-def square_image(shape=(64, 64), centre=None, side=32.0, angle=0.0, inside=1.0, outside=0.0, supersample=8):
+def square_image(shape: tuple[int, int] = (64, 64), centre: tuple[float, float] | None = None, side: float = 32.0,
+                 angle: float = 0.0, inside: float = 1.0, outside: float = 0.0, supersample: int = 8) -> np.ndarray:
     """A filled square of side ``side`` rotated by ``angle`` radians, anti-aliased.
 
     Its four edges have the orientations ``angle + k·π/2``; its corners are where edge
-    detectors break down.
+    detectors break down. The other arguments, and the bounds on ``shape`` and
+    ``supersample``, are those of :func:`disk_image`.
 
     Examples
     --------
@@ -99,50 +84,55 @@ def square_image(shape=(64, 64), centre=None, side=32.0, angle=0.0, inside=1.0, 
     >>> float(img[10, 10]), float(img[0, 0]), float(img.sum())
     (1.0, 0.0, 100.0)
     """
-    rows, cols = _shape(shape)
-    cx, cy = _centre(centre, rows, cols)
+    rows, cols = image_shape(shape)
+    cx, cy = centre_point(centre, rows, cols)
     side = check_real(side, "side", positive=True)
     angle = check_real(angle, "angle")
+    inside, outside = _levels(inside, outside)
     c, s = math.cos(angle), math.sin(angle)
     half = side / 2.0
 
-    def inside_square(x, y):
+    def inside_square(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         u = (x - cx) * c + (y - cy) * s
         v = -(x - cx) * s + (y - cy) * c
         return (np.abs(u) <= half) & (np.abs(v) <= half)
 
-    return _levels(_coverage(rows, cols, inside_square, supersample), inside, outside)
+    return outside + (inside - outside) * coverage(rows, cols, inside_square, supersample)
 
 
-def oriented_step_image(shape=(64, 64), angle=0.0, offset=0.0, low=0.0, high=1.0, supersample=8):
+def oriented_step_image(shape: tuple[int, int] = (64, 64), angle: float = 0.0, offset: float = 0.0,
+                        low: float = 0.0, high: float = 1.0, supersample: int = 8) -> np.ndarray:
     """A straight step edge whose normal points at ``angle`` radians, anti-aliased.
 
     The edge is the line ``(x − xc)·cos(angle) + (y − yc)·sin(angle) = offset`` through the
     image centre ``(xc, yc)`` shifted by ``offset`` pixels along the normal; intensity is
     ``high`` on the side the normal points to and ``low`` on the other. The gradient of the
-    image therefore points at ``angle`` (y down).
+    image therefore points at ``angle`` (y down). ``shape`` and ``supersample`` are bounded
+    as for :func:`disk_image`.
 
     Examples
     --------
     >>> oriented_step_image((2, 6), angle=0.0, offset=0.25)[0]
     array([0.  , 0.  , 0.  , 0.75, 1.  , 1.  ])
     """
-    rows, cols = _shape(shape)
+    rows, cols = image_shape(shape)
     angle = check_real(angle, "angle")
     offset = check_real(offset, "offset")
+    high, low = _levels(high, low, ("high", "low"))
     cx, cy = (cols - 1) / 2.0, (rows - 1) / 2.0
     c, s = math.cos(angle), math.sin(angle)
-    cover = _coverage(rows, cols, lambda x, y: (x - cx) * c + (y - cy) * s >= offset, supersample)
-    return _levels(cover, high, low)
+    cover = coverage(rows, cols, lambda x, y: (x - cx) * c + (y - cy) * s >= offset, supersample)
+    return low + (high - low) * cover
 
 
-def step_signal(n=101, position=50.3, width=3.0, low=0.2, high=0.8):
+def step_signal(n: int = 101, position: float = 50.3, width: float = 3.0, low: float = 0.2,
+                high: float = 0.8) -> np.ndarray:
     """A 1-D blurred step: ``low + (high − low)·Φ((x − position)/width)`` at x = 0..n−1.
 
     Φ is the standard normal cumulative distribution, so the step is a perfect edge blurred by
     a Gaussian of standard deviation ``width`` (``width = 0`` gives a sharp step). Its first
     derivative peaks, and its second derivative crosses zero, exactly at ``position`` (the
-    inflection point).
+    inflection point). ``n`` is the number of samples, 1 <= n <= 10**7 (:data:`MAX_SIGNAL`).
 
     Examples
     --------
@@ -150,7 +140,7 @@ def step_signal(n=101, position=50.3, width=3.0, low=0.2, high=0.8):
     >>> float(f[3]), bool(f[0] < 0.01 and f[6] > 0.99)
     (0.5, True)
     """
-    n = check_int(n, "n", minimum=1)
+    n = check_size(n, "n", maximum=MAX_SIGNAL)
     position = check_real(position, "position")
     width = check_real(width, "width", nonnegative=True)
     low = check_real(low, "low")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._validation import check_int
+from ._digits import Split
 from ._images import image as _image
 
 __all__ = ["textures", "TEXTURE_CLASSES"]
@@ -20,7 +21,7 @@ _SIDE = 512
 _TRAIN_WIDTH = 384  # columns 0..383 train, 384..511 test
 
 
-def textures(patch_size: int = 32, flatten: bool = False):
+def textures(patch_size: int = 32, flatten: bool = False) -> Split:
     """Patches of scikit-image's brick, grass and gravel textures with a fixed train/test split.
 
     Parameters
@@ -49,7 +50,10 @@ def textures(patch_size: int = 32, flatten: bool = False):
     p = check_int(patch_size, "patch_size", minimum=8)
     if p > 128:
         raise ValueError(f"patch_size must be at most 128, got {p}")
-    train_x, train_y, test_x, test_y = [], [], [], []
+    train_x: list[np.ndarray] = []
+    train_y: list[np.ndarray] = []
+    test_x: list[np.ndarray] = []
+    test_y: list[np.ndarray] = []
     for label, name in enumerate(TEXTURE_CLASSES):
         img = _image(name)
         rows = _SIDE // p
