@@ -109,7 +109,8 @@ def check_allocation(shape, name: str, *, itemsize: int = 8, what: str = "the re
     if nbytes > MAX_ARRAY_BYTES:
         raise ValueError(
             f"{name} asks for {what} of shape {dims} ({nbytes / 1024**3:.1f} GiB), more than the "
-            f"{MAX_ARRAY_BYTES / 1024**3:.0f} GiB cvkit allows for one array; use a smaller {name}")
+            f"{MAX_ARRAY_BYTES / 1024**3:.0f} GiB cvkit allows for one array: choose a value of {name} "
+            f"that needs less")
     return dims
 
 
