@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..camera._common import as_matrix, as_points
+from ..camera import as_matrix, as_points
 from ..registry import algorithm, implementation
 
 __all__ = ["homography_dlt", "refine_homography"]

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._validation import as_float_array, check_allocation
-from ..camera._common import as_intrinsics, as_matrix, as_points, as_rotation, as_translation
+from ..camera import as_intrinsics, as_matrix, as_points, as_rotation, as_translation
 from ..registry import algorithm, implementation
 
 __all__ = [

@@ -15,7 +15,10 @@ step                            formula                                     func
 (``projection_matrix``, ``project``) does the same in homogeneous coordinates
 (``to_homogeneous``, ``from_homogeneous``), also for points at infinity, whose images are
 vanishing points. ``decompose_projection`` factorises P back into A, R, t, and
-``undistort_points`` inverts the distortion.
+``undistort_points`` inverts the distortion (it warns with ``ConvergenceWarning`` where it
+cannot). The argument checks ``as_points``, ``as_matrix``, ``as_rotation``, ``as_translation``,
+``as_intrinsics`` and ``distortion_coefficients`` are public for the topics built on the camera
+model (not algorithms of the catalog, so not in ``__all__``).
 
 Conventions: pixels are (u, v) = (x, y) = (col, row) with the origin at the top-left pixel;
 the camera frame has x to the right, y down and z along the optical axis (OpenCV's); angles
@@ -40,6 +43,16 @@ from ._projection import (
     rotation_matrix,
 )
 from ._distortion import ConvergenceWarning, distort, project_full, undistort_points
+
+# argument checks of the camera model, public for the topics built on it (calibration, warp, data)
+from ._common import (
+    as_intrinsics,
+    as_matrix,
+    as_points,
+    as_rotation,
+    as_translation,
+    distortion_coefficients,
+)
 
 __all__ = [
     "to_homogeneous",

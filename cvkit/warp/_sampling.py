@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._validation import as_float_array, as_image, check_allocation, check_int
-from ..camera._common import as_intrinsics, as_matrix, distortion_coefficients
+from ..camera import as_intrinsics, as_matrix, distortion_coefficients
 from ..registry import algorithm, implementation
 
 __all__ = ["bilinear_sample", "warp_homography", "undistort_image"]

@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._validation import check_real
-from ..camera._common import as_intrinsics, as_points, as_rotation
+from ..camera import as_intrinsics, as_points, as_rotation
 from ..registry import algorithm, implementation
 
 __all__ = ["rotation_homography", "birds_eye_homography"]
