@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -31,7 +32,13 @@ from ..data._synthetic import disk_image, oriented_step_image, square_image
 from ..filters._linear import correlate as _correlate
 from ..filters._linear import gaussian as _gaussian
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
-from ..grading.compare import as_numeric, shape_advice
+from ..grading.casekit import BORDERS, random_image, variant
+from ..grading.casekit import SWAPPED_REFLECT as _SWAP
+from ..grading.casekit import distinct as _distinct
+from ..grading.casekit import sigma as _sigma
+from ..grading.casekit import size as _size
+from ..grading.casekit import uniform as _u
+from ..grading.compare import as_numeric, shape_mismatch
 from ._canny import _components
 from ._canny import hysteresis as _hysteresis
 from ._canny import non_max_suppression as _nms
@@ -49,10 +56,6 @@ __all__ = [
     "gradient", "magnitude", "direction", "prewitt", "sobel", "non_max_suppression",
     "hysteresis", "canny", "laplacian", "log_kernel", "log", "zero_crossings", "dog", "BORDERS",
 ]
-
-BORDERS = ("zero", "replicate", "reflect", "reflect101")
-_SWAP = {"reflect": "reflect101", "reflect101": "reflect"}
-_NAMES = {"f": "float", "b": "bool", "i": "integer", "u": "unsigned integer"}
 
 
 # --------------------------------------------------------------------------------------------
@@ -125,7 +128,7 @@ class EdgeF1(Comparator):
             return Mismatch(f"dtype mismatch: expected a bool edge map, got {arr.dtype} "
                             "(return a comparison such as `strength > threshold`, or use .astype(bool))")
         if arr.shape != exp.shape:
-            return Mismatch(f"shape mismatch: expected {exp.shape}, got {arr.shape}{shape_advice(arr.shape, exp.shape)}")
+            return Mismatch(shape_mismatch(arr.shape, exp.shape))
         f1, precision, recall = edge_f1(arr, exp, self.radius)
         if f1 >= self.min_f1:
             return None
@@ -170,7 +173,7 @@ class Angles(Comparator):
         if arr.dtype.kind != "f":
             return Mismatch(f"dtype mismatch: expected a float array, got {arr.dtype}")
         if arr.shape != exp.shape:
-            return Mismatch(f"shape mismatch: expected {exp.shape}, got {arr.shape}{shape_advice(arr.shape, exp.shape)}")
+            return Mismatch(shape_mismatch(arr.shape, exp.shape))
         a = arr.astype(np.float64)
         with np.errstate(all="ignore"):
             wrapped = np.mod(a - exp + np.pi, 2 * np.pi) - np.pi
@@ -206,42 +209,6 @@ _EXACT_BOOL = close(rtol=0.0, atol=0.0, kind="b")
 # --------------------------------------------------------------------------------------------
 # case helpers
 # --------------------------------------------------------------------------------------------
-def _distinct(h: int, w: int, *, seed: int = 7, scale: float = 1.0, dtype=np.float64) -> np.ndarray:
-    """Distinct integers 0..h·w−1 (times ``scale``) in a fixed shuffled order: every sign, swap,
-    shift and border rule shows in the output."""
-    values = np.random.default_rng(seed).permutation(h * w).reshape(h, w)
-    return (values * scale).astype(dtype)
-
-
-def _size(rng: np.random.Generator, lo: int, hi: int) -> int:
-    return int(rng.integers(lo, hi + 1))
-
-
-def _image(rng: np.random.Generator, h: int, w: int, kind: str = "unit") -> np.ndarray:
-    shape = (int(h), int(w))
-    if kind == "unit":
-        return rng.random(shape)
-    if kind == "uint8":
-        return rng.integers(0, 256, shape, dtype=np.uint8)
-    if kind == "big":
-        return rng.uniform(-1e6, 1e6, shape)
-    if kind == "normal":
-        return rng.normal(0.0, 3.0, shape)
-    if kind == "const":
-        return np.full(shape, float(np.round(rng.uniform(-5, 5), 3)))
-    raise ValueError(kind)  # pragma: no cover
-
-
-def _sigma(rng: np.random.Generator, lo: float, hi: float, *, frac=(0.1, 0.9)) -> float:
-    """σ in [lo, hi], σ ≠ 1, 3σ far from an integer (ceil/floor/round of 3σ unambiguous)."""
-    for _ in range(1000):
-        s = float(np.round(rng.uniform(lo, hi), 3))
-        f = 3 * s - math.floor(3 * s)
-        if frac[0] <= f <= frac[1] and abs(s - 1.0) > 0.05:
-            return s
-    raise RuntimeError("no suitable sigma")  # pragma: no cover
-
-
 def _disk(rng: np.random.Generator, h: int, w: int, *, noise: float = 0.0, contrast=(0.5, 0.9)) -> np.ndarray:
     """An anti-aliased disk with an off-grid centre (no exact symmetry), optionally noisy."""
     radius = float(rng.uniform(0.28, 0.36) * min(h, w))
@@ -309,7 +276,7 @@ def _grad_swap_reflect(image, scheme="central", border="reflect101"):
 
 def _gradient_hidden(rng):
     def img(h, w, kind="unit"):
-        return _image(rng, h, w, kind)
+        return random_image(rng, (h, w), kind)
 
     return [
         Case((img(_size(rng, 6, 10), _size(rng, 8, 14)),), {"scheme": "central", "border": "zero"},
@@ -339,10 +306,10 @@ def _gradient_hidden(rng):
 
 gradient = Check(
     public=[
-        Case((_distinct(5, 6),), {}, "5×6 image, central differences, reflect101 (defaults)"),
-        Case((_distinct(6, 5),), {"scheme": "forward", "border": "replicate"}, "forward differences, replicate"),
-        Case((_distinct(5, 7),), {"scheme": "backward", "border": "zero"}, "backward differences, zero border"),
-        Case((_distinct(6, 6, seed=3),), {"border": "reflect"}, "central differences, reflect"),
+        Case((_distinct((5, 6)),), {}, "5×6 image, central differences, reflect101 (defaults)"),
+        Case((_distinct((6, 5)),), {"scheme": "forward", "border": "replicate"}, "forward differences, replicate"),
+        Case((_distinct((5, 7)),), {"scheme": "backward", "border": "zero"}, "backward differences, zero border"),
+        Case((_distinct((6, 6), seed=3),), {"border": "reflect"}, "central differences, reflect"),
     ],
     hidden=_gradient_hidden,
     compare=_LINEAR,
@@ -566,7 +533,7 @@ def _derivative_mistakes(reference, other, other_name: str, scale: int, what: st
 
 def _derivative_hidden(rng):
     def img(h, w, kind="unit"):
-        return _image(rng, h, w, kind)
+        return random_image(rng, (h, w), kind)
 
     step = oriented_step_image((_size(rng, 8, 12), _size(rng, 9, 14)), angle=float(rng.uniform(-np.pi, np.pi)),
                                offset=float(rng.uniform(-1, 1)), low=0.2, high=0.9)
@@ -587,10 +554,10 @@ def _derivative_hidden(rng):
 
 
 _DERIVATIVE_PUBLIC = [
-    Case((_distinct(5, 6),), {}, "5×6 image, default border (reflect101)"),
-    Case((_distinct(6, 5, seed=3),), {"border": "replicate"}, "6×5 image, replicate"),
-    Case((_distinct(5, 7, seed=5),), {"border": "zero"}, "zero border"),
-    Case((_distinct(6, 6, seed=9),), {"border": "reflect"}, "reflect"),
+    Case((_distinct((5, 6)),), {}, "5×6 image, default border (reflect101)"),
+    Case((_distinct((6, 5), seed=3),), {"border": "replicate"}, "6×5 image, replicate"),
+    Case((_distinct((5, 7), seed=5),), {"border": "zero"}, "zero border"),
+    Case((_distinct((6, 6), seed=9),), {"border": "reflect"}, "reflect"),
 ]
 
 prewitt = Check(
@@ -638,9 +605,9 @@ def _lap_swap_reflect(image, border="reflect101"):
 
 laplacian = Check(
     public=[
-        Case((_distinct(5, 6),), {}, "5×6 image, default border (reflect101)"),
-        Case((_distinct(6, 5, seed=3),), {"border": "reflect"}, "reflect"),
-        Case((_distinct(5, 7, seed=5),), {"border": "zero"}, "zero border"),
+        Case((_distinct((5, 6)),), {}, "5×6 image, default border (reflect101)"),
+        Case((_distinct((6, 5), seed=3),), {"border": "reflect"}, "reflect"),
+        Case((_distinct((5, 7), seed=5),), {"border": "zero"}, "zero border"),
     ],
     hidden=_derivative_hidden,
     compare=_LINEAR,
@@ -747,7 +714,7 @@ def _log_swap_reflect(image, sigma, border="reflect101"):
 
 def _log_hidden(rng):
     def img(h, w, kind="unit"):
-        return _image(rng, h, w, kind)
+        return random_image(rng, (h, w), kind)
 
     return [
         Case((img(_size(rng, 8, 12), _size(rng, 9, 14)), _sigma(rng, 0.6, 1.4)), {"border": "zero"}, "zero border"),
@@ -771,9 +738,9 @@ def _log_hidden(rng):
 
 log = Check(
     public=[
-        Case((_distinct(8, 9, scale=1 / 71), 0.8), {}, "8×9 image, σ = 0.8, default border (reflect101)"),
-        Case((_distinct(9, 8, seed=3, scale=1 / 71), 1.2), {"border": "reflect"}, "σ = 1.2, reflect"),
-        Case((_distinct(7, 9, seed=5, dtype=np.uint8), 0.7), {"border": "zero"}, "uint8 image, σ = 0.7, zero border"),
+        Case((_distinct((8, 9), scale=1 / 71), 0.8), {}, "8×9 image, σ = 0.8, default border (reflect101)"),
+        Case((_distinct((9, 8), seed=3, scale=1 / 71), 1.2), {"border": "reflect"}, "σ = 1.2, reflect"),
+        Case((_distinct((7, 9), seed=5, dtype=np.uint8), 0.7), {"border": "zero"}, "uint8 image, σ = 0.7, zero border"),
     ],
     hidden=_log_hidden,
     compare=_LINEAR,
@@ -823,7 +790,7 @@ def _dog_swap_reflect(image, sigma, k=1.6, border="reflect101"):
 
 def _k(rng, lo=1.2, hi=2.0):
     for _ in range(1000):
-        k = float(np.round(rng.uniform(lo, hi), 2))
+        k = _u(rng, lo, hi, 2)
         if abs(k - 1.6) > 0.05:
             return k
     raise RuntimeError("no suitable k")  # pragma: no cover
@@ -831,7 +798,7 @@ def _k(rng, lo=1.2, hi=2.0):
 
 def _dog_hidden(rng):
     def img(h, w, kind="unit"):
-        return _image(rng, h, w, kind)
+        return random_image(rng, (h, w), kind)
 
     return [
         Case((img(_size(rng, 8, 12), _size(rng, 9, 14)), _sigma(rng, 0.6, 1.2), _k(rng)), {"border": "zero"},
@@ -859,9 +826,9 @@ def _dog_hidden(rng):
 
 dog = Check(
     public=[
-        Case((_distinct(8, 9, scale=1 / 71), 0.9, 1.5), {}, "8×9 image, σ = 0.9, k = 1.5, default border"),
-        Case((_distinct(9, 8, seed=3, scale=1 / 71), 0.7), {"border": "reflect"}, "σ = 0.7, default k = 1.6, reflect"),
-        Case((_distinct(7, 9, seed=5, dtype=np.uint8), 0.8, 2.0), {"border": "zero"}, "uint8 image, k = 2, zero border"),
+        Case((_distinct((8, 9), scale=1 / 71), 0.9, 1.5), {}, "8×9 image, σ = 0.9, k = 1.5, default border"),
+        Case((_distinct((9, 8), seed=3, scale=1 / 71), 0.7), {"border": "reflect"}, "σ = 0.7, default k = 1.6, reflect"),
+        Case((_distinct((7, 9), seed=5, dtype=np.uint8), 0.8, 2.0), {"border": "zero"}, "uint8 image, k = 2, zero border"),
     ],
     hidden=_dog_hidden,
     compare=_LINEAR,
@@ -915,10 +882,7 @@ def _zc_variant(response, threshold=0.0, *, place="smaller", zeros=False, vertic
     return out
 
 
-def _zc(**knobs):
-    def wrong(response, threshold=0.0):
-        return _zc_variant(response, threshold, **knobs)
-    return wrong
+_zc = partial(variant, _zc_variant)
 
 
 def _int_response(rng, h, w, lo=-4, hi=4):
@@ -929,7 +893,7 @@ def _zero_crossings_hidden(rng):
     disk = _disk(rng, _size(rng, 14, 20), _size(rng, 14, 20))
     return [
         Case((rng.normal(0, 1, (_size(rng, 6, 10), _size(rng, 7, 12))),), {}, "random response, threshold 0"),
-        Case((rng.normal(0, 1, (_size(rng, 6, 10), _size(rng, 7, 12))), float(np.round(rng.uniform(0.8, 1.6), 2))), {},
+        Case((rng.normal(0, 1, (_size(rng, 6, 10), _size(rng, 7, 12))), _u(rng, 0.8, 1.6, 2)), {},
              "random response with a threshold"),
         Case((_int_response(rng, _size(rng, 6, 9), _size(rng, 6, 9)),), {},
              "integer response: exact zeros and ties |a| = |b|"),
@@ -1192,12 +1156,6 @@ def _hyst_variant(magnitude, low, high, *, connectivity=8, inclusive=False, mode
     return out
 
 
-def _hyst(**knobs):
-    def wrong(magnitude, low, high):
-        return _hyst_variant(magnitude, low, high, **knobs)
-    return wrong
-
-
 _HYST_PUBLIC = np.array([
     [9, 0, 0, 0, 0, 0, 0, 4],
     [0, 5, 0, 0, 3, 3, 0, 0],
@@ -1207,6 +1165,9 @@ _HYST_PUBLIC = np.array([
     [3, 6, 0, 4, 4, 0, 3, 0],
     [0, 0, 0, 4, 0, 0, 0, 8],
 ], dtype=np.float64)
+
+
+_hyst = partial(variant, _hyst_variant)
 
 
 def _chain_field(rng, h, w):
@@ -1298,10 +1259,7 @@ def _canny_variant(image, sigma=1.4, low=0.1, high=0.2, relative=True, *, norm="
     return thin > high
 
 
-def _cv(**knobs):
-    def wrong(image, sigma=1.4, low=0.1, high=0.2, relative=True):
-        return _canny_variant(image, sigma, low, high, relative, **knobs)
-    return wrong
+_cv = partial(variant, _canny_variant)
 
 
 def _shaded_disk(rng: np.random.Generator, h: int, w: int, *, noise: float = 0.0) -> np.ndarray:
@@ -1350,7 +1308,7 @@ def _canny_hidden(rng):
         return _disk(rng, _size(rng, 26, 32), _size(rng, 26, 32), noise=noise)
 
     def tight():
-        low = float(np.round(rng.uniform(0.82, 0.84), 3))
+        low = _u(rng, 0.82, 0.84)
         return low, low + 0.04
 
     u8 = np.clip(np.round(255 * _square(rng, _size(rng, 22, 28), _size(rng, 22, 28), noise=0.02)), 0, 255)

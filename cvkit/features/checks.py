@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -42,7 +43,12 @@ from ..edges.checks import Angles
 from ..filters._linear import gaussian as _gaussian
 from ..filters._padding import pad as _pad
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close, instance_call
-from ..grading.compare import as_numeric
+from ..grading.casekit import BORDERS, variant
+from ..grading.casekit import distinct as _distinct
+from ..grading.casekit import sigma as _sigma
+from ..grading.casekit import size as _size
+from ..grading.casekit import uniform as _u
+from ..grading.compare import as_numeric, kind_words
 from ._common import box_sum, window_max
 from ._corners import SHIFTS
 from ._corners import harris as _harris
@@ -65,10 +71,6 @@ __all__ = [
     "match_ratio", "KDTree", "BORDERS",
 ]
 
-BORDERS = ("zero", "replicate", "reflect", "reflect101")
-_SWAP = {"reflect": "reflect101", "reflect101": "reflect"}
-_NAMES = {"f": "float", "b": "bool", "i": "integer", "u": "unsigned integer"}
-
 
 # --------------------------------------------------------------------------------------------
 # comparators
@@ -83,7 +85,7 @@ def _rows_of(got, columns: int, kinds: str, what: str):
     if problem:
         return None, Mismatch(problem)
     if arr.dtype.kind not in kinds:
-        want = " or ".join(_NAMES.get(k, k) for k in kinds)
+        want = kind_words(kinds)
         cast = ".astype(float)" if "f" in kinds else ".astype(np.int64)"
         return None, Mismatch(f"dtype mismatch: expected a {want} array of {what}, got {arr.dtype} (use {cast})")
     if arr.size == 0 and arr.ndim == 1:
@@ -401,15 +403,6 @@ _EXACT_BOOL = close(rtol=0.0, atol=0.0, kind="b")
 # --------------------------------------------------------------------------------------------
 # case helpers
 # --------------------------------------------------------------------------------------------
-def _size(rng: np.random.Generator, lo: int, hi: int) -> int:
-    return int(rng.integers(lo, hi + 1))
-
-
-def _distinct(h: int, w: int, *, seed: int = 7, scale: float = 1.0) -> np.ndarray:
-    """Distinct integers 0..h·w−1 (times ``scale``) in a fixed shuffled order."""
-    return (np.random.default_rng(seed).permutation(h * w).reshape(h, w) * scale).astype(np.float64)
-
-
 def _texture(rng: np.random.Generator, h: int, w: int, smooth: float = 1.0, scale: float = 1.0) -> np.ndarray:
     """Random texture in [0, scale], lightly smoothed (reflect101): gradients in every direction."""
     img = rng.random((h, w))
@@ -419,20 +412,10 @@ def _texture(rng: np.random.Generator, h: int, w: int, smooth: float = 1.0, scal
     return img * scale
 
 
-def _sigma(rng: np.random.Generator, lo: float, hi: float) -> float:
-    """σ in [lo, hi], not 1, 3σ far from integers (kernel radii unambiguous)."""
-    for _ in range(1000):
-        s = float(np.round(rng.uniform(lo, hi), 3))
-        f = 3 * s - math.floor(3 * s)
-        if 0.1 <= f <= 0.9 and abs(s - 1.0) > 0.05:
-            return s
-    raise RuntimeError("no suitable sigma")  # pragma: no cover
-
-
 def _frac(rng: np.random.Generator, lo: float, hi: float) -> float:
     """A real coordinate in [lo, hi] whose fractional part is far from .5 and from 0."""
     while True:
-        v = float(np.round(rng.uniform(lo, hi), 3))
+        v = _u(rng, lo, hi)
         f = v - math.floor(v)
         if 0.08 < f < 0.42 or 0.58 < f < 0.92:
             return v
@@ -487,10 +470,7 @@ def _moravec_variant(image, window=7, border="reflect101", *, shifts=SHIFTS, red
     return best
 
 
-def _mv(**knobs):
-    def wrong(image, window=7, border="reflect101"):
-        return _moravec_variant(image, window, border, **knobs)
-    return wrong
+_mv = partial(variant, _moravec_variant)
 
 
 def _moravec_hidden(rng):
@@ -520,7 +500,7 @@ def _moravec_hidden(rng):
 
 moravec = Check(
     public=lambda: [
-        Case((_distinct(7, 8, seed=3) / 10.0, 3), {}, "distinct values 7×8, 3×3 window"),
+        Case((_distinct((7, 8), seed=3) / 10.0, 3), {}, "distinct values 7×8, 3×3 window"),
         Case((_corner_image(10, 11), 5), {"border": "replicate"}, "two rectangles, 5×5 window, replicate"),
     ],
     hidden=_moravec_hidden,
@@ -571,10 +551,7 @@ def _st_variant(image, sigma=1.0, *, window="gaussian", smooth_first=False, swap
     return (out[2], out[1], out[0]) if swap else out
 
 
-def _stv(**knobs):
-    def wrong(image, sigma=1.0):
-        return _st_variant(image, sigma, **knobs)
-    return wrong
+_stv = partial(variant, _st_variant)
 
 
 def _corner_images(rng):
@@ -606,7 +583,7 @@ def _harris_hidden(rng):
     for i, (image, sigma, label) in enumerate(_corner_images(rng)):
         kwargs = {} if sigma is None else {"sigma": sigma}
         if i % 2 == 0:
-            kwargs["k"] = float(np.round(rng.uniform(0.04, 0.06), 3))
+            kwargs["k"] = _u(rng, 0.04, 0.06)
             label += f", k = {kwargs['k']:g}"
         cases.append(Case((image,), kwargs, label))
     cases.append(Case((_texture(rng, _size(rng, 10, 13), _size(rng, 10, 13), smooth=0.5),), {"k": 0.15}, "k = 0.15 (large)"))
@@ -617,7 +594,7 @@ def _harris_hidden(rng):
 
 structure_tensor = Check(
     public=lambda: [
-        Case((_distinct(8, 9, seed=5) / 72.0, 1.3), {}, "distinct values 8×9, σ = 1.3"),
+        Case((_distinct((8, 9), seed=5) / 72.0, 1.3), {}, "distinct values 8×9, σ = 1.3"),
         Case((_corner_image(10, 11),), {}, "two rectangles, default σ = 1"),
     ],
     hidden=_structure_tensor_hidden,
@@ -652,15 +629,12 @@ def _harris_variant(image, k=0.04, sigma=1.0, *, formula="R", window=True):
     return 0.5 * (trace - np.sqrt(np.maximum((mxx - myy) ** 2 + 4.0 * mxy * mxy, 0.0)))
 
 
-def _hv(**knobs):
-    def wrong(image, k=0.04, sigma=1.0):
-        return _harris_variant(image, k, sigma, **knobs)
-    return wrong
+_hv = partial(variant, _harris_variant)
 
 
 harris = Check(
     public=lambda: [
-        Case((_distinct(8, 9, seed=5) / 72.0,), {"k": 0.05, "sigma": 1.3}, "distinct values 8×9, k = 0.05, σ = 1.3"),
+        Case((_distinct((8, 9), seed=5) / 72.0,), {"k": 0.05, "sigma": 1.3}, "distinct values 8×9, k = 0.05, σ = 1.3"),
         Case((_corner_image(12, 13),), {}, "two rectangles, defaults"),
     ],
     hidden=_harris_hidden,
@@ -709,10 +683,7 @@ def _peaks_variant(response, threshold, radius=1, *, border=True, strict=False, 
     return np.stack([first, second], axis=1).astype(np.float64).reshape(-1, 2)
 
 
-def _pv(**knobs):
-    def wrong(response, threshold, radius=1):
-        return _peaks_variant(response, threshold, radius, **knobs)
-    return wrong
+_pv = partial(variant, _peaks_variant)
 
 
 _PEAKS_PUBLIC = np.array([
@@ -811,10 +782,7 @@ def _gp_variant(image, sigma0=1.6, scales=3, octaves=4, upsample=True, assumed_b
     return pyramid
 
 
-def _gpv(**knobs):
-    def wrong(image, sigma0=1.6, scales=3, octaves=4, upsample=True, assumed_blur=0.5):
-        return _gp_variant(image, sigma0, scales, octaves, upsample, assumed_blur, **knobs)
-    return wrong
+_gpv = partial(variant, _gp_variant)
 
 
 def _gp_hidden(rng):
@@ -822,7 +790,7 @@ def _gp_hidden(rng):
         return _texture(rng, h, w, smooth=0.5)
 
     def s0():
-        return float(np.round(rng.uniform(1.3, 2.0), 3))
+        return _u(rng, 1.3, 2.0)
 
     return [
         Case((tex(_size(rng, 8, 11), _size(rng, 9, 12)),), {"octaves": 2}, "defaults, 2 octaves"),
@@ -830,7 +798,7 @@ def _gp_hidden(rng):
              "2 scales, 3 octaves"),
         Case((tex(_size(rng, 12, 16), _size(rng, 10, 14)),), {"upsample": False, "octaves": 3, "sigma0": s0()},
              "no upsampling, 3 octaves"),
-        Case((tex(_size(rng, 7, 9), _size(rng, 10, 13)),), {"assumed_blur": float(np.round(rng.uniform(0.2, 0.6), 2)),
+        Case((tex(_size(rng, 7, 9), _size(rng, 10, 13)),), {"assumed_blur": _u(rng, 0.2, 0.6, 2),
                                                              "octaves": 2}, "assumed blur given"),
         Case((tex(_size(rng, 6, 8), _size(rng, 6, 8)),), {"scales": 4, "octaves": 2, "sigma0": s0()}, "4 scales"),
         Case((np.round(255 * tex(_size(rng, 7, 9), _size(rng, 7, 9))).astype(np.uint8),), {"octaves": 2},
@@ -846,7 +814,7 @@ def _gp_hidden(rng):
 
 gaussian_pyramid = Check(
     public=lambda: [
-        Case((_distinct(5, 6, seed=11) / 30.0,), {"octaves": 2}, "distinct values 5×6, defaults, 2 octaves"),
+        Case((_distinct((5, 6), seed=11) / 30.0,), {"octaves": 2}, "distinct values 5×6, defaults, 2 octaves"),
         Case((_corner_image(8, 9),), {"sigma0": 1.8, "scales": 2, "octaves": 2, "upsample": False},
              "rectangles, σ0 = 1.8, 2 scales, no upsampling"),
     ],
@@ -870,8 +838,8 @@ gaussian_pyramid = Check(
 )
 
 
-def _dp_variant(pyramid, *, sign=1.0, from_first=False, short=False, first_only=False):
-    stacks = [np.asarray(s, dtype=np.float64) for s in pyramid]
+def _dp_variant(gaussian_pyramid, *, sign=1.0, from_first=False, short=False, first_only=False):
+    stacks = [np.asarray(s, dtype=np.float64) for s in gaussian_pyramid]
     if first_only:
         stacks = stacks[:1]
     out = []
@@ -881,10 +849,7 @@ def _dp_variant(pyramid, *, sign=1.0, from_first=False, short=False, first_only=
     return out
 
 
-def _dpv(**knobs):
-    def wrong(gaussian_pyramid):
-        return _dp_variant(gaussian_pyramid, **knobs)
-    return wrong
+_dpv = partial(variant, _dp_variant)
 
 
 def _random_stacks(rng, octaves, levels, h, w, dtype=np.float64):
@@ -913,7 +878,7 @@ def _dp_hidden(rng):
 
 dog_pyramid = Check(
     public=lambda: [
-        Case((_gaussian_pyramid(_distinct(5, 6, seed=11) / 30.0, octaves=2),), {}, "pyramid of a 5×6 image, 2 octaves"),
+        Case((_gaussian_pyramid(_distinct((5, 6), seed=11) / 30.0, octaves=2),), {}, "pyramid of a 5×6 image, 2 octaves"),
         Case((_random_stacks(np.random.default_rng(5), 2, 4, 4, 5),), {}, "two random increasing stacks"),
     ],
     hidden=_dp_hidden,
@@ -957,10 +922,7 @@ def _lb_variant(image, sigmas, threshold, *, power=2, maxima_only=False, per_sca
     return np.stack([first, second, sig[index]], axis=1).astype(np.float64).reshape(-1, 3)
 
 
-def _lbv(**knobs):
-    def wrong(image, sigmas, threshold):
-        return _lb_variant(image, sigmas, threshold, **knobs)
-    return wrong
+_lbv = partial(variant, _lb_variant)
 
 
 def _blob_specs(rng, h, w, count):
@@ -972,7 +934,7 @@ def _blob_specs(rng, h, w, count):
             x, y = _frac(rng, 5, w - 6), _frac(rng, 5, h - 6)
             if all(math.hypot(x - a, y - b) > 3.2 * (s + c) for a, b, c, _ in specs):
                 break
-        amplitude = float(np.round(rng.uniform(0.3, 0.5), 3)) * (1 if i % 2 == 0 else -1)
+        amplitude = _u(rng, 0.3, 0.5) * (1 if i % 2 == 0 else -1)
         specs.append((x, y, float(s), amplitude))
     return specs
 
@@ -1067,10 +1029,7 @@ def _de_variant(dog_pyramid, contrast_threshold=0.03, *, neighbours=NEIGHBOURS_2
     return rows[np.lexsort(rows.T[::-1])]
 
 
-def _dev(**knobs):
-    def wrong(dog_pyramid, contrast_threshold=0.03):
-        return _de_variant(dog_pyramid, contrast_threshold, **knobs)
-    return wrong
+_dev = partial(variant, _de_variant)
 
 
 def _normal_stacks(rng, octaves, levels, h, w, scale=1.0):
@@ -1144,10 +1103,7 @@ def _re_variant(dog_stack, scale, row, col, *, sign=-1.0, half_value=True, half_
     return (x[::-1] if reverse else x), value
 
 
-def _rev(**knobs):
-    def wrong(dog_stack, scale, row, col):
-        return _re_variant(dog_stack, scale, row, col, **knobs)
-    return wrong
+_rev = partial(variant, _re_variant)
 
 
 def _rotation3(rng):
@@ -1236,10 +1192,7 @@ def _el_variant(dog_slice, row, col, r=10.0, *, ratio_test="curvature", det_chec
     return bool(not edge if invert else edge)
 
 
-def _elv(**knobs):
-    def wrong(dog_slice, row, col, r=10.0):
-        return _el_variant(dog_slice, row, col, r, **knobs)
-    return wrong
+_elv = partial(variant, _el_variant)
 
 
 def _quadratic_slice(rng, size, ratio, angle, *, sign=-1.0, saddle=False, noise=0.0, scale=1.0):
@@ -1348,10 +1301,7 @@ def _or_variant(gaussian_image, x, y, sigma, bins=36, peak_ratio=0.8, *, magnitu
     return angles[:1] if not all_peaks else angles
 
 
-def _orv(**knobs):
-    def wrong(gaussian_image, x, y, sigma, bins=36, peak_ratio=0.8):
-        return _or_variant(gaussian_image, x, y, sigma, bins, peak_ratio, **knobs)
-    return wrong
+_orv = partial(variant, _or_variant)
 
 
 def _roof(shape, centre, slopes, angles, crease_angle, offset, texture=None, noise_level=0.0):
@@ -1374,7 +1324,7 @@ def _roof(shape, centre, slopes, angles, crease_angle, offset, texture=None, noi
 def _orientation_patch(rng, size, kind):
     h, w = size
     x, y = _frac(rng, w / 2 - 1.5, w / 2 + 1.5), _frac(rng, h / 2 - 1.5, h / 2 + 1.5)
-    sigma = float(np.round(rng.uniform(1.3, 2.2), 3))
+    sigma = _u(rng, 1.3, 2.2)
     tex = _texture(rng, h, w, smooth=1.0)
     if kind == "texture":
         return _gaussian(tex, 1.2), x, y, sigma
@@ -1495,10 +1445,7 @@ def _desc_variant(gaussian_image, x, y, sigma, angle, *, trilinear=True, clip=Tr
     return vec
 
 
-def _dsv(**knobs):
-    def wrong(gaussian_image, x, y, sigma, angle):
-        return _desc_variant(gaussian_image, x, y, sigma, angle, **knobs)
-    return wrong
+_dsv = partial(variant, _desc_variant)
 
 
 def _descriptor_patch(rng, size, kind="texture"):
@@ -1520,7 +1467,7 @@ def _descriptor_public():
 
 def _descriptor_hidden(rng):
     def angle():
-        return float(np.round(rng.uniform(0.2, 2 * math.pi - 0.2), 4))
+        return _u(rng, 0.2, 2 * math.pi - 0.2, 4)
 
     def xy(size):
         return _frac(rng, size[1] / 2 - 1.5, size[1] / 2 + 1.5), _frac(rng, size[0] / 2 - 1.5, size[0] / 2 + 1.5)
@@ -1529,7 +1476,7 @@ def _descriptor_hidden(rng):
     for kind, sigma_range, label in (("texture", (1.2, 1.7), "texture"), ("edges", (1.2, 1.6), "strong edges"),
                                      ("texture", (1.6, 2.0), "texture, larger σ"), ("edges", (1.3, 1.8), "edges, other angle")):
         size = (_size(rng, 38, 44), _size(rng, 38, 44))
-        cases.append(Case((_descriptor_patch(rng, size, kind), *xy(size), float(np.round(rng.uniform(*sigma_range), 3)), angle()),
+        cases.append(Case((_descriptor_patch(rng, size, kind), *xy(size), _u(rng, *sigma_range), angle()),
                           {}, label))
     size = (_size(rng, 36, 40), _size(rng, 36, 40))
     cases.append(Case((_descriptor_patch(rng, size), *xy(size), 1.5, 0.0), {}, "angle 0"))
@@ -1614,12 +1561,7 @@ def _sift_variant(image, sigma0=1.6, scales=3, octaves=None, upsample=True, cont
     return np.array(keypoints).reshape(-1, 4), np.array(descriptors).reshape(-1, 128)
 
 
-def _sfv(**knobs):
-    def wrong(image, sigma0=1.6, scales=3, octaves=None, upsample=True, contrast_threshold=0.04, edge_ratio=10.0,
-              assumed_blur=0.5, border=5, max_steps=5):
-        return _sift_variant(image, sigma0, scales, octaves, upsample, contrast_threshold, edge_ratio, assumed_blur,
-                             border, max_steps, **knobs)
-    return wrong
+_sfv = partial(variant, _sift_variant)
 
 
 def _sift_image(rng, size, blobs=2, rectangles=1, noise=0.01, lines=3):
@@ -1713,10 +1655,7 @@ def _mr_variant(desc1, desc2, ratio=0.8, *, squared=False, test=True, strict=Fal
     return pairs.astype(np.int64).reshape(-1, 2)
 
 
-def _mrv(**knobs):
-    def wrong(desc1, desc2, ratio=0.8):
-        return _mr_variant(desc1, desc2, ratio, **knobs)
-    return wrong
+_mrv = partial(variant, _mr_variant)
 
 
 def _match_case(rng, n1, n2, dim, *, specials=("squared", "equal", "duplicate"), scale=1.0, ratio=0.8):
