@@ -29,19 +29,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable
 
-from .grading.isolation import collect_files
+from ..grading.isolation import collect_files
 
-from .grading.startup import skip_unused_schema_grammars
+from ..grading.startup import skip_unused_schema_grammars
 
 skip_unused_schema_grammars()  # 1.4 s of CPU per grading process (see cvkit.grading.startup)
-from .grading.report import MIME_TYPE
+from ..grading.report import MIME_TYPE
 
 try:  # Python ≥ 3.11
     import tomllib
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     tomllib = None
 
-PACKAGE_DIR = Path(__file__).resolve().parent
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
 SOLUTION_BEGIN = "### BEGIN SOLUTION"
 SOLUTION_END = "### END SOLUTION"
 SAMPLE_STUDENTS = ("sample_complete", "sample_mistakes", "sample_blank")
@@ -108,7 +108,7 @@ def execute_submission(project, student: str, assignment: str, files: dict,
     file-size limits, and a wall-clock limit enforced from here. Grades are not decided here:
     checks in the kernel are no-ops; the notebook is run for the student's own figures.
     """
-    from .grading.execute import execute_in_sandbox, prepare
+    from ..grading.execute import execute_in_sandbox, prepare
 
     releases = releases or {}
     prepared_files = dict(files)
@@ -142,8 +142,8 @@ def grade_submission(project, student: str, assignment: str, files: dict, releas
     ``not_graded`` with the reason — never as a zero."""
     import nbformat
 
-    from .grading.execute import prepare
-    from .grading.nbgrader_plugins import apply_trusted_checks
+    from ..grading.execute import prepare
+    from ..grading.nbgrader_plugins import apply_trusted_checks
 
     notebook_names = sorted(n for n in files if n.endswith(".ipynb"))
     expected = sorted(n for n in releases if n.endswith(".ipynb"))
@@ -672,7 +672,7 @@ class Course:
         jobs instead of all at the end. Submissions
         graded before from the same files are skipped unless ``regrade``.
         """
-        from .grading import isolation
+        from ..grading import isolation
 
         if sandbox:
             isolation.require()
@@ -821,7 +821,7 @@ class Course:
         recognised, the problems, and the tampering flags for the instructor)."""
         import csv
 
-        from .grading.safety import csv_safe
+        from ..grading.safety import csv_safe
 
         target = self.root / "exports" / "grades.csv"
         target.parent.mkdir(exist_ok=True)
@@ -1163,9 +1163,9 @@ def predict_scores(notebook: dict, student: str, salt: str, source: dict | None 
             originals[meta.get("grade_id")] = _cell_source(cell)
     import ast
 
-    from .grading import evaluate, hidden_seed
+    from ..grading import evaluate, hidden_seed
 
-    from . import registry
+    from .. import registry
 
     student_provider = registry.provider("student")
     saved = (dict(student_provider.functions), dict(student_provider.sources))
