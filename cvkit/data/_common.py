@@ -50,12 +50,18 @@ def centre_point(centre: object, rows: int, cols: int) -> tuple[float, float]:
     return check_real(centre[0], "centre[0] (x)"), check_real(centre[1], "centre[1] (y)")
 
 
-def samples(rows: int, cols: int, supersample: int) -> tuple[np.ndarray, np.ndarray]:
-    """Sample points ``x (1, cols·s)`` and ``y (rows·s, 1)``: ``s × s`` per pixel, centred in
-    their sub-squares. ``supersample`` is refused (``ValueError``) if the grid would take more
-    than 2 GiB."""
+def grid_side(rows: int, cols: int, supersample: int) -> int:
+    """``supersample`` (an int >= 1), refused if the ``(rows·s, cols·s)`` grid of samples
+    would take more than 2 GiB."""
     s = check_int(supersample, "supersample", minimum=1)
     check_allocation((rows * s, cols * s), "supersample", what="a grid of samples")
+    return s
+
+
+def samples(rows: int, cols: int, supersample: int) -> tuple[np.ndarray, np.ndarray]:
+    """Sample points ``x (1, cols·s)`` and ``y (rows·s, 1)``: ``s × s`` per pixel, centred in
+    their sub-squares (``supersample`` checked by :func:`grid_side`)."""
+    s = grid_side(rows, cols, supersample)
     offsets = (np.arange(s) + 0.5) / s - 0.5
     y = (np.arange(rows)[:, None] + offsets[None, :]).reshape(-1)
     x = (np.arange(cols)[:, None] + offsets[None, :]).reshape(-1)
@@ -72,8 +78,9 @@ def coverage(rows: int, cols: int, inside: Inside, supersample: int) -> np.ndarr
 
 def check_drawing(rows: int, cols: int, supersample: int, pieces: int, name: str, what: str) -> None:
     """Refuse (naming ``name``) drawing ``pieces`` polygon edges or segments, about ten
-    operations each per sample, when that exceeds 2**36 operations."""
-    s = check_int(supersample, "supersample", minimum=1)
+    operations each per sample, when that exceeds 2**36 operations (after the grid's own
+    check, :func:`grid_side`)."""
+    s = grid_side(rows, cols, supersample)
     check_work(10 * pieces * rows * s * cols * s, name, what=f"{what} on a {rows}×{cols} grid of {s}×{s} samples")
 
 

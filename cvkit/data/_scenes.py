@@ -223,7 +223,6 @@ def part_scene(shape: tuple[int, int] = (128, 128), centre: tuple[float, float] 
     scale = check_real(scale, "scale", positive=True)
     angle = check_real(angle, "angle")
     clutter = check_size(clutter, "clutter", minimum=0, maximum=MAX_CLUTTER)
-    samples(rows, cols, supersample)  # the grid fits
     check_drawing(rows, cols, supersample, 24 * clutter + 40, "clutter", f"{clutter} clutter shapes and the part")
     occlusion = check_real(occlusion, "occlusion", nonnegative=True)
     if occlusion >= 1:

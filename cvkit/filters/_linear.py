@@ -453,7 +453,8 @@ def gaussian_kernel(sigma: float, radius: int | None = None) -> np.ndarray:
     spread = 2.0 * sigma * sigma
     if spread == 0.0:  # σ² underflows: exp(-x²/2σ²) is 1 at x = 0 and 0 elsewhere, exactly
         return (x == 0.0).astype(np.float64)
-    weights = np.exp(-(x * x) / spread)
+    with np.errstate(over="ignore"):  # x²/2σ² beyond float64 (a subnormal σ²): weight exp(-inf) = 0
+        weights = np.exp(-(x * x) / spread)
     weights /= weights.sum()
     return weights
 
