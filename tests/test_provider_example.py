@@ -35,7 +35,9 @@ def provider(installed, monkeypatch):
 
 
 def test_discovered_through_its_entry_point(provider):
-    assert "scipy" in registry.providers()
+    assert "scipy" in registry.providers() and "scipy" not in registry.plugin_errors()
+    for algorithm_id, function in provider.functions.items():  # checked against the references
+        assert registry.signature_differences(registry.get(algorithm_id).reference, function) == []
     assert set(provider.functions) == {"filters.gaussian", "filters.median", "filters.correlate"}
     assert "cvkit-scipy-provider" in provider.origin
 
