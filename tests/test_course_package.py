@@ -209,7 +209,9 @@ def example_site(tmp_path_factory):
     """The example package, installed with pip (not editable) into a folder of its own, so that
     the shared virtual environment is left alone; removed at the end."""
     site = tmp_path_factory.mktemp("example-site")
-    _pip("--target", str(site), str(EXAMPLE))
+    source = tmp_path_factory.mktemp("example-source") / EXAMPLE.name  # pip builds in the folder: a copy
+    shutil.copytree(EXAMPLE, source, ignore=IGNORED)
+    _pip("--target", str(site), str(source))
     yield site
     shutil.rmtree(site, ignore_errors=True)
 

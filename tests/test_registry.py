@@ -119,31 +119,43 @@ def test_use_unknown_provider():
             pass
 
 
+def _distribution(site, name, entry_points, modules):
+    """A throwaway installed distribution in ``site``: dist-info with entry points, and modules."""
+    dist = site / f"{name.replace('-', '_')}-1.0.dist-info"
+    dist.mkdir(parents=True)
+    (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 1.0\n")
+    (dist / "entry_points.txt").write_text("".join(
+        f"[{group}]\n" + "".join(f"{k} = {v}\n" for k, v in eps.items()) for group, eps in entry_points.items()))
+    for filename, source in modules.items():
+        (site / filename).write_text(textwrap.dedent(source))
+
+
+def _on_path(monkeypatch, *sites):
+    """``sites`` first on sys.path (in this order) while a test runs, entry points rediscovered."""
+    for site in reversed(sites):
+        monkeypatch.syspath_prepend(str(site))
+    registry.reload_plugins()
+    yield sites[0]
+    monkeypatch.undo()
+    registry.reload_plugins()
+
+
 @pytest.fixture
 def plugin_site(tmp_path, monkeypatch):
     """A throwaway distribution with entry points in the group cvkit.providers."""
     site = tmp_path / "site"
-    dist = site / "cvkit_fakeprovider-1.0.dist-info"
-    dist.mkdir(parents=True)
-    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: cvkit-fakeprovider\nVersion: 1.0\n")
-    (dist / "entry_points.txt").write_text(textwrap.dedent("""\
-        [cvkit.providers]
-        fakecv = cvkit_fakeprovider:provides
-        brokencv = cvkit_brokenprovider:PROVIDES
-        """))
-    (site / "cvkit_fakeprovider.py").write_text(textwrap.dedent("""\
-        import numpy as np
-        def triangle_kernel(sigma, radius=None):
-            return np.array([1.0, 2.0, 1.0]) / 4.0
-        def provides():
-            return {"filters.gaussian_kernel": triangle_kernel}
-        """))
-    (site / "cvkit_brokenprovider.py").write_text("raise ImportError('this plugin needs a GPU')\n")
-    monkeypatch.syspath_prepend(str(site))
-    registry.reload_plugins()
-    yield site
-    monkeypatch.undo()
-    registry.reload_plugins()
+    _distribution(site, "cvkit-fakeprovider",
+                  {"cvkit.providers": {"fakecv": "cvkit_fakeprovider:provides",
+                                       "brokencv": "cvkit_brokenprovider:PROVIDES"}},
+                  {"cvkit_fakeprovider.py": """\
+                      import numpy as np
+                      def triangle_kernel(sigma, radius=None):
+                          return np.array([1.0, 2.0, 1.0]) / 4.0
+                      def provides():
+                          return {"filters.gaussian_kernel": triangle_kernel}
+                      """,
+                   "cvkit_brokenprovider.py": "raise ImportError('this plugin needs a GPU')\n"})
+    yield from _on_path(monkeypatch, site)
 
 
 def test_entry_point_discovery(plugin_site):
@@ -214,17 +226,6 @@ def test_register_provider_refuses_unknown_ids_and_other_signatures():
     assert "filters.median: parameter 1 is 'img', the reference's is 'image'" in message
     with pytest.raises(KeyError, match="no provider called 'typos'"):
         registry.provider("typos")  # nothing was registered
-
-
-def _distribution(site, name, entry_points, modules):
-    """A throwaway installed distribution in ``site``: dist-info with entry points, and modules."""
-    dist = site / f"{name.replace('-', '_')}-1.0.dist-info"
-    dist.mkdir(parents=True)
-    (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 1.0\n")
-    (dist / "entry_points.txt").write_text("".join(
-        f"[{group}]\n" + "".join(f"{k} = {v}\n" for k, v in eps.items()) for group, eps in entry_points.items()))
-    for filename, source in modules.items():
-        (site / filename).write_text(textwrap.dedent(source))
 
 
 COURSE = """\
@@ -311,12 +312,7 @@ def course_site(tmp_path, monkeypatch):
                           return x * 2.0
                       PROVIDES = {"fakecourse.double": double}
                       """})
-    monkeypatch.syspath_prepend(str(later))
-    monkeypatch.syspath_prepend(str(site))
-    registry.reload_plugins()
-    yield site
-    monkeypatch.undo()
-    registry.reload_plugins()
+    yield from _on_path(monkeypatch, site, later)
 
 
 def test_course_package_is_found_through_its_entry_point(course_site):
