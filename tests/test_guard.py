@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import builtins
 import importlib
+import json
 import signal
 import sys
 import textwrap
@@ -16,11 +17,12 @@ import time
 import types
 import warnings
 
+import numpy as np
 import pytest
 
 from cvkit.grading.checks import FORBIDDEN_LIBRARIES
 from cvkit.grading.runtime import guard
-from cvkit.grading.runtime.guard import run_guarded
+from cvkit.grading.runtime.guard import Outcome, run_guarded
 
 #: a loop "forever" that still ends if the guard failed to stop it (the test then fails, not hangs)
 FOREVER = 30.0
@@ -421,3 +423,26 @@ def test_nothing_reaches_the_real_stderr(candidate, check, capfd):
     assert err == "" and out == ""
     assert check(outcome), outcome
     assert _state() == before  # streams, profile, SIGALRM handler, warning filters, import hooks
+
+
+def test_an_outcome_crosses_the_sandbox_boundary_as_json():
+    """Outcome.to_json (the worker) and Outcome.from_json (the trusted side) are one pair: a
+    round trip keeps the outcome within the boundary's limits, and the trusted side reads a
+    tampered message without raising."""
+    sent = Outcome(value=(np.arange(3.0), {"k": 1}), elapsed=0.5, modified=["image"], warnings=["w"] * 30,
+                   stdout="x" * 5000 + "end")
+    back = Outcome.from_json(json.loads(json.dumps(sent.to_json())))
+    assert np.array_equal(back.value[0], np.arange(3.0)) and back.value[1] == {"k": 1} and back.error is None
+    assert back.elapsed == 0.5 and back.modified == ["image"] and len(back.warnings) == 20
+    assert len(back.stdout) == 2000 and back.stdout.endswith("end") and back.stderr == ""
+    assert sent.stdout.endswith("end") and len(sent.warnings) == 30  # the outcome sent is unchanged
+    assert "cannot be graded" in Outcome.from_json(Outcome(value=object()).to_json()).error
+    error = Outcome(error="ValueError: no", exception="ValueError")
+    assert Outcome.from_json(error.to_json()) == error
+    tampered = Outcome.from_json({"error": 3, "modified": 5, "forbidden_calls": ["x" * 999] * 50,
+                                  "elapsed": "soon", "stdout": None})
+    assert tampered.error == "3" and tampered.modified == ["5"] and tampered.elapsed == 0.0 and tampered.stdout == ""
+    assert len(tampered.forbidden_calls) == 20 and all(len(c) == 200 for c in tampered.forbidden_calls)
+    assert Outcome.from_json({}).error == "returned nothing the grader could read"
+    object_array = {"value": {"t": "nd", "dtype": "|O", "shape": [1], "data": ""}}
+    assert "cannot be graded" in Outcome.from_json(object_array).error

@@ -32,6 +32,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .. import registry
 from . import isolation
 from .reference_server import DATA_LOADERS, ReferenceServer
 from .runtime import wire
@@ -138,7 +139,7 @@ class _Session:
 
     def _read_output(self) -> None:
         stream = self.box.process.stdout
-        while True:
+        while stream is not None:
             block = stream.read1(1 << 16) if hasattr(stream, "read1") else stream.read(1 << 16)
             if not block:
                 return
@@ -151,9 +152,12 @@ class _Session:
         return bytes(self.tail[-OUTPUT_TAIL:]).decode("utf-8", "replace")
 
     def send(self, item: dict) -> None:
+        stdin = self.box.process.stdin
         try:
-            self.box.process.stdin.write((json.dumps(item) + "\n").encode())
-            self.box.process.stdin.flush()
+            if stdin is None:
+                raise ValueError("the sandbox has no input")
+            stdin.write((json.dumps(item) + "\n").encode())
+            stdin.flush()
         except (OSError, ValueError):
             raise _Stopped(self._death()) from None
 
@@ -185,26 +189,6 @@ class _Session:
             import shutil
 
             shutil.rmtree(self._links, ignore_errors=True)
-
-
-def _outcome_from(item: dict) -> Outcome:
-    outcome = Outcome()
-    for key in ("error", "traceback", "exception", "stdout", "stderr"):
-        value = item.get(key)
-        outcome.__dict__[key] = value if value is None or isinstance(value, str) else str(value)
-    outcome.elapsed = float(item.get("elapsed", 0.0)) if isinstance(item.get("elapsed", 0.0), (int, float)) else 0.0
-    outcome.timed_out = bool(item.get("timed_out", False))
-    outcome.modified = [str(x) for x in item.get("modified", [])][:20]
-    outcome.forbidden_calls = [str(x)[:200] for x in item.get("forbidden_calls", [])][:20]
-    outcome.warnings = [str(x)[:500] for x in item.get("warnings", [])][:20]
-    if "value" in item and outcome.error is None:
-        try:
-            outcome.value = wire.decode(item["value"])
-        except (wire.WireError, ValueError, TypeError, KeyError, AttributeError) as exc:
-            outcome.error = f"returned something that cannot be graded ({exc})"
-    elif outcome.error is None:
-        outcome.error = "returned nothing the grader could read"
-    return outcome
 
 
 def _serve(session: _Session, message: dict, allowed: set, budget: float, refused: list) -> float:
@@ -252,6 +236,7 @@ def run_calls(
     strikes: dict[str, int] = {}      # group → cases that timed out or killed the worker
     pending = list(range(len(calls)))
     data_names = list(DATA_LOADERS)
+    topics = registry.topic_modules()  # the worker's stand-ins for cvkit's modules
     restarts = 0
     while restarts <= max_restarts:
         restarts += 1
@@ -260,7 +245,7 @@ def run_calls(
         try:
             session.send({"cells": [("pass  # stopped: ran longer than its limit" if i in skipped_cells else c)
                                     for i, c in enumerate(cells)],
-                          "blocks": sorted(blocks), "data": data_names})
+                          "blocks": sorted(blocks), "data": data_names, "topics": topics})
             for index in range(len(cells)):
                 if session.receive(STARTUP_SECONDS if index == 0 else cell_seconds,
                                    "starting the sandbox").get("cell") != index:
@@ -306,7 +291,7 @@ def run_calls(
                     if "outcome" not in message or not isinstance(message["outcome"], dict):
                         raise _Stopped("the graded code sent a message out of turn")
                     break
-                outcome = _outcome_from(message["outcome"])
+                outcome = Outcome.from_json(message["outcome"])
                 outcome.forbidden_calls += [r for r in refused if r not in outcome.forbidden_calls]
                 used = time.monotonic() - started - serving
                 if used > limit + GRACE_SECONDS and not outcome.timed_out:

@@ -25,9 +25,11 @@ import traceback
 import types
 import warnings
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Mapping, cast
 
 import numpy as np
+
+from . import wire
 
 
 class CandidateTimeout(BaseException):
@@ -35,9 +37,29 @@ class CandidateTimeout(BaseException):
     in student code does not swallow it)."""
 
 
+#: (entries, characters of each) an outcome's lists keep when it crosses the sandbox boundary
+_LIST_LIMITS = {"modified": (20, 200), "forbidden_calls": (20, 200), "warnings": (20, 500)}
+#: characters of the end of the captured stdout/stderr that cross the boundary
+_OUTPUT_TAIL = 2000
+
+
+def _texts(items: Any, count: int, length: int) -> list[str]:
+    """At most ``count`` strings of at most ``length`` characters (a single one for a value
+    that is not a list, none for None)."""
+    if items is None:
+        return []
+    if not isinstance(items, (list, tuple)):
+        items = [items]
+    return [str(item)[:length] for item in items[:count]]
+
+
 @dataclass
 class Outcome:
-    """What happened during one guarded call."""
+    """What happened during one guarded call.
+
+    :meth:`to_json` and :meth:`from_json` are its form on the wire between the grading sandbox
+    (which sends it) and the trusted grader (which reads it, trusting nothing in it).
+    """
 
     value: Any = None
     error: str | None = None          # one-line summary of an exception
@@ -54,6 +76,69 @@ class Outcome:
     @property
     def ok(self) -> bool:
         return self.error is None and not self.modified and not self.forbidden_calls
+
+    def to_json(self) -> dict[str, Any]:
+        """The outcome as plain JSON data, its value in :mod:`.wire` encoding.
+
+        Lists and captured output are cut to what crosses the sandbox boundary. A value that
+        cannot be encoded (an object, a too large array) becomes the outcome's error.
+
+        Returns
+        -------
+        dict
+            What :meth:`from_json` reads back.
+        """
+        item: dict[str, Any] = {
+            "error": self.error, "traceback": self.traceback, "exception": self.exception,
+            "elapsed": self.elapsed, "timed_out": self.timed_out,
+            **{key: _texts(getattr(self, key), *limits) for key, limits in _LIST_LIMITS.items()},
+            "stdout": self.stdout[-_OUTPUT_TAIL:], "stderr": self.stderr[-_OUTPUT_TAIL:],
+        }
+        if self.error is None:
+            try:
+                item["value"] = wire.encode(self.value)
+            except wire.WireError as exc:
+                item["error"] = f"returned something that cannot be graded: {exc}"
+        return item
+
+    @classmethod
+    def from_json(cls, item: Mapping[str, Any]) -> "Outcome":
+        """Read an outcome sent by the sandbox (:meth:`to_json`), trusting nothing in it.
+
+        Parameters
+        ----------
+        item : mapping
+            The decoded JSON object. Fields of the wrong type are read as text or dropped,
+            lists and output are cut to their limits, and the value is decoded by
+            :func:`.wire.decode` (never unpickled).
+
+        Returns
+        -------
+        Outcome
+            With ``error`` set when the value cannot be decoded or is missing.
+        """
+        def text(key: str) -> str | None:
+            value = item.get(key)
+            return value if value is None or isinstance(value, str) else str(value)
+
+        elapsed = item.get("elapsed", 0.0)
+        outcome = cls(
+            error=text("error"), traceback=text("traceback"), exception=text("exception"),
+            elapsed=float(elapsed) if isinstance(elapsed, (int, float)) else 0.0,
+            timed_out=bool(item.get("timed_out", False)),
+            modified=_texts(item.get("modified"), *_LIST_LIMITS["modified"]),
+            forbidden_calls=_texts(item.get("forbidden_calls"), *_LIST_LIMITS["forbidden_calls"]),
+            warnings=_texts(item.get("warnings"), *_LIST_LIMITS["warnings"]),
+            stdout=(text("stdout") or "")[-_OUTPUT_TAIL:], stderr=(text("stderr") or "")[-_OUTPUT_TAIL:],
+        )
+        if "value" in item and outcome.error is None:
+            try:
+                outcome.value = wire.decode(item["value"])
+            except (wire.WireError, ValueError, TypeError, KeyError, AttributeError) as exc:
+                outcome.error = f"returned something that cannot be graded ({exc})"
+        elif outcome.error is None:
+            outcome.error = "returned nothing the grader could read"
+        return outcome
 
 
 class _Sink(io.StringIO):
@@ -74,7 +159,7 @@ def _quiet():
 
 #: a module's namespace without any attribute lookup on the module (``vars(module)`` goes
 #: through ``__getattribute__``, which lazy modules override to load themselves)
-_module_namespace = types.ModuleType.__dict__["__dict__"].__get__
+_module_namespace: Callable[[types.ModuleType], dict] = cast(Any, types.ModuleType).__dict__["__dict__"].__get__
 
 
 def _namespace_of(module) -> dict | None:
@@ -109,7 +194,7 @@ def _forbidden_builtins(libraries: tuple) -> dict:
     key = (libraries, len(sys.modules))
     if key in _builtin_cache:
         return _builtin_cache[key]
-    table = {}
+    table: dict[int, str] = {}  # id of a builtin function -> its name
     with _quiet():
         for name, module in list(sys.modules.items()):
             if type(name) is not str or not name.startswith(libraries):
@@ -148,9 +233,9 @@ class _CallWatcher:
         self.reference_codes = reference_codes
         self.allowed_ids = set(allowed_ids)
         self.calls: list[str] = []
-        self.stop_code = None
-        self.exempt = None  # the candidate's own code (grading the reference itself is fine)
-        self.own_module = None  # module name of the candidate's code (``__main__`` in notebooks)
+        self.stop_code: types.CodeType | None = None
+        self.exempt: types.CodeType | None = None  # the candidate's own code (grading the reference itself is fine)
+        self.own_module: str | None = None  # module name of the candidate's code (``__main__`` in notebooks)
         self.enabled = True
         self.builtins = _forbidden_builtins(self.libraries) if self.libraries else {}
 
@@ -247,7 +332,7 @@ class _Clock:
         self.running = False
         self.expired = False
         self.paused: float | None = None  # seconds that were left when a module began to load
-        self._previous_handler = None
+        self._previous_handler: Any = None
         self._previous_timer = (0.0, 0.0)
         self._started = 0.0
 

@@ -8,7 +8,7 @@ trusted side drains and bounds):
 ====================================  =====================================================
 trusted side → worker                 worker → trusted side
 ====================================  =====================================================
-``{"cells": [...], "blocks": [...]}``  ``{"cell": i}`` before and ``{"cell_done": i, "error":
+``{"cells": [...], "blocks": ...}``    ``{"cell": i}`` before and ``{"cell_done": i, "error":
                                       ...}`` after each cell, then ``{"ready": ...}``
 ``{"call": {...}}``                   any number of ``{"rpc": id, "args", "kwargs"}`` (the
                                       trusted side answers each with ``{"value"}`` or
@@ -19,7 +19,9 @@ trusted side → worker                 worker → trusted side
 Building blocks an exercise may use (``filters.pad`` in the correlation exercise) and the
 data loaders (``cvkit.data``) are *proxies*: the trusted side computes them with the reference
 and sends back the value, for the ids the current case allows. The reference code itself is
-not in the sandbox.
+not in the sandbox. The first request names them (``"blocks"``, ``"data"``) and cvkit's
+algorithm modules (``"topics"``, from :func:`cvkit.registry.topic_modules`): each of those
+modules is a stand-in that holds the proxies and refuses every other name.
 
 Every answer-cell ``import`` goes through an allow-list (:data:`ALLOWED_MODULES`); anything
 else is refused with a message that names it. The libraries themselves are not in the
@@ -33,12 +35,11 @@ import os
 import sys
 import threading
 import types
-from typing import Any
 
 from . import wire
 from . import adapters
 from .adapters import bind_call
-from .guard import run_guarded
+from .guard import Outcome, run_guarded
 
 #: modules (top-level names) an answer cell may import
 ALLOWED_MODULES = frozenset({
@@ -48,8 +49,6 @@ ALLOWED_MODULES = frozenset({
 })
 #: modules of the notebooks' setup cell that are replaced by harmless stand-ins
 _SETUP_STAND_INS = ("matplotlib", "matplotlib.pyplot", "IPython", "IPython.display")
-_TOPICS = ("formation", "stereo", "filters", "noise", "edges", "features", "detection", "camera",
-           "calibration", "warp", "learn", "nn", "train", "data")
 PROTOCOL_FD = int(os.environ.get("CVKIT_PROTOCOL_FD", "3"))
 
 
@@ -133,7 +132,11 @@ def _proxy(channel: _Channel, algorithm_id: str):
     return building_block
 
 
-def _install_stand_ins(channel: _Channel, blocks: list[str], data_names: list[str]) -> dict:
+def _install_stand_ins(channel: _Channel, blocks: list[str], data_names: list[str], topics: list[str]) -> dict:
+    """Stand-ins for cvkit in ``sys.modules``: the grading functions, a module for each of
+    ``topics`` (cvkit's algorithm modules, :func:`cvkit.registry.topic_modules`, sent by the
+    trusted side) and for ``cvkit.data``, holding proxies of the building blocks and data
+    loaders the trusted side serves; any other name of them is refused when used."""
     def student(algorithm_id=None):
         return lambda function: function
 
@@ -158,27 +161,25 @@ def _install_stand_ins(channel: _Channel, blocks: list[str], data_names: list[st
 
     grading = {"check": check, "needs_answer": needs_answer, "load_answers": load_answers,
                "AnswersUnavailable": AnswersUnavailable}
-    topics: dict[str, dict] = {}
+    served: dict[str, dict] = {}  # module -> its proxies
     proxies = {}
     for algorithm_id in list(blocks) + [f"data.{name}" for name in data_names]:
         module, _, name = algorithm_id.partition(".")
-        topics.setdefault(module, {})[name] = proxies[algorithm_id] = _proxy(channel, algorithm_id)
+        served.setdefault(module, {})[name] = proxies[algorithm_id] = _proxy(channel, algorithm_id)
     modules = {
         "cvkit": _stand_in("cvkit", {"student": student}, True),
         "cvkit.registry": _stand_in("cvkit.registry", {"student": student}, True),
         "cvkit.grading": _stand_in("cvkit.grading", grading, True),
         "cvkit.grading.answers": _stand_in("cvkit.grading.answers", grading, True),
     }
-    modules["cvkit"].registry = modules["cvkit.registry"]
-    modules["cvkit"].grading = modules["cvkit.grading"]
-    modules["cvkit.grading"].answers = modules["cvkit.grading.answers"]
-    for topic in _TOPICS:
-        modules[f"cvkit.{topic}"] = _stand_in(f"cvkit.{topic}", topics.get(topic, {}), True)
-        setattr(modules["cvkit"], topic, modules[f"cvkit.{topic}"])
+    for topic in [*topics, "data"]:
+        modules[f"cvkit.{topic}"] = _stand_in(f"cvkit.{topic}", served.get(topic, {}), True)
     for name in _SETUP_STAND_INS:
         modules[name] = _stand_in(name, {}, False)
-    modules["matplotlib"].pyplot = modules["matplotlib.pyplot"]
-    modules["IPython"].display = modules["IPython.display"]
+    for name, stand_in in modules.items():  # each submodule is an attribute of its parent, as after an import
+        parent, _, child = name.rpartition(".")
+        if parent:
+            setattr(modules[parent], child, stand_in)
     sys.modules.update(modules)
     return proxies
 
@@ -186,7 +187,7 @@ def _install_stand_ins(channel: _Channel, blocks: list[str], data_names: list[st
 class _ImportGate:
     """``__import__`` for the student's namespace: the allow-list, with refusals recorded."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.real = builtins.__import__
         self.refused: list[str] = []
 
@@ -205,19 +206,8 @@ def _strip_magics(source: str) -> str:
                      for line in source.splitlines())
 
 
-def _outcome_item(outcome, refused: list[str]) -> dict:
-    item = {
-        "error": outcome.error, "traceback": outcome.traceback, "exception": outcome.exception,
-        "elapsed": outcome.elapsed, "timed_out": outcome.timed_out, "modified": outcome.modified,
-        "forbidden_calls": outcome.forbidden_calls + [f"import {name} (not allowed in graded code)" for name in refused],
-        "warnings": outcome.warnings[:20], "stdout": outcome.stdout[-2000:], "stderr": outcome.stderr[-2000:],
-    }
-    if outcome.error is None:
-        try:
-            item["value"] = wire.encode(outcome.value)
-        except wire.WireError as exc:
-            item["error"] = f"returned something that cannot be graded: {exc}"
-    return item
+def _refusal(name: str) -> str:
+    return f"import {name} (not allowed in graded code)"
 
 
 def main() -> None:  # pragma: no cover - runs inside the sandbox
@@ -230,7 +220,8 @@ def main() -> None:  # pragma: no cover - runs inside the sandbox
 
     channel = _Channel()
     request = channel.receive()
-    proxies = _install_stand_ins(channel, list(request.get("blocks", [])), list(request.get("data", [])))
+    proxies = _install_stand_ins(channel, list(request.get("blocks", [])), list(request.get("data", [])),
+                                 list(request.get("topics", [])))
     gate = _ImportGate()
     safe_builtins = dict(vars(builtins))
     safe_builtins["__import__"] = gate
@@ -249,7 +240,7 @@ def main() -> None:  # pragma: no cover - runs inside the sandbox
             cell_errors.append(error)
         channel.send({"cell_done": index, "error": error})
     channel.send({"ready": True, "cell_errors": cell_errors,
-                  "refused": [f"import {name} (not allowed in graded code)" for name in gate.refused]})
+                  "refused": [_refusal(name) for name in gate.refused]})
     while True:
         message = channel.receive()
         if "call" not in message:
@@ -259,15 +250,15 @@ def main() -> None:  # pragma: no cover - runs inside the sandbox
         function = namespace.get(call["function"])
         if not callable(function):
             why = "; ".join(e for e in cell_errors if "not allowed" in e or "Error" in e)[:400]
-            channel.send({"outcome": {
-                "error": f"no function called {call['function']!r} is defined"
-                         + (f" (its cell stopped: {why})" if why else " (did its cell run?)"),
-                "exception": "NameError"}})
+            channel.send({"outcome": Outcome(
+                error=f"no function called {call['function']!r} is defined"
+                      + (f" (its cell stopped: {why})" if why else " (did its cell run?)"),
+                exception="NameError").to_json()})
             continue
         try:
             args, kwargs = wire.decode(call["args"]), wire.decode(call["kwargs"])
         except wire.WireError as exc:
-            channel.send({"outcome": {"error": f"grader error decoding the case: {exc}"}})
+            channel.send({"outcome": Outcome(error=f"grader error decoding the case: {exc}").to_json()})
             continue
         adapter = getattr(adapters, call["call"]) if call.get("call") else None
         # a cascade: the student's own building block (their `pad`) replaced by the grader's
@@ -284,7 +275,8 @@ def main() -> None:  # pragma: no cover - runs inside the sandbox
             )
         finally:
             namespace.update(saved)
-        channel.send({"outcome": _outcome_item(outcome, gate.refused[before:])})
+        outcome.forbidden_calls += [_refusal(name) for name in gate.refused[before:]]
+        channel.send({"outcome": outcome.to_json()})
     sys.stdout.flush()
     os._exit(0)
 
