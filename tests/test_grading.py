@@ -356,3 +356,27 @@ def test_nan_arguments_are_not_reported_as_modified():
 
     outcome = run_guarded(lambda image, fill=0.0: image, (np.ones(2),), {"fill": float("nan")})
     assert outcome.modified == [] and outcome.error is None
+
+
+@pytest.mark.parametrize("nbgrader_metadata", [
+    None, {}, {"grade": True, "solution": False}, {"grade": True, "solution": True},
+    {"grade": False, "solution": True}, {"grade": False, "solution": False, "locked": True}, {"grade": True},
+    {"solution": True}, {"grade_id": "setup", "locked": True},
+], ids=str)
+def test_cell_roles_are_nbgrader_s_own(nbgrader_metadata):
+    """cvkit.grading.runtime.cells answers as nbgrader.utils does (without importing nbgrader
+    where it runs), for nbformat's NotebookNode and for the plain JSON dict of the same cell."""
+    import nbformat
+    from nbgrader import utils
+
+    from cvkit.grading.runtime import cells
+
+    metadata = {} if nbgrader_metadata is None else {"nbgrader": nbgrader_metadata}
+    plain = {"cell_type": "code", "source": "x = 1", "metadata": metadata}
+    node = nbformat.from_dict(plain)
+    for cell in (node, plain):
+        assert cells.is_grade(cell) == bool(utils.is_grade(node))
+        assert cells.is_solution(cell) == bool(utils.is_solution(node))
+        assert cells.is_test_cell(cell) == bool(utils.is_grade(node) and not utils.is_solution(node))
+        assert cells.nbgrader_metadata(cell) == (nbgrader_metadata or {})
+    assert plain["metadata"] == metadata  # the cell is only read

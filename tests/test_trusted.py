@@ -343,6 +343,50 @@ def test_scan_sees_reflection_and_the_import_machinery():
     assert scan("def f(x):\n    return getattr(x, 'shape')") == []
 
 
+TOPIC_IMPORTS = textwrap.dedent("""\
+    import cvkit.camera
+    from cvkit import calibration
+
+    def project(points):
+        return cvkit.camera.project(points)
+
+    def calibrate(points):
+        return calibration.calibrate(points)
+    """)
+NEW_TOPIC_IMPORT = textwrap.dedent("""\
+    import cvkit.segmentation
+
+    def segment(points):
+        return cvkit.segmentation.segment(points)
+    """)
+
+
+@pytest.mark.parametrize("extra", [[], ["segmentation"]], ids=["cvkit", "with a new topic"])
+def test_cvkit_modules_are_flagged_and_refused_through_one_list(monkeypatch, extra):
+    """registry.topic_modules() is the one list of cvkit's algorithm modules: an answer cell
+    importing one of them is flagged by the static scan and meets a refusing stand-in in the
+    sandbox worker. A topic added to that list (here a made-up ``segmentation``) is both."""
+    topics = registry.topic_modules()
+    assert {"camera", "calibration"} <= set(topics) and "segmentation" not in topics
+    monkeypatch.setattr(registry, "topic_modules", lambda: topics + extra)
+    flags = scan(TOPIC_IMPORTS + NEW_TOPIC_IMPORT)
+    for module in ["camera", "calibration"] + extra:
+        assert f"imports cvkit.{module} (not allowed in exercises)" in flags, flags
+    assert any("segmentation" in flag for flag in flags) == bool(extra)
+
+    points = np.zeros((4, 3))
+    calls = [{"function": name, "args": (points,), "kwargs": {}, "time_limit": 5.0}
+             for name in ("project", "calibrate", "segment")]
+    result = sandbox.run_calls([TOPIC_IMPORTS, NEW_TOPIC_IMPORT], calls)
+    refused = [o for o in result.outcomes if o.error and "not available while your code is graded" in o.error]
+    assert all(o.value is None for o in result.outcomes)
+    if extra:  # a stand-in for the new topic too: every call is refused by its stand-in
+        assert result.cell_errors == [] and len(refused) == 3, (result.cell_errors, result.outcomes)
+    else:  # not a topic: no stand-in, the import itself fails and `segment` is never defined
+        assert len(refused) == 2 and "no function called 'segment'" in result.outcomes[2].error
+        assert any("cvkit.segmentation" in error for error in result.cell_errors), result.cell_errors
+
+
 def _chapter3_solution(grade_id):
     from pathlib import Path
 

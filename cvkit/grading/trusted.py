@@ -10,15 +10,20 @@ grader, for the instructor to look at.
 from __future__ import annotations
 
 import ast
+import copy
+import dataclasses
 import re
 from dataclasses import dataclass, field
+from typing import Any, Sequence
 
 import numpy as np
 
 from .. import registry
-from .checks import FORBIDDEN_LIBRARIES, call_target
-from .engine import _arg_names, evaluate, hidden_seed
+from .checks import FORBIDDEN_LIBRARIES, Case, Check, call_target
+from .engine import arg_names, evaluate, hidden_seed
 from .report import Report
+from .runtime.cells import is_solution, is_test_cell, nbgrader_metadata
+from .runtime.guard import Outcome
 from .sandbox import run_calls
 
 
@@ -56,14 +61,17 @@ class NotebookGrade:
         return round(float(total), 6), reasons
 
 
-def _source(cell) -> str:
+def _source(cell: Any) -> str:
     source = cell["source"] if isinstance(cell, dict) else cell.source
     return source if isinstance(source, str) else "".join(source)
 
 
-def _meta(cell) -> dict:
-    metadata = cell.get("metadata", {}) if isinstance(cell, dict) else cell.metadata
-    return dict(metadata.get("nbgrader", {}) or {})
+def _cells(notebook: Any) -> list[Any]:
+    return notebook["cells"] if isinstance(notebook, dict) else notebook.cells
+
+
+def _is_code(cell: Any) -> bool:
+    return (cell["cell_type"] if isinstance(cell, dict) else cell.cell_type) == "code"
 
 
 def check_calls(source: str, grade_id: str) -> list[CheckCall]:
@@ -88,24 +96,21 @@ def check_calls(source: str, grade_id: str) -> list[CheckCall]:
     return calls
 
 
-def worker_cells(notebook, source_notebook=None) -> list[str]:
+def worker_cells(notebook: Any, source_notebook: Any = None) -> list[str]:
     """The code the worker executes: the setup cell, every answer cell and every code cell
     the student added or changed — never the test cells, nor the instructor's demo cells."""
-    original = set()
+    original: set[str] = set()
     if source_notebook is not None:
-        for cell in source_notebook["cells"] if isinstance(source_notebook, dict) else source_notebook.cells:
-            if (cell["cell_type"] if isinstance(cell, dict) else cell.cell_type) == "code" and not _meta(cell).get("solution"):
-                original.add(_source(cell).strip())
+        original = {_source(cell).strip() for cell in _cells(source_notebook)
+                    if _is_code(cell) and not is_solution(cell)}
     cells = []
-    for cell in notebook["cells"] if isinstance(notebook, dict) else notebook.cells:
-        if (cell["cell_type"] if isinstance(cell, dict) else cell.cell_type) != "code":
-            continue
-        meta = _meta(cell)
-        source = _source(cell)
-        if meta.get("grade") and not meta.get("solution"):
+    for cell in _cells(notebook):
+        if not _is_code(cell) or is_test_cell(cell):
             continue  # test cells run only in the trusted process
-        if meta.get("grade_id") == "setup" or meta.get("solution") or source.strip() not in original:
-            if source_notebook is None and not (meta.get("grade_id") == "setup" or meta.get("solution")):
+        source = _source(cell)
+        setup_or_answer = nbgrader_metadata(cell).get("grade_id") == "setup" or is_solution(cell)
+        if setup_or_answer or source.strip() not in original:
+            if source_notebook is None and not setup_or_answer:
                 continue  # without the source we cannot tell demos from student cells: answers only
             cells.append(source)
     return cells
@@ -146,12 +151,18 @@ def _dotted(node) -> str:
 
 
 def scan(source: str, where: str = "") -> list[str]:
-    """Flags for constructs that have no business in an answer cell (for the instructor)."""
+    """Flags for constructs that have no business in an answer cell (for the instructor).
+
+    Among them, imports of the libraries that would do an exercise
+    (:data:`~cvkit.grading.checks.FORBIDDEN_LIBRARIES`) and of cvkit's algorithm modules
+    (:func:`cvkit.registry.topic_modules`, the same modules the sandbox worker replaces by
+    stand-ins that refuse them).
+    """
     try:
         tree = ast.parse(source)
     except SyntaxError:
         return []
-    forbidden = tuple(FORBIDDEN_LIBRARIES) + ("cvkit.filters", "cvkit.noise", "cvkit.edges", "cvkit.features")
+    forbidden = tuple(FORBIDDEN_LIBRARIES) + tuple(f"cvkit.{topic}" for topic in registry.topic_modules())
     prefix = f"{where}: " if where else ""
     flags = []
 
@@ -202,34 +213,36 @@ def scan(source: str, where: str = "") -> list[str]:
 
 
 # ---------------------------------------------------------------------------- grading
-def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
+def grade_notebook(notebook: Any, *, student: str, salt: str, source_notebook: Any = None,
                    memory_mb: int = 3072) -> NotebookGrade:
-    """Decide every check of ``notebook`` in an isolated worker; see the module docstring."""
+    """Decide every check of ``notebook`` in an isolated worker; see the module docstring.
+
+    Each check call's cases are drawn once (:func:`_draw_cases`); the sandbox runs them, and
+    the same cases are evaluated here, run again for a cascade and read by the hard-coding rule.
+    """
     tests_from = source_notebook if source_notebook is not None else notebook
-    cells_of = lambda nb: nb["cells"] if isinstance(nb, dict) else nb.cells  # noqa: E731
     calls: list[CheckCall] = []
-    for cell in cells_of(tests_from):
-        meta = _meta(cell)
-        if meta.get("grade") and not meta.get("solution"):
-            calls += check_calls(_source(cell), meta.get("grade_id", ""))
+    for cell in _cells(tests_from):
+        if is_test_cell(cell):
+            calls += check_calls(_source(cell), nbgrader_metadata(cell).get("grade_id", ""))
     result = NotebookGrade()
-    original = set()
+    original: set[str] = set()
     if source_notebook is not None:
-        original = {_source(c).strip() for c in cells_of(source_notebook)}
-    for cell in cells_of(notebook):  # the student's code only: answers and cells they added
-        meta = _meta(cell)
-        if (cell["cell_type"] if isinstance(cell, dict) else cell.cell_type) != "code":
+        original = {_source(c).strip() for c in _cells(source_notebook)}
+    for cell in _cells(notebook):  # the student's code only: answers and cells they added
+        meta = nbgrader_metadata(cell)
+        if not _is_code(cell):
             continue
-        if meta.get("solution") or (not meta and source_notebook is not None and _source(cell).strip() not in original):
+        if is_solution(cell) or (not meta and source_notebook is not None and _source(cell).strip() not in original):
             result.flags += scan(_source(cell), meta.get("grade_id") or "added cell")
     if not calls:
         return result
 
     plans = [_plan(call, student, salt) for call in _building_blocks_first(calls)]
-    requests = [request for plan in plans for request in plan.requests]
-    blocks = sorted({block for plan in plans for block in plan.spec.allowed})
+    blocks = tuple(sorted({block for plan in plans for block in plan.spec.allowed}))
     cells = worker_cells(notebook, source_notebook)
-    outcome = run_calls(cells, requests, blocks=tuple(blocks), memory_mb=memory_mb)
+    outcome = run_calls(cells, [request for plan in plans for request in plan.requests], blocks=blocks,
+                        memory_mb=memory_mb)
     result.worker_problem = outcome.crashed
     result.cell_errors = outcome.cell_errors
     result.sandboxed = outcome.sandboxed
@@ -259,26 +272,60 @@ def grade_notebook(notebook, *, student: str, salt: str, source_notebook=None,
 
 @dataclass
 class _Plan:
-    """One check call's cases and the sandbox requests that run them."""
+    """One check call: its check, its cases and the sandbox requests that run them."""
 
     call: CheckCall
-    spec: object
+    spec: Check
     seed: int | None
-    cases: list
-    requests: list
-    positions: dict  # (case index, attempt) -> index in ``requests``
+    cases: list[Case]               # drawn once (:func:`_draw_cases`)
+    keys: list[tuple[int, int]]     # (case index, attempt) of each request
+    requests: list[dict]
+
+    def with_reference_blocks(self, substitute: dict[str, str]) -> "_Plan":
+        """The same cases, the student's functions named in ``substitute`` (name → algorithm
+        id) replaced in the sandbox by the reference building block."""
+        return dataclasses.replace(self, requests=[dict(r, substitute=dict(substitute)) for r in self.requests])
+
+    def report(self, outcomes: Sequence[Outcome | None]) -> Report:
+        """The trusted report of these cases, whose requests' outcomes are ``outcomes`` (in order)."""
+        found = dict(zip(self.keys, outcomes))
+
+        def runner(index: int, case: Case, attempt: int) -> Outcome | None:
+            return found.get((index, attempt))
+
+        # engine.evaluate takes its cases from a check: one that yields the cases drawn for this
+        # plan (a copy: nothing done to them there reaches the requests a cascade sends again)
+        drawn = copy.deepcopy(self.cases)
+        drawn_check = dataclasses.replace(self.spec, public=drawn, hidden=lambda rng: drawn)
+        return evaluate(self.call.algorithm_id, _run_in_the_sandbox, hidden=self.call.hidden, seed=self.seed,
+                        check=drawn_check, runner=runner)
 
 
-def _plan(call: CheckCall, student: str, salt: str, substitute: dict | None = None) -> _Plan:
+def _run_in_the_sandbox(*args: Any, **kwargs: Any) -> Any:
+    """The candidate :meth:`_Plan.report` hands to ``evaluate``: it lives in the sandbox, its
+    outcomes come from the plan's runner, and it is never called here."""
+    raise RuntimeError("trusted grading evaluates outcomes computed by the worker")
+
+
+def _draw_cases(spec: Check, hidden: bool, seed: int | None) -> list[Case]:
+    """The one place where trusted grading draws a check call's cases: the public cases, or
+    the hidden cases drawn from ``seed``."""
+    return spec.hidden_cases(np.random.default_rng(seed)) if hidden else spec.public_cases()
+
+
+def _plan(call: CheckCall, student: str, salt: str) -> _Plan:
     record = registry.get(call.algorithm_id)
     spec = record.check
+    if spec is None:
+        raise ValueError(f"a test cell checks {call.algorithm_id!r}, which has no check")
     seed = hidden_seed(call.algorithm_id, student=student, salt=salt) if call.hidden else None
-    cases = spec.hidden_cases(np.random.default_rng(seed)) if call.hidden else spec.public_cases()
-    names = list(_arg_names(record.reference, spec))
-    requests, positions = [], {}
+    cases = _draw_cases(spec, call.hidden, seed)
+    names = list(arg_names(record.reference, spec))
+    keys: list[tuple[int, int]] = []
+    requests: list[dict] = []
     for index, case in enumerate(cases):
         for attempt in ((0, 1) if spec.seeded else (0,)):
-            positions[(index, attempt)] = len(requests)
+            keys.append((index, attempt))
             requests.append({
                 "function": call.function, "group": f"{call.function}:{call.algorithm_id}",
                 "args": case.args, "kwargs": case.kwargs,
@@ -286,35 +333,29 @@ def _plan(call: CheckCall, student: str, salt: str, substitute: dict | None = No
                 "forbidden_libraries": list(spec.forbidden_libraries) if attempt == 0 else [],
                 "forbidden_functions": list(spec.forbidden) if attempt == 0 else [],
                 "call": (call_target(spec.call) or "").rpartition(":")[2] or None,
-                "substitute": dict(substitute or {}),
+                "substitute": {},
             })
-    return _Plan(call, spec, seed, cases, requests, positions)
+    return _Plan(call, spec, seed, cases, keys, requests)
 
 
-def _evaluate_plans(plans: list[_Plan], outcomes: list) -> list:
+def _evaluate_plans(plans: list[_Plan], outcomes: Sequence[Outcome | None]) -> list[Report]:
     """The reports of ``plans``, whose requests' outcomes are ``outcomes`` (in order)."""
-    def stand_in(*args, **kwargs):  # the candidate lives in the worker
-        raise RuntimeError("trusted grading evaluates outcomes computed by the worker")
-
     reports, offset = [], 0
     for plan in plans:
-        def runner(index, case, attempt, plan=plan, offset=offset):
-            position = plan.positions.get((index, attempt))
-            return outcomes[offset + position] if position is not None else None
-
-        reports.append(evaluate(plan.call.algorithm_id, stand_in, hidden=plan.call.hidden, seed=plan.seed,
-                                runner=runner))
+        reports.append(plan.report(outcomes[offset:offset + len(plan.requests)]))
         offset += len(plan.requests)
     return reports
 
 
-def _cascades(plans: list[_Plan], reports: list, result: NotebookGrade, cells, blocks, memory_mb) -> None:
+def _cascades(plans: list[_Plan], reports: list[Report], result: NotebookGrade, cells: list[str],
+              blocks: tuple[str, ...], memory_mb: int) -> None:
     """One mistake costs points once: an exercise that fails while one of its building blocks
     (``filters.pad`` for ``filters.correlate``) is the student's own and fails its own check is
     graded again with the reference building block in its place (the sandbox serves it under
     the student's function name); the better of the two grades counts, and the report says
     which function is to blame."""
-    function_of, failing = {}, set()
+    function_of: dict[str, str] = {}
+    failing: set[str] = set()
     for plan, report in zip(plans, reports):
         function_of.setdefault(plan.call.algorithm_id, plan.call.function)
         if not report.passed:
@@ -329,12 +370,9 @@ def _cascades(plans: list[_Plan], reports: list, result: NotebookGrade, cells, b
             again.append((index, culprits))
     if not again:
         return
-    student_plans = [_Plan(plans[i].call, plans[i].spec, plans[i].seed, plans[i].cases,  # the same cases
-                           [dict(r, substitute=culprits) for r in plans[i].requests], plans[i].positions)
-                     for i, culprits in again]
-    outcome = run_calls(cells, [r for p in student_plans for r in p.requests], blocks=tuple(blocks),
-                        memory_mb=memory_mb)
-    for new_report, new, (i, culprits) in zip(_evaluate_plans(student_plans, outcome.outcomes), student_plans, again):
+    student_plans = [plans[i].with_reference_blocks(culprits) for i, culprits in again]  # the same cases
+    outcome = run_calls(cells, [r for p in student_plans for r in p.requests], blocks=blocks, memory_mb=memory_mb)
+    for new_report, (i, culprits) in zip(_evaluate_plans(student_plans, outcome.outcomes), again):
         old = reports[i]
         names = ", ".join(f"`{name}`" for name in culprits)
         own = plans[i].call.function

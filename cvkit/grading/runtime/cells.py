@@ -1,0 +1,50 @@
+"""What a notebook cell is to nbgrader: an answer cell, a test cell, or neither.
+
+The same answers as nbgrader's ``nbgrader.utils.is_grade`` and ``is_solution``, read from the
+cell's ``metadata["nbgrader"]``, for plain dicts (JSON read with :mod:`json`) and nbformat's
+``NotebookNode`` alike, without importing nbgrader: importing its package takes seconds (it
+loads its server extensions), and the library and the grading sandbox do without it.
+
+>>> answer = {"cell_type": "code", "metadata": {"nbgrader": {"solution": True, "grade": False}}}
+>>> test = {"cell_type": "code", "metadata": {"nbgrader": {"solution": False, "grade": True}}}
+>>> is_solution(answer), is_test_cell(answer), is_test_cell(test)
+(True, False, True)
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+__all__ = ["nbgrader_metadata", "is_grade", "is_solution", "is_test_cell"]
+
+
+def nbgrader_metadata(cell: Any) -> dict:
+    """A copy of the cell's nbgrader metadata (``{}`` when it has none).
+
+    Parameters
+    ----------
+    cell : dict or nbformat.NotebookNode
+        A notebook cell.
+
+    Returns
+    -------
+    dict
+        ``cell["metadata"]["nbgrader"]``, copied; empty for a cell nbgrader does not manage.
+    """
+    metadata = cell.get("metadata", {}) if isinstance(cell, Mapping) else getattr(cell, "metadata", {})
+    found = (metadata or {}).get("nbgrader", {})
+    return dict(found) if isinstance(found, Mapping) else {}
+
+
+def is_grade(cell: Any) -> bool:
+    """Whether nbgrader grades the cell (``grade: true``: a test cell, or a manually graded answer)."""
+    return bool(nbgrader_metadata(cell).get("grade", False))
+
+
+def is_solution(cell: Any) -> bool:
+    """Whether the cell is an answer cell (``solution: true``), the student's to write."""
+    return bool(nbgrader_metadata(cell).get("solution", False))
+
+
+def is_test_cell(cell: Any) -> bool:
+    """Whether the cell is an autograded test cell: graded, and not an answer."""
+    return is_grade(cell) and not is_solution(cell)
