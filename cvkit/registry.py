@@ -226,15 +226,22 @@ def _load_package(entry_point: Any) -> CoursePackage:
     return package
 
 
+_scanned: set[str | None] = set()  # namespaces whose entry points were looked up (None: all of them)
+
+
 def _load_packages(namespace: str | None = None) -> None:
-    """Import the course packages (those whose entry point is ``namespace``, or all) once."""
+    """Import the course packages (those whose entry point is ``namespace``, or all) once; the
+    entry points are looked up once per namespace (again after :func:`reload_plugins`)."""
     with _lock:
+        if None in _scanned or namespace in _scanned:
+            return
         for entry_point in _entry_points(ALGORITHMS_GROUP):
             if namespace is not None and entry_point.name != namespace:
                 continue
             key = (_distribution(entry_point), entry_point.name, entry_point.value)
             if key not in _packages:
                 _packages[key] = _load_package(entry_point)
+        _scanned.add(namespace)
 
 
 def course_packages() -> list[CoursePackage]:
@@ -742,6 +749,7 @@ def reload_plugins() -> None:
                 for module in [m for m in sys.modules if m == top or m.startswith(top + ".")]:
                     del sys.modules[module]
         _packages.clear()
+        _scanned.clear()
         _load_plugins(reload=True)
 
 
