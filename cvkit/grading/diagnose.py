@@ -117,7 +117,7 @@ def _number(x: float) -> str:
     return f"{x:.4g}".replace("-", "−")
 
 
-def position(index: Sequence[int], shape: tuple) -> str:
+def position(index: Sequence[int | np.integer], shape: tuple) -> str:
     """``[row 2, col 3]`` for a 2-D array, ``[row 2, col 3, channel 1]`` for colour, ``[4]`` in 1-D."""
     index = tuple(int(i) for i in index)
     if len(index) == 2:
@@ -191,7 +191,7 @@ def _spatial(bad: np.ndarray) -> np.ndarray:
     """The 2-D (rows, cols) mask of an array's wrong values (any channel)."""
     if bad.ndim <= 2:
         return bad
-    return bad.reshape(bad.shape[0], bad.shape[1], -1).any(axis=2)
+    return np.asarray(bad.reshape(bad.shape[0], bad.shape[1], -1).any(axis=2))
 
 
 def locate(bad: np.ndarray) -> str:
@@ -458,14 +458,16 @@ def _values(a: np.ndarray, e: np.ndarray, eq, scale: float, got_dtype) -> list[D
                     if "round" not in kinds else "your values are whole numbers: the decimals are lost")
             found.append(Diagnosis("rounding", what, "keep the result in float64: do not round it or convert it to an "
                                    "integer type"))
-    for lo, hi in ((0.0, 1.0), (0.0, 255.0), (0.0, None), (float(a.min()), float(a.max()))):
-        outside = (e < lo) | ((e > hi) if hi is not None else False)
+    ranges: tuple[tuple[float, float | None], ...] = ((0.0, 1.0), (0.0, 255.0), (0.0, None),
+                                                      (float(a.min()), float(a.max())))
+    for low, high in ranges:
+        outside = (e < low) | ((e > high) if high is not None else False)
         if not np.any(outside):
             continue
-        clipped = np.clip(e, lo, hi)
+        clipped = np.clip(e, low, high)
         for f, how in ((lambda v: v, ""), (np.round, " and rounded")):
             if eq(a, f(clipped)).all() and (how == "" or not np.all(clipped == np.round(clipped))):
-                span = f"[{_number(lo)}, {_number(hi)}]" if hi is not None else f"≥ {_number(lo)}"
+                span = f"[{_number(low)}, {_number(high)}]" if high is not None else f"≥ {_number(low)}"
                 found.append(Diagnosis("clipping", f"your values are clipped to {span}{how}",
                                        f"do not clip (or convert to uint8): the expected output goes outside {span}"))
                 break
@@ -568,8 +570,9 @@ def diagnose(got: Any, expected: Any, *, rtol: float = 1e-7, atol: float | None 
     if isinstance(expected, (tuple, list)) and not isinstance(expected, np.ndarray):
         if not isinstance(got, (tuple, list)) or len(got) != len(expected):
             return None
-        parts = [(_numeric(g), _numeric(x)) for g, x in zip(got, expected)]
-        if any(g is None or x is None for g, x in parts):
+        numeric = [(_numeric(g), _numeric(x)) for g, x in zip(got, expected)]
+        parts = [(g, x) for g, x in numeric if g is not None and x is not None]
+        if len(parts) < len(numeric):
             return None
         scales = [_scale(x.astype(np.float64)) for _, x in parts]
         same = [g.shape == x.shape and _close(g.astype(float), x.astype(float), max(rtol, 1e-9),
@@ -592,9 +595,9 @@ def diagnose(got: Any, expected: Any, *, rtol: float = 1e-7, atol: float | None 
                                 if n == 2 else "your results are in the wrong order: " + ", ".join(
                                     f"your [{i}] is the expected [{p}]" for i, p in enumerate(perm) if i != p))
                         return Diagnosis("order", what, "return the results in the order the exercise states")
-        for i, ((g, x), ok) in enumerate(zip(parts, same)):
+        for i, ((part, expected_part), ok) in enumerate(zip(parts, same)):
             if not ok:
-                found = diagnose(g, x, rtol=rtol, atol=atol)
+                found = diagnose(part, expected_part, rtol=rtol, atol=atol)
                 if found is None:
                     return None
                 return Diagnosis(found.kind, f"result [{i}]: {found.what}", found.hint)

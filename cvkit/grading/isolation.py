@@ -74,7 +74,8 @@ def collect_files(folder: Path) -> tuple[dict[str, bytes], list[str]]:
     links to files elsewhere, devices, sockets and pipes are never followed nor read."""
     import stat
 
-    files, refused = {}, []
+    files: dict[str, bytes] = {}
+    refused: list[str] = []
     if folder.is_symlink() or not folder.is_dir():
         return files, [f"{folder.name}: the submission folder is not a plain folder (refused)"]
     for path in sorted(folder.rglob("*")):
@@ -177,11 +178,11 @@ class _ControlGroup:
             return
         name = f"cvkit-{uuid.uuid4().hex[:12]}"
         try:
-            own = {}
+            own: dict[str, str] = {}  # controller -> this process's cgroup
             for line in Path("/proc/self/cgroup").read_text().splitlines():
-                _, controllers, path = line.split(":", 2)
+                _, controllers, group = line.split(":", 2)
                 for controller in controllers.split(",") if controllers else ["unified"]:
-                    own[controller] = path
+                    own[controller] = group
             root = Path("/sys/fs/cgroup")
             if (root / "pids" / "cgroup.procs").exists() or (root / "pids").is_dir():  # v1
                 for controller, files in (("pids", {"pids.max": str(limits.processes)}),

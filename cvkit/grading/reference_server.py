@@ -67,7 +67,7 @@ class ReferenceServer:
     _instance: "ReferenceServer | None" = None
     _lock = threading.Lock()
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.process: subprocess.Popen | None = None
 
     @classmethod
@@ -78,7 +78,7 @@ class ReferenceServer:
             return cls._instance
 
     def _start(self) -> subprocess.Popen:
-        def limits():  # pragma: no cover - runs in the child
+        def limits() -> None:  # pragma: no cover - runs in the child
             import resource
 
             resource.setrlimit(resource.RLIMIT_AS, (MEMORY_MB << 20, MEMORY_MB << 20))

@@ -17,4 +17,5 @@ def skip_unused_schema_grammars() -> None:
     """Make ``jsonschema`` skip the IRI grammars in this process (see the module docstring).
     Does nothing once ``jsonschema`` is imported, or when ``rfc3987_syntax`` already is."""
     if "jsonschema" not in sys.modules:
-        sys.modules.setdefault("rfc3987_syntax", None)  # None in sys.modules: import raises ImportError
+        modules: dict = sys.modules  # None in sys.modules: importing the name raises ImportError
+        modules.setdefault("rfc3987_syntax", None)

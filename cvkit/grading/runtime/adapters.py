@@ -26,7 +26,7 @@ def bind_call(call: Callable | None, candidate: Callable) -> Callable:
         return call(candidate, *args, **kwargs)
 
     run_case.__module__ = getattr(candidate, "__module__", None) or run_case.__module__
-    run_case.__wrapped__ = candidate
+    run_case.__wrapped__ = candidate  # type: ignore[attr-defined]
     run_case.__qualname__ = f"{getattr(call, '__name__', 'call')}({getattr(candidate, '__qualname__', 'candidate')})"
     return run_case
 
