@@ -263,6 +263,17 @@ def test_the_check_tells_right_from_every_mistake(installed):
             assert not report.passed and report.mistake == mistake.name, (seed, mistake.name)
 
 
+def test_calling_the_reference_is_caught_in_the_notebook_too(installed):
+    from mycourse.gamma_correction import gamma_correction as reference
+
+    def gamma_correction(image, gamma, vmax=1.0):
+        return reference(image, gamma, vmax)
+
+    report = evaluate(ID, gamma_correction)
+    assert not report.passed
+    assert all("reference implementation of 'mycourse.gamma_correction'" in case.message for case in report.cases)
+
+
 def test_the_how_to_check_output(installed):
     out = io.StringIO()
     with contextlib.redirect_stdout(out), pytest.raises(AssertionError, match="1/gamma instead of gamma"):
