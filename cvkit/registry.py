@@ -362,6 +362,8 @@ def algorithm(algorithm_id: str, *, section: str, check: Any = None) -> Callable
             raise TypeError(f"@algorithm({algorithm_id!r}) must decorate a callable")
         package, course = _registrant(function)
         namespace = algorithm_id.split(".", 1)[0]
+        if package != CVKIT and namespace in _topics():
+            importlib.import_module(f"{CVKIT}.{namespace}")  # so that a clash names cvkit's function
         with _lock:
             previous = _algorithms.get(algorithm_id)
             if previous is not None and previous.source != _source_of(function):

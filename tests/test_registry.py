@@ -275,6 +275,13 @@ def course_site(tmp_path, monkeypatch):
                       def thing(x):
                           return x
                       """})
+    _distribution(site, "cvkit-clashcourse", {algorithms: {"clash": "clash_pkg"}},
+                  {"clash_pkg.py": """\
+                      import cvkit
+                      @cvkit.algorithm("filters.gaussian", section="3.9.1")
+                      def gaussian(image, sigma, border="reflect101"):
+                          return image
+                      """})
     _distribution(site, "cvkit-filterscourse", {algorithms: {"filters": "filters_pkg"}},
                   {"filters_pkg.py": "raise AssertionError('never imported')\n"})
     _distribution(site, "cvkit-badcheck", {algorithms: {"badcheck": "badcheck_pkg"}},
@@ -347,6 +354,8 @@ def test_refused_course_packages_are_reported_never_fatal(course_site):
     with pytest.raises(KeyError, match="stray.fine"):  # the refused package's other ids are withdrawn too
         registry.get("stray.fine")
     assert "belongs to a cvkit module" in errors["filters"] and "cvkit-filterscourse" in errors["filters"]
+    assert ("duplicate algorithm id 'filters.gaussian': registered by cvkit (cvkit.filters._linear.gaussian) and "
+            "again by course package 'cvkit-clashcourse' (entry point clash = clash_pkg)") in errors["clash"]
     with pytest.raises(KeyError, match="needs a GPU"):
         registry.get("brokencourse.anything")
     assert registry.get("filters.gaussian").reference is cvkit.filters.gaussian
