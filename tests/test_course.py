@@ -13,7 +13,9 @@ from pathlib import Path
 import pytest
 
 from cvkit.cli import main
-from cvkit.course import SAMPLE_STUDENTS, Course, predict_scores, typical_mistakes
+from cvkit.course import SAMPLE_STUDENTS, Course, typical_mistakes
+
+from course_helpers import predict_scores
 
 pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parent.parent

@@ -1,3 +1,43 @@
-"""The nbgrader course pipeline behind ``cvkit course ...`` and ``cvkit demo`` (see :mod:`.course`)."""
-from .course import *  # noqa: F401,F403
-from .course import _reported_mistakes  # noqa: F401  (tests/test_feedback_words.py)
+"""The nbgrader course pipeline behind ``cvkit course ...`` and ``cvkit demo``.
+
+Small steps, each a plain nbgrader command run in the course folder where nbgrader has one
+(so instructors can run any step by hand): ``generate_assignment`` → submissions → the
+parallel phase (each submission executed in isolation, then its checks decided by the trusted
+checks; several at once, or on a Dask cluster) → nbgrader's ``autograde`` as the single,
+batched writer of the gradebook → ``generate_feedback`` → ``export``. Around nbgrader, cvkit
+adds only what a course needs: a grading salt kept for regrading, per-student hidden cases, a
+journal and a final audit so that no submission and no grade is lost, and a grade table with
+the mistakes the checks recognised and the flags they raised.
+
+One job per module:
+
+- :mod:`.course` — :class:`Course`: the folder and its plan, salt, environment, nbgrader's
+  configuration and API, build, submit; the one object the command line uses;
+- :mod:`.samples` — sample submissions (solutions, typical mistakes, blank);
+- :mod:`.jobs` and :mod:`.parallel` — the parallel phase: its picklable jobs
+  (:func:`execute_submission`, :func:`grade_submission`, :func:`feedback_submissions`) and
+  their driving on local processes or Dask;
+- :mod:`.writer` and :mod:`.journal` — the single writer of the gradebook (repairs, not-graded
+  submissions) and its bookkeeping (journal, not-graded list, flags);
+- :mod:`.results` and :mod:`.exports` — scores, mistakes and flags per exercise, the audit,
+  the grade table and the CSV exports.
+
+Local parallel grading uses worker processes started with ``spawn``: a script that calls
+:meth:`Course.grade` needs the usual ``if __name__ == "__main__":`` guard.
+"""
+from ..grading.startup import skip_unused_schema_grammars
+
+skip_unused_schema_grammars()  # 1.4 s of CPU per grading process (see cvkit.grading.startup)
+
+from .course import PACKAGE_DIR, Course, project_root  # noqa: E402
+from .exports import format_table  # noqa: E402
+from .jobs import ExecutedSubmission, execute_submission, feedback_submissions, grade_submission  # noqa: E402
+from .results import ExerciseScore, _reported_mistakes  # noqa: E402,F401  (tests/test_feedback_words.py)
+from .samples import SAMPLE_STUDENTS, SOLUTION_BEGIN, SOLUTION_END, solution_sources, typical_mistakes  # noqa: E402
+from .writer import JobResult  # noqa: E402
+
+__all__ = [
+    "Course", "JobResult", "ExecutedSubmission", "ExerciseScore", "execute_submission", "grade_submission",
+    "feedback_submissions", "format_table", "solution_sources", "typical_mistakes", "project_root",
+    "SAMPLE_STUDENTS", "SOLUTION_BEGIN", "SOLUTION_END", "PACKAGE_DIR",
+]

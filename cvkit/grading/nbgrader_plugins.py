@@ -16,9 +16,12 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+from typing import Any
 
+from nbformat import NotebookNode
 from nbformat.v4 import new_output
 from nbgrader.preprocessors import NbGraderPreprocessor
+from nbgrader.utils import is_grade, is_solution
 from traitlets import Bool, Int, Unicode
 
 from .report import MIME_TYPE
@@ -26,6 +29,34 @@ from .safety import SafeFeedbackExporter, SanitizeStudentContent  # noqa: F401  
 from .trusted import grade_notebook, hide_hidden_tests
 
 TRUSTED_VARIABLE = "CVKIT_TRUSTED_GRADING"
+
+
+def _cell_node(cell: Any) -> NotebookNode:
+    """nbgrader's cell tests read ``cell.metadata``: a cell's JSON dict is wrapped, not copied."""
+    return cell if isinstance(cell, NotebookNode) else NotebookNode(metadata=cell.get("metadata") or {})
+
+
+def is_test_cell(cell: Any) -> bool:
+    """True for a test cell: graded by nbgrader and not an answer, by nbgrader's own rule
+    (:func:`nbgrader.utils.is_grade` and not :func:`nbgrader.utils.is_solution`).
+
+    Parameters
+    ----------
+    cell : NotebookNode or dict
+        A notebook cell, as nbformat reads it or as its JSON dict.
+
+    Returns
+    -------
+    bool
+    """
+    node = _cell_node(cell)
+    return bool(is_grade(node) and not is_solution(node))
+
+
+def is_answer_cell(cell: Any) -> bool:
+    """True for an answer cell (nbgrader's ``solution`` cells: code or written answers), by
+    :func:`nbgrader.utils.is_solution`; ``cell`` is a NotebookNode or a cell's JSON dict."""
+    return bool(is_solution(_cell_node(cell)))
 
 
 def _bundle(report) -> dict:

@@ -1,0 +1,169 @@
+"""What a graded course shows: the grade table (terminal) and the CSV exports."""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import TYPE_CHECKING, Iterable
+
+from .results import ExerciseScore, unsandboxed
+
+if TYPE_CHECKING:
+    from .course import Course
+
+
+def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str] | None = None,
+                 not_graded: dict[str, str] | None = None, unsandboxed: Iterable[str] = ()) -> str:
+    """A plain-text table: one row per exercise, one column per student, totals, mistakes;
+    then the submissions that could not be graded (``not_graded``: student → reason, never
+    shown as zeros) and a loud warning for those graded without the sandbox."""
+    not_graded = dict(not_graded or {})
+    unsandboxed = sorted(unsandboxed)
+    tail = []
+    if unsandboxed:
+        tail.append("\n!! GRADED WITHOUT THE SANDBOX (--no-sandbox): student code ran with the grader's rights for "
+                    + ", ".join(unsandboxed))
+    if not_graded:
+        tail.append("\nNot graded (no score recorded; fix the cause and grade again):")
+        tail += [f"  {s}: not graded: {reason}" for s, reason in sorted(not_graded.items())]
+    students = [s for s in (students or scores) if s in scores]
+    if not students:
+        return "(no graded submissions)" + "\n".join(tail)
+    lines = _grades(scores, students)
+    lines += _findings(scores, students)
+    return "\n".join(lines + tail)
+
+
+def _grades(scores: dict[str, list[ExerciseScore]], students: list[str]) -> list[str]:
+    """The table's rows: one per exercise, then the totals."""
+    exercises: list[str] = []
+    for s in students:
+        for e in scores[s]:
+            if e.name not in exercises:
+                exercises.append(e.name)
+    cell = {}
+    for s in students:
+        for e in scores[s]:
+            if e.to_mark:
+                cell[(e.name, s)] = f"to mark/{e.max_score:g} ✎"
+                continue
+            mark = "✓" if e.score >= e.max_score - 1e-9 else ("·" if e.score > 0 else "✗")
+            cell[(e.name, s)] = f"{e.score:.2f}/{e.max_score:g} {mark}"
+    width = max(len(x) for x in exercises + ["exercise"]) + 2
+    colw = max(14, *(len(s) + 2 for s in students))
+    lines = ["exercise".ljust(width) + "".join(s.rjust(colw) for s in students)]
+    lines.append("-" * len(lines[0]))
+    for name in exercises:
+        lines.append(name.ljust(width) + "".join(cell.get((name, s), "-").rjust(colw) for s in students))
+    lines.append("-" * len(lines[0]))
+    totals = []
+    for s in students:
+        got = sum(e.score for e in scores[s] if not e.to_mark)
+        top = sum(e.max_score for e in scores[s])
+        pending = sum(e.max_score for e in scores[s] if e.to_mark)
+        totals.append((f"{got:.2f}/{top:g}" + (f" +{pending:g}✎" if pending else "")).rjust(colw))
+    lines.append("total".ljust(width) + "".join(totals))
+    if any(e.to_mark for s in students for e in scores[s]):
+        lines.append("✎ written answers and open tasks to mark by hand in nbgrader's formgrader "
+                     "(`+N✎`: points still to mark); the totals add them once marked")
+    return lines
+
+
+def _findings(scores: dict[str, list[ExerciseScore]], students: list[str]) -> list[str]:
+    """Below the table: what the checks found, and the flags for the instructor."""
+    lines = []
+    notes = []
+    for s in students:
+        missing = [e.name for e in scores[s] if any(p.startswith("not implemented") for p in e.problems)]
+        for e in scores[s]:
+            # one line per student × exercise (its visible and hidden tests together): the named
+            # mistake(s), else the first problem, in the reports' plain words
+            mistakes = list(dict.fromkeys(e.mistakes))
+            problems = [p for p in dict.fromkeys(e.problems) if not p.startswith("not implemented")]
+            if mistakes:
+                notes.append(f"  {s} · {e.name}: mistake{'s' if len(mistakes) > 1 else ''} "
+                             + ", ".join(f"“{m}”" for m in mistakes))
+            elif problems:
+                notes.append(f"  {s} · {e.name}: {problems[0]}")
+        if missing:
+            shown = ", ".join(missing) if len(missing) <= 4 else f"{len(missing)} exercises"
+            notes.append(f"  {s} · not attempted: {shown}")
+    if notes:
+        lines.append("\nWhat the checks found:")
+        lines += notes
+    flagged = [f"  {s} · {e.name}: {flag}" for s in students for e in scores[s] for flag in e.flags]
+    if flagged:
+        lines.append("\nFlags for the instructor (code that tries to get around the grader):")
+        lines += flagged
+    return lines
+
+
+def table(course: Course, assignment: str) -> str:
+    """See :meth:`Course.table`."""
+    not_graded = {k.partition("/")[0]: v for k, v in course.not_graded().items() if k.endswith(f"/{assignment}")}
+    graded_unsandboxed = sorted(k.partition("/")[0] for k in unsandboxed(course) if k.endswith(f"/{assignment}"))
+    return format_table(course.scores(assignment), not_graded=not_graded, unsandboxed=graded_unsandboxed)
+
+
+def export(course: Course) -> Path:
+    """See :meth:`Course.export`."""
+    target = course.root / "exports" / "grades.csv"
+    target.parent.mkdir(exist_ok=True)
+    _export_grades(course, target)
+    _export_exercises(course, course.root / "exports" / "exercises.csv")
+    return target
+
+
+def _export_grades(course: Course, target: Path) -> None:
+    """nbgrader's grades.csv, with a status column (not graded, graded without the sandbox)."""
+    from nbgrader.api import Gradebook
+    from nbgrader.plugins import CsvExportPlugin
+
+    from ..grading.safety import csv_safe
+
+    with Gradebook(course.db_url) as gradebook:
+        CsvExportPlugin(to=str(target)).export(gradebook)
+    not_graded = course.not_graded()
+    graded_unsandboxed = unsandboxed(course)
+    with target.open(newline="") as handle:
+        rows = list(csv.reader(handle))
+    if not rows:
+        return
+    header = rows[0]
+    column = {name: i for i, name in enumerate(header)}
+    out = [header + ["status"]]
+    for row in rows[1:]:
+        key = f"{row[column['student_id']]}/{row[column['assignment']]}" if "student_id" in column else ""
+        status = "graded"
+        if key in not_graded:
+            status = f"not graded: {not_graded[key]}"
+            for name in ("raw_score", "score", "late_submission_penalty"):
+                if name in column:
+                    row[column[name]] = ""
+        elif key in graded_unsandboxed:
+            status = "graded WITHOUT SANDBOX (--no-sandbox)"
+        out.append([csv_safe(cell) for cell in row] + [csv_safe(status)])
+    with target.open("w", newline="") as handle:
+        csv.writer(handle).writerows(out)
+
+
+def _export_exercises(course: Course, target: Path) -> None:
+    """cvkit's exercises.csv: one row per student × exercise, and one per submission not graded."""
+    from ..grading.safety import csv_safe
+
+    not_graded = course.not_graded()
+    with target.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["assignment", "student", "exercise", "score", "max_score", "mistakes", "problems", "flags",
+                         "status"])
+        for assignment in sorted({a for _, a in course.submissions()}):
+            for student, exercises in course.scores(assignment).items():
+                for e in exercises:
+                    writer.writerow([csv_safe(x) for x in (
+                        assignment, student, e.name, "" if e.to_mark else f"{e.score:g}", f"{e.max_score:g}",
+                        "; ".join(e.mistakes), "; ".join(e.problems), "; ".join(e.flags),
+                        "to mark by hand (formgrader)" if e.to_mark else "graded")])
+            for key, reason in sorted(not_graded.items()):
+                student, _, a = key.partition("/")
+                if a == assignment:
+                    writer.writerow([csv_safe(x) for x in (assignment, student, "(submission)", "", "", "",
+                                                            f"not graded: {reason}", "not graded", "not graded")])

@@ -1,0 +1,174 @@
+"""The parallel phase of :meth:`Course.grade`: the jobs (:mod:`.jobs`) on local worker
+processes or a Dask cluster, their results recorded batch by batch by the single writer, the
+feedback pages written by idle workers; then the final audit and the exports.
+
+Local workers are processes started with ``spawn``: a script that calls :meth:`Course.grade`
+needs the usual ``if __name__ == "__main__":`` guard.
+"""
+from __future__ import annotations
+
+import concurrent.futures
+import os
+from concurrent.futures import Future
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Iterable
+
+from .jobs import ExecutedSubmission, feedback_submissions, grade_submission
+from .progress import progress
+from .writer import JobResult
+
+if TYPE_CHECKING:
+    from .course import Course
+
+
+def payload(course: Course, student: str, assignment: str) -> tuple[Any, ...]:
+    """Arguments of :func:`grade_submission` for one submission: plain data only."""
+    def texts(folder: Path) -> dict[str, str]:
+        return {str(p.relative_to(folder)): p.read_text() for p in sorted(folder.rglob("*.ipynb"))}
+
+    return (str(course.project), student, assignment, course._submission_files(student, assignment),
+            texts(course.root / "release" / assignment), texts(course.source_dir / assignment), course.salt())
+
+
+class _Batches:
+    """Results of the parallel phase, recorded once a batch is full or nothing else is coming;
+    with a local pool, each recorded batch's feedback pages are queued for its workers."""
+
+    def __init__(self, course: Course, size: int, workers: int, bar: Any) -> None:
+        self.course, self.size, self.workers, self.bar = course, size, workers, bar
+        self.finished: list[ExecutedSubmission] = []
+        self.owners: dict[Any, tuple[str, str]] = {}   # future -> (student, assignment)
+        self.results: list[JobResult] = []
+        self.pool: concurrent.futures.Executor | None = None
+        self.feedback_steps: list[Future[None]] = []
+
+    def outcome(self, future: Any) -> ExecutedSubmission:
+        try:
+            return future.result()
+        except Exception as error:  # a lost worker: the writer grades the raw files
+            student, assignment = self.owners[future]
+            return ExecutedSubmission(student, assignment, {}, False, f"parallel phase failed: {error!r}")
+
+    def drain(self, done_futures: Iterable[Any], pending_count: int) -> None:
+        """Record what has finished, once a batch is full or nothing else is coming."""
+        self.finished.extend(self.outcome(f) for f in done_futures)
+        if not self.finished or (len(self.finished) < self.size and pending_count > 0):
+            return
+        written = list(self.finished)
+        self.finished.clear()
+        recorded = self.course.record_many(written)
+        self.results.extend(recorded)
+        pairs = [(r.student, r.assignment) for r in recorded if r.ok]
+        if self.pool is not None:  # feedback pages of this batch by the workers, between grading jobs
+            course = self.course
+            step = max(1, -(-len(pairs) // max(1, self.workers)))
+            for chunk in (pairs[i:i + step] for i in range(0, len(pairs), step)):
+                self.feedback_steps.append(self.pool.submit(
+                    feedback_submissions, str(course.root), course.db_url, str(course.project), chunk))
+        if self.bar is not None:
+            self.bar.update(len(written))
+
+
+def _on_dask(batches: _Batches, payloads: list[tuple[Any, ...]], scheduler: str) -> None:
+    from dask.distributed import Client, wait
+
+    with Client(scheduler) as client:
+        batches.owners.update({client.submit(grade_submission, *p, pure=False): p[1:3] for p in payloads})
+        pending = set(batches.owners)
+        while pending:
+            done = wait(pending, return_when="FIRST_COMPLETED").done
+            pending -= done
+            batches.drain(done, len(pending))
+
+
+def _on_local_pool(batches: _Batches, payloads: list[tuple[Any, ...]], workers: int) -> None:
+    import multiprocessing
+
+    context = multiprocessing.get_context("spawn")  # no inherited threads or state
+    with concurrent.futures.ProcessPoolExecutor(max_workers=max(1, workers), mp_context=context) as pool:
+        batches.pool = pool
+        waiting = list(payloads)  # submitted a few at a time, so that feedback jobs queued
+        pending: set[Future[ExecutedSubmission]] = set()  # by `drain` run before the submissions still waiting
+
+        def submit_next() -> None:
+            if waiting:
+                job = waiting.pop(0)
+                future = pool.submit(grade_submission, *job)
+                batches.owners[future] = job[1:3]
+                pending.add(future)
+
+        for _ in range(max(1, workers) + 1):
+            submit_next()
+        while pending:
+            done, _ = concurrent.futures.wait(pending, return_when=concurrent.futures.FIRST_COMPLETED)
+            pending.difference_update(done)
+            for _ in done:
+                submit_next()
+            batches.drain(done, len(pending) + len(waiting))
+        # feedback pages (nbconvert, CPU-heavy) were queued batch by batch behind the
+        # grading jobs, so a worker with no submission left writes them meanwhile
+        for step in batches.feedback_steps:
+            try:
+                step.result()
+            except Exception:  # a lost worker or a busy gradebook: this process writes them (below)
+                pass
+
+
+def grade(course: Course, assignments: Iterable[str] | None = None, workers: int = 2, scheduler: str | None = None,
+          progress_bar: bool = False, regrade: bool = False, batch: int | None = None,
+          sandbox: bool = True) -> list[JobResult]:
+    """See :meth:`Course.grade`."""
+    from ..grading import isolation
+
+    if sandbox:
+        isolation.require()
+        os.environ.pop("CVKIT_NO_SANDBOX", None)
+    else:
+        os.environ["CVKIT_NO_SANDBOX"] = "1"  # inherited by the grading workers
+    jobs = course.submissions(assignments)
+    todo = [(s, a) for s, a in jobs if regrade or not course.is_graded(s, a)]
+    payloads = [payload(course, s, a) for s, a in todo]
+    size = max(1, batch if batch is not None else max(2, workers))
+    if payloads:
+        course.nbgrader_api()  # load nbgrader and the configuration while the workers start
+    bar = progress(None, "autograde", progress_bar, total=len(payloads))
+    batches = _Batches(course, size, workers, bar)
+    if scheduler and payloads:
+        _on_dask(batches, payloads, scheduler)
+    elif payloads:
+        _on_local_pool(batches, payloads, workers)
+    if bar is not None:
+        bar.close()
+    results = batches.results
+    missing = missing_before = course.audit(jobs)
+    for student, assignment in missing:  # never lose a grade: one more, plain attempt
+        results = [r for r in results if (r.student, r.assignment) != (student, assignment)]
+        results.append(course.autograde_one(student, assignment))
+    missing = course.audit(jobs)
+    results += [JobResult(s, a, 1, 0, "no grade recorded after autograding") for s, a in missing]
+    retried = [(r.student, r.assignment) for r in results if r.ok and (r.student, r.assignment) in missing_before]
+    not_graded = course.not_graded()
+    course.feedback([pair for pair in retried + [(s, a) for s, a in jobs if not (course.root / "feedback" / s / a).is_dir()]
+                     if f"{pair[0]}/{pair[1]}" not in not_graded])
+    course.export()
+    return sorted(results, key=lambda r: (r.assignment, r.student))
+
+
+def write_feedback(course: Course, submissions: Iterable[tuple[str, str]]) -> None:
+    """See :meth:`Course.feedback`."""
+    pairs = sorted(set(submissions))
+    if not pairs:
+        return
+    api = course.nbgrader_api()
+    failed = []
+    for student, assignment in pairs:
+        try:
+            outcome = api.generate_feedback(assignment, student_id=student, force=True)
+        except Exception as error:  # noqa: BLE001 - one page must not stop the others
+            outcome = {"success": False, "error": repr(error)}
+        if not outcome.get("success"):
+            failed.append(f"{student}/{assignment}: {outcome.get('error', '')[-500:]}")
+    if failed:
+        log = course.root / ".cvkit" / "feedback_errors.log"
+        log.parent.mkdir(parents=True, exist_ok=True)
+        log.write_text("\n".join(failed))

@@ -1,0 +1,215 @@
+"""The single writer of the gradebook: nbgrader's own ``autograde``, without execution.
+
+Only the instructor's process writes the gradebook. Executed submissions come back from the
+parallel phase (:mod:`cvkit.course.parallel`) and are recorded here in batches, one nbgrader
+run per assignment; a submission nbgrader refuses is graded from a repaired copy, and one that
+cannot be recorded at all is listed as not graded with its reason (:class:`~.journal.Journal`).
+"""
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from .cells import cell_source, grade_id
+
+if TYPE_CHECKING:
+    from traitlets.config import Config
+
+    from .course import Course
+    from .parallel import ExecutedSubmission
+
+REPAIRED_FLAG = "(notebook): graded cells were deleted, duplicated or retyped; graded from a repaired copy"
+
+
+@dataclass
+class JobResult:
+    """One autograde run of one student's submission of one assignment."""
+
+    student: str
+    assignment: str
+    returncode: int
+    attempts: int = 1
+    log: str = ""
+    executed: bool = True  # False: the notebook could not run, the raw submission was graded
+    not_graded: str = ""   # why it could not be graded at all (listed so, never as a zero)
+
+    @property
+    def ok(self) -> bool:
+        return self.returncode == 0
+
+
+def _recording_settings(config: Config, verified: bool) -> dict[str, Any]:
+    """nbgrader settings of the writer's autograde run. Notebooks verified in the parallel phase
+    (checks decided, cell metadata validated) skip nbgrader's CheckCellMetadata, which they have
+    passed; nbconvert validates each notebook once after its preprocessors instead of after each."""
+    from nbgrader.converters import Autograde
+    from nbgrader.preprocessors import CheckCellMetadata
+
+    settings: dict[str, Any] = {"Exporter.optimistic_validation": True}
+    if verified:
+        for name in ("sanitize_preprocessors", "autograde_preprocessors"):
+            configured = config.Autograde.get(name) if name in config.Autograde else None
+            steps = configured if configured is not None else Autograde.class_traits()[name].default()
+            settings[f"Autograde.{name}"] = [step for step in steps if step is not CheckCellMetadata]
+    return settings
+
+
+class Writer:
+    """Records executed submissions of ``course`` in its gradebook (see the module docstring)."""
+
+    def __init__(self, course: Course) -> None:
+        self.course = course
+        self.journal = course._journal
+
+    def record_many(self, batch: list[ExecutedSubmission], repair: bool = False) -> list[JobResult]:
+        """See :meth:`Course.record_many`."""
+        try:
+            return self._record_many(batch, repair)
+        except Exception as error:  # noqa: BLE001 - isolate the submission that breaks the writer
+            if len(batch) > 1:
+                return [r for e in batch for r in self.record_many([e], repair=repair)]
+            executed = batch[0]
+            return [self.record_not_graded(executed.student, executed.assignment,
+                                           f"the grader could not record it ({type(error).__name__}: {str(error)[:200]})")]
+
+    def _record_many(self, batch: list[ExecutedSubmission], repair: bool) -> list[JobResult]:
+        results = []
+        groups: dict[tuple[str, bool], list[ExecutedSubmission]] = {}
+        for executed in batch:  # one nbgrader run per assignment and kind of verification
+            if executed.not_graded:
+                results.append(self.record_not_graded(executed.student, executed.assignment, executed.not_graded))
+                continue
+            key = (executed.assignment, bool(executed.verified and executed.ok))
+            groups.setdefault(key, []).append(executed)
+        for (assignment, _), group in sorted(groups.items()):
+            done = self._autograde(assignment, group, repair)
+            if done.returncode != 0 and len(group) > 1:  # isolate the submission that fails
+                results += [r for e in group for r in self.record_many([e], repair=repair)]
+                continue
+            if done.returncode != 0 and not repair:
+                # nbgrader refuses the notebook (graded cells deleted, duplicated, retyped):
+                # grade the student's answers in a repaired copy of the release instead
+                results += self.record_many(group, repair=True)
+                continue
+            if done.returncode != 0:  # not even a repaired copy: not graded, with nbgrader's reason
+                reason = (done.stderr or done.stdout or "nbgrader could not record it").strip().splitlines()[-1][:300]
+                results += [self.record_not_graded(e.student, assignment, f"nbgrader refused it: {reason}")
+                            for e in group]
+                continue
+            results += self._recorded(assignment, group, repair, done)
+        return results
+
+    def _autograde(self, assignment: str, group: list[ExecutedSubmission], repair: bool) -> subprocess.CompletedProcess:
+        """One nbgrader autograde run over ``group`` (staged in ``.cvkit/staging``), as a
+        completed process (its log and error) for the journal and the retries."""
+        course = self.course
+        staging = course.root / ".cvkit" / "staging"
+        shutil.rmtree(staging, ignore_errors=True)
+        for executed in group:
+            folder = staging / executed.student / assignment
+            folder.mkdir(parents=True)
+            files = executed.notebooks if executed.ok and not repair else {}
+            for name, data in course._submission_files(executed.student, assignment).items():
+                target = folder / name
+                target.parent.mkdir(parents=True, exist_ok=True)
+                if repair and name.endswith(".ipynb"):
+                    data = json.dumps(self.repaired(executed.student, assignment, name, json.loads(data))).encode()
+                target.write_bytes(files[name].encode() if name in files else data)
+
+        students = [] if len(group) > 1 else ["--student", group[0].student]
+        # notebooks verified in the parallel phase carry their verdicts; any other
+        # (execution failed, repaired copy) is verified here by nbgrader's TrustedChecks
+        verified = all(e.verified and e.ok for e in group) and not repair
+        config = course._config()  # the course's configuration, loaded once
+        api = course.nbgrader_api(**{
+            "CourseDirectory.submitted_directory": str(staging), "SandboxedExecute.enabled": False,
+            "ClearOutput.enabled": False, "TrustedChecks.enabled": not verified,
+            **_recording_settings(config, verified)})
+        try:
+            outcome = api.autograde(assignment, group[0].student if len(group) == 1 else "*", force=True,
+                                    create=True)
+        except Exception as error:  # noqa: BLE001 - nbgrader's failure on one notebook must not stop the run
+            outcome = {"success": False, "error": f"{type(error).__name__}: {error}"}
+        shutil.rmtree(staging, ignore_errors=True)
+        return subprocess.CompletedProcess(["nbgrader", "autograde", assignment, *students],
+                                           0 if outcome.get("success") else 1,
+                                           outcome.get("log", ""), outcome.get("error", ""))
+
+    def _recorded(self, assignment: str, group: list[ExecutedSubmission], repair: bool,
+                  done: subprocess.CompletedProcess) -> list[JobResult]:
+        """Journal, not-graded list and flags of a group nbgrader has recorded."""
+        results = []
+        for executed in group:
+            log = (executed.log[-1500:] + "\n" + done.stdout + done.stderr)[-4000:]
+            self.journal.set_not_graded(executed.student, assignment, None)
+            for note in self.course._refused_files(executed.student, assignment):
+                self.journal.add_flag(executed.student, assignment, f"(notebook): {note}")
+            if repair:
+                log += "\ngraded from a repaired copy: the submission's graded cells had been tampered with"
+                self.journal.add_flag(executed.student, assignment, REPAIRED_FLAG)
+            results.append(JobResult(executed.student, assignment, done.returncode, 1, log, executed=executed.ok))
+        self.journal.mark_graded([(executed.student, assignment) for executed in group])
+        return results
+
+    def record_not_graded(self, student: str, assignment: str, reason: str) -> JobResult:
+        """Keep a submission that cannot be graded visible as such: its reason in the journal
+        of not-graded submissions (table, exports), and for the formgrader an entry in the
+        gradebook with its notebooks flagged. No score is recorded for it."""
+        refused = self.course._refused_files(student, assignment)
+        if refused:
+            reason += " (refused files: " + "; ".join(refused)[:300] + ")"
+        self.journal.set_not_graded(student, assignment, reason)
+        self.journal.mark_graded([(student, assignment)])
+        try:
+            from nbgrader.api import Gradebook, MissingEntry
+
+            with Gradebook(self.course.db_url) as gb:
+                gb.update_or_create_student(student)
+                try:
+                    submission = gb.find_submission(assignment, student)
+                except MissingEntry:
+                    submission = gb.add_submission(assignment, student)
+                for notebook in submission.notebooks:
+                    notebook.flagged = True
+                gb.db.commit()
+        except Exception:  # noqa: BLE001 - the table and the exports still say it
+            pass
+        return JobResult(student, assignment, 0, 1, f"not graded: {reason}", executed=False, not_graded=reason)
+
+    def repaired(self, student: str, assignment: str, name: str, notebook: dict[str, Any]) -> dict[str, Any]:
+        """See :meth:`Course.repaired`."""
+        from ..grading.nbgrader_plugins import is_answer_cell
+
+        release = json.loads((self.course.root / "release" / assignment / name).read_text())
+        answers: dict[str, str] = {}
+        added_after: dict[str | None, list[str]] = {}
+        known = {cell_source(c).strip() for c in release["cells"]}
+        last = None
+        for cell in notebook.get("cells", []):
+            cell_id = grade_id(cell)
+            if is_answer_cell(cell) and cell_id and cell_id not in answers:
+                answers[cell_id] = cell_source(cell)
+                last = cell_id
+            elif (not cell.get("metadata", {}).get("nbgrader", {}) and cell.get("cell_type") == "code"
+                  and cell_source(cell).strip() not in known):
+                added_after.setdefault(last, []).append(cell_source(cell))
+
+        def added(anchor: str | None) -> list[dict[str, Any]]:
+            return [{"cell_type": "code", "source": source, "metadata": {}, "outputs": [], "execution_count": None}
+                    for source in added_after.get(anchor, [])]
+
+        cells = []
+        for cell in release["cells"]:
+            cell_id = grade_id(cell)
+            if is_answer_cell(cell) and cell_id in answers:
+                cell = dict(cell, source=answers[str(cell_id)])
+            cells.append(cell)
+            if cell_id == "setup":
+                cells += added(None)
+            elif is_answer_cell(cell):
+                cells += added(cell_id)
+        return dict(release, cells=cells)
