@@ -103,8 +103,11 @@ def pyramid_arguments(shape: Sequence[int], sigma0: float, scales: int, octaves:
         raise ValueError(f"octaves must be <= {allowed}: a {size} image halves to 1×1 in {allowed} octaves, "
                          f"got {octaves}")
     check_allocation((scales + 3,) + base, "image", what="an octave of scales + 3 levels")
-    radii = [_gaussian_radius(step) for step in _increments(sigma0, scales)]
-    first = _gaussian_radius(math.sqrt(sigma0 * sigma0 - blur * blur))
+    try:
+        radii = [_gaussian_radius(step) for step in _increments(sigma0, scales)]
+        first = _gaussian_radius(math.sqrt(sigma0 * sigma0 - blur * blur))
+    except OverflowError:                     # σ0² beyond float64: no allocation could hold it
+        radii, first = [], 2**60
     check_padded(base, max(radii + [first]), "sigma0")
     h, w = base
     work = _separable_work(h, w, first)
