@@ -23,17 +23,19 @@ Point sets stay below 12 points, so loop versions finish instantly.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 import scipy.linalg
 
 from ..grading import Case, Check, Close, Comparator, Mismatch, Mistake
+from ..grading.casekit import size as _n
+from ..grading.casekit import uniform as _u
+from ..grading.casekit import variant
+from ..grading.compare import tuple_problem
 from ._common import distortion_coefficients, radial_tangential
 from ._distortion import distort as _distort
-from ._distortion import project_full as _project_full
 from ._distortion import undistort_points as _undistort_points
-from ._homogeneous import from_homogeneous as _from_homogeneous
-from ._homogeneous import to_homogeneous as _to_homogeneous
 from ._projection import _rq
 from ._projection import decompose_projection as _decompose_projection
 from ._projection import extrinsic_matrix as _extrinsic_matrix
@@ -89,10 +91,9 @@ class Parts(Comparator):
         return f"({', '.join(self.names)}) each {self.inner.describe()}"
 
     def __call__(self, got, expected, case=None):
-        n = len(self.names)
-        if isinstance(got, np.ndarray) or not isinstance(got, (tuple, list)) or len(got) != n:
-            what = f"a tuple of {len(got)}" if isinstance(got, (tuple, list)) else type(got).__name__
-            return Mismatch(f"expected a tuple ({', '.join(self.names)}), got {what}")
+        problem = tuple_problem(got, self.names)
+        if problem:
+            return Mismatch(problem)
         for name, g, e in zip(self.names, got, expected):
             mismatch = self.inner(g, e, case)
             if mismatch is not None:
@@ -104,19 +105,11 @@ class Parts(Comparator):
 # --------------------------------------------------------------------------------------------
 # case helpers
 # --------------------------------------------------------------------------------------------
-def _u(rng: np.random.Generator, lo: float, hi: float, digits: int = 3) -> float:
-    return float(np.round(rng.uniform(lo, hi), digits))
-
-
-def _n(rng: np.random.Generator, lo: int, hi: int) -> int:
-    return int(rng.integers(lo, hi + 1))
-
-
 def _angles(rng: np.random.Generator) -> tuple:
     """Three angles, each at least 0.2 rad away from 0 and ±π (no accidental symmetry)."""
     values = []
     for _ in range(3):
-        a = _u(rng, 0.2, np.pi - 0.2)
+        a = _u(rng, 0.2, float(np.pi) - 0.2)
         values.append(a if rng.random() < 0.5 else -a)
     return tuple(values)
 
@@ -142,16 +135,16 @@ def _camera(rng: np.random.Generator, skew: bool = False) -> tuple:
 def _points_in_front(rng: np.random.Generator, R: np.ndarray, t: np.ndarray, n: int,
                      depth=(2.0, 8.0), spread: float = 0.4) -> np.ndarray:
     """World points whose camera coordinates have z in ``depth`` and |x|, |y| ≤ spread·z."""
-    z = rng.uniform(*depth, n)
+    z = rng.uniform(depth[0], depth[1], n)
     xy = rng.uniform(-spread, spread, (n, 2)) * z[:, None]
     camera = np.column_stack([xy, z])
     return np.round((camera - t) @ R, 4)  # Rᵀ(M_C − t), rounded: readable, still in front
 
 
 def _coefficients(rng: np.random.Generator, count: int = 3, scale: float = 1.0, tangential: bool = True):
-    k = [_u(rng, 0.1, 0.3, 4) * rng.choice([-1, 1]), _u(rng, 0.02, 0.1, 4) * rng.choice([-1, 1]),
-         _u(rng, 0.005, 0.02, 4) * rng.choice([-1, 1])][:count]
-    k = tuple(float(v) * scale for v in k)
+    drawn = [_u(rng, 0.1, 0.3, 4) * rng.choice([-1, 1]), _u(rng, 0.02, 0.1, 4) * rng.choice([-1, 1]),
+             _u(rng, 0.005, 0.02, 4) * rng.choice([-1, 1])][:count]
+    k = tuple(float(v) * scale for v in drawn)
     if not tangential:
         return k, (0.0, 0.0)
     p1 = _u(rng, 0.0005, 0.002, 5) * rng.choice([-1, 1])
@@ -791,8 +784,8 @@ decompose_projection = Check(
 # --------------------------------------------------------------------------------------------
 # camera.distort (§7.7.2)
 # --------------------------------------------------------------------------------------------
-def _distort_variant(xy_normalized, k, p, *, swap_p=False, r2_power=1, radial_on_tangential=False,
-                     tangential_xy_swapped=False, drop_k3=False):
+def _distort_variant(xy_normalized, k=(0.0, 0.0, 0.0), p=(0.0, 0.0), *, swap_p=False, r2_power=1,
+                     radial_on_tangential=False, tangential_xy_swapped=False, drop_k3=False):
     xy = np.asarray(xy_normalized, dtype=np.float64)
     kk, pp = distortion_coefficients(k, p)
     if drop_k3:
@@ -814,10 +807,7 @@ def _distort_variant(xy_normalized, k, p, *, swap_p=False, r2_power=1, radial_on
     return np.column_stack([x * radial + dx, y * radial + dy])
 
 
-def _dist(**knobs):
-    def wrong(xy_normalized, k=(0.0, 0.0, 0.0), p=(0.0, 0.0)):
-        return _distort_variant(xy_normalized, k, p, **knobs)
-    return wrong
+_dist = partial(variant, _distort_variant)
 
 
 def _distort_hidden(rng):
@@ -983,10 +973,7 @@ def _pf_variant(points_world, A, R, t, k=(0.0, 0.0, 0.0), p=(0.0, 0.0), *, divid
     return uv
 
 
-def _pf(**knobs):
-    def wrong(points_world, A, R, t, k=(0.0, 0.0, 0.0), p=(0.0, 0.0)):
-        return _pf_variant(points_world, A, R, t, k, p, **knobs)
-    return wrong
+_pf = partial(variant, _pf_variant)
 
 
 def _pf_hidden(rng):

@@ -34,16 +34,17 @@ from ..data._synthetic import disk_image, square_image
 from ..edges._canny import canny as _canny
 from ..edges._gradient import sobel as _sobel
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
+from ..grading.casekit import size as _size
+from ..grading.casekit import variant
+from ..grading.casekit import uniform as _u
 from ..grading.compare import as_numeric, shape_advice
 from . import _hough
 from ._shape import NO_GRADIENT
 from ._ght import ght_build as _ght_build
 from ._ght import ght_detect as _ght_detect
 from ._hough import hough_lines as _hough_lines
-from ._hough import hough_peaks as _hough_peaks
 from ._shape import shape_match as _shape_match
 from ._shape import shape_model as _shape_model
-from ._template import best_match as _best_match
 from ._template import match_template as _match_template
 
 __all__ = [
@@ -69,7 +70,7 @@ def _dict_problem(got, keys) -> str | None:
 
 def _rows(value, name: str) -> tuple[np.ndarray | None, str | None]:
     arr, problem = as_numeric(value, name)
-    if problem:
+    if arr is None:
         return None, problem
     if arr.size == 0:
         arr = arr.reshape(0, 2)
@@ -325,10 +326,6 @@ _FLOAT = close(rtol=1e-9, atol=1e-9, kind="f")
 # --------------------------------------------------------------------------------------------
 # case helpers
 # --------------------------------------------------------------------------------------------
-def _size(rng: np.random.Generator, lo: int, hi: int) -> int:
-    return int(rng.integers(lo, hi + 1))
-
-
 def _ints(rng, h, w, lo=0, hi=10) -> np.ndarray:
     return rng.integers(lo, hi, (h, w)).astype(np.float64)
 
@@ -392,9 +389,7 @@ def _applies(kind: str, measure: str) -> bool:
 
 
 def _tmk(kind):
-    def wrong(image, template, measure="zncc"):
-        return _tm(image, template, measure, kind=kind)
-    return wrong
+    return variant(_tm, kind=kind)
 
 
 def _tm_public():
@@ -435,8 +430,8 @@ def _tm_hidden(rng):
         t_f[0, 0] += 1.0
     big = rng.uniform(-1e6, 1e6, (_size(rng, 8, 11), _size(rng, 8, 11)))
     t_big, _ = _cut(rng, big, 3, 3)
-    gain = float(np.round(rng.uniform(1.5, 4.0), 2))
-    offset = float(np.round(rng.uniform(-20, 20), 2))
+    gain = _u(rng, 1.5, 4.0, 2)
+    offset = _u(rng, -20, 20, 2)
     row = unit(1, _size(rng, 12, 18))
     t_row, _ = _cut(rng, row, 1, _size(rng, 3, 5))
     t_row[0, 0] = t_row[0, -1] + 0.3                       # not constant
@@ -505,9 +500,7 @@ def _bm(scores, measure, *, kind):
 
 
 def _bmk(kind):
-    def wrong(scores, measure):
-        return _bm(scores, measure, kind=kind)
-    return wrong
+    return variant(_bm, kind=kind)
 
 
 _BM_PUBLIC = np.array([[5.0, 2.0, 9.0, 4.0, 3.0],
@@ -601,9 +594,7 @@ def _sm(template, threshold, *, kind):
 
 
 def _smk(kind):
-    def wrong(template, threshold):
-        return _sm(template, threshold, kind=kind)
-    return wrong
+    return variant(_sm, kind=kind)
 
 
 def _sm_template_public():
@@ -638,12 +629,12 @@ def _sm_hidden(rng):
         Case((steps, 4.0 * level), {}, "integer steps, threshold equal to a straight edge's magnitude 4·step (strict >)"),
         Case((steps.T.copy(), 4.0 * level), {}, "the transposed steps"),
         Case((disk, 0.6), {}, "anti-aliased disk: every direction (L2 magnitude matters)"),
-        Case((disk, float(np.round(rng.uniform(0.8, 1.6), 2))), {}, "the disk, a higher threshold"),
+        Case((disk, _u(rng, 0.8, 1.6, 2)), {}, "the disk, a higher threshold"),
         Case((u8, float(np.round(rng.uniform(90, 200)))), {}, "uint8 rotated square (raw units, not rescaled)"),
         Case((ints, 4.0), {}, "random integers 0..3, threshold 4 (magnitudes equal to it)"),
         Case((ints, 0.0), {}, "threshold 0: every pixel with a gradient"),
         Case((big, float(np.round(rng.uniform(0.35, 0.8) * big_peak / 1e6, 2)) * 1e6), {}, "±1e6 scale"),
-        Case((sq, float(np.round(rng.uniform(0.5, 1.2), 2))), {}, "rotated square, non-square template"),
+        Case((sq, _u(rng, 0.5, 1.2, 2)), {}, "rotated square, non-square template"),
         Case((np.array([[0.0, 0.0, 5.0, 5.0, 5.0]]), 1.0), {}, "single row 1×N"),
     ]
 
@@ -714,9 +705,7 @@ def _smatch(image, model, polarity="none", *, kind):
 
 
 def _smatchk(kind):
-    def wrong(image, model, polarity="none"):
-        return _smatch(image, model, polarity, kind=kind)
-    return wrong
+    return variant(_smatch, kind=kind)
 
 
 def _paste(background, template, x, y):
@@ -745,7 +734,7 @@ def _sma_public():
 def _sma_hidden(rng):
     size = int(rng.choice([16, 18, 20]))
     tpl, _ = part_template(size, margin=2, supersample=2)
-    model = _shape_model(tpl, float(np.round(rng.uniform(0.4, 0.8), 2)))
+    model = _shape_model(tpl, _u(rng, 0.4, 0.8, 2))
     scenes = {}
     for pol in ("normal", "inverted", "mixed"):
         h, w = _size(rng, size + 6, size + 12), _size(rng, size + 8, size + 14)
@@ -833,9 +822,7 @@ def _hl(edges, theta_step=math.pi / 180, rho_step=1.0, *, kind):
 
 
 def _hlk(kind):
-    def wrong(edges, theta_step=math.pi / 180, rho_step=1.0):
-        return _hl(edges, theta_step, rho_step, kind=kind)
-    return wrong
+    return variant(_hl, kind=kind)
 
 
 def _hl_public():
@@ -940,9 +927,7 @@ def _hp(accumulator, thetas, rhos, count=10, threshold=None, min_distance=5, *, 
 
 
 def _hpk(kind):
-    def wrong(accumulator, thetas, rhos, count=10, threshold=None, min_distance=5):
-        return _hp(accumulator, thetas, rhos, count, threshold, min_distance, kind=kind)
-    return wrong
+    return variant(_hp, kind=kind)
 
 
 _HP_ACC = np.array([
@@ -1050,9 +1035,7 @@ def _gb(template_edges, template_image, bins=36, reference=None, *, kind):
 
 
 def _gbk(kind):
-    def wrong(template_edges, template_image, bins=36, reference=None):
-        return _gb(template_edges, template_image, bins, reference, kind=kind)
-    return wrong
+    return variant(_gb, kind=kind)
 
 
 def _gb_template(h, w, offset=(0.0, 0.0), angle=0.3):
@@ -1172,9 +1155,7 @@ def _gd(image, rtable, scales=(1.0,), angles=(0.0,), edge_params=None, *, kind):
 
 
 def _gdk(kind):
-    def wrong(image, rtable, scales=(1.0,), angles=(0.0,), edge_params=None):
-        return _gd(image, rtable, scales, angles, edge_params, kind=kind)
-    return wrong
+    return variant(_gd, kind=kind)
 
 
 def _gd_model(size: int, bins: int, sigma: float = 1.0, reference=None):
@@ -1212,8 +1193,8 @@ def _gd_hidden(rng):
         c = (float(rng.uniform(size * 0.6, w - size * 0.6)), float(rng.uniform(size * 0.6, h - size * 0.6)))
         return part_scene((h, w), centre=c, size=size, rng=rng, supersample=2, margin=2, **kw)[0]
 
-    a = float(rng.choice([-1, 1])) * float(np.round(rng.uniform(0.3, 0.9), 3))
-    s = float(np.round(rng.uniform(0.85, 1.2), 2))
+    a = float(rng.choice([-1, 1])) * _u(rng, 0.3, 0.9)
+    s = _u(rng, 0.85, 1.2, 2)
     cases.append(Case((scene(30, 38, clutter=1, noise=0.01), half), {"edge_params": {"sigma": 1.0}},
                       "part in light clutter, one pose, reference point on half pixels"))
     cases.append(Case((scene(32, 36, angle=a, clutter=0, noise=0.01), table, (1.0,), (0.0, a, 2 * a)),
