@@ -63,6 +63,10 @@ c.Autograde.autograde_preprocessors = [
     SandboxedExecute, IgnorePattern, ClearMetadataPreprocessor, TrustedChecks, LimitOutput, SaveAutoGrades,
     AssignLatePenalties, CheckCellMetadata,
 ]
+# cvkit's verdicts travel as data in metadata (each test cell's metadata.cvkit.report, the
+# notebook's metadata.cvkit: flags, sandbox) and the grade table reads them there: leave
+# ClearMetadataPreprocessor disabled (nbconvert's default), or keep "cvkit" in its
+# preserve_cell_metadata_mask and preserve_nb_metadata_mask
 
 # Feedback pages (cvkit.grading.safety): nothing the student controls can run in them (outputs,
 # Markdown, attachments, metadata are cleaned; only the trusted grader's reports keep their

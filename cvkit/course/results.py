@@ -1,16 +1,18 @@
 """Results of a graded course: per student and exercise, the score from nbgrader's gradebook,
 the mistakes the trusted checks named, the problems they saw and the flags they raised; and the
 audit that no submission lost its grade.
+
+The trusted checks' verdicts are read as data: each graded test cell carries them in its
+metadata (``metadata.cvkit.report``), the flags are in the notebook's (``metadata.cvkit``).
 """
 from __future__ import annotations
 
 import json
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable
 
-from ..grading.report import MIME_TYPE
+from ..grading.report import MIME_TYPE, finding
 from .cells import exercise_name, grade_id
 from .samples import student_order
 
@@ -45,7 +47,7 @@ def scores(course: Course, assignment: str) -> dict[str, list[ExerciseScore]]:
             except MissingEntry:
                 continue
             graded = course.root / "autograded" / student / assignment
-            found = _reported_mistakes(graded)
+            found = reported_findings(graded)
             exercises: dict[str, ExerciseScore] = {}
             for nb in submission.notebooks:
                 for grade in sorted(nb.grades, key=lambda g: g.cell_id if hasattr(g, "cell_id") else g.name):
@@ -54,9 +56,8 @@ def scores(course: Course, assignment: str) -> dict[str, list[ExerciseScore]]:
                     entry.to_mark = entry.to_mark or bool(grade.needs_manual_grade)
                     entry.score += float(grade.score or 0.0)
                     entry.max_score += float(grade.max_score or 0.0)
-                    for item in found.get(grade.name, []):
-                        bucket = entry.mistakes if item.startswith("mistake:") else entry.problems
-                        text = item.split(":", 1)[1]
+                    for kind, text in found.get(grade.name, []):
+                        bucket = entry.mistakes if kind == "mistake" else entry.problems
                         if text not in bucket:
                             bucket.append(text)
             for flag in _flags(graded):
@@ -94,67 +95,66 @@ def _flags(folder: Path) -> list[str]:
     return flags
 
 
-def _reported_mistakes(folder: Path) -> dict[str, list[str]]:
-    """grade_id → ["mistake:<name>" | "problem:<text>"] from the reports in graded notebooks:
-    one item per report, in plain words — the named mistake, else what the first diagnosed
-    failing case looks like ("your output is shifted by 1 row down"), else the first clause of
-    the first failing case's message (never the tolerances)."""
-    found: dict[str, list[str]] = {}
+def reported_findings(folder: Path) -> dict[str, list[tuple[str, str]]]:
+    """What the trusted checks found in the graded notebooks of ``folder``, per test cell.
+
+    Parameters
+    ----------
+    folder : Path
+        A submission's folder of autograded notebooks.
+
+    Returns
+    -------
+    dict
+        grade_id → ``(kind, words)`` per check call, without repeats: ``("mistake", name)`` for
+        a named mistake, else ``("problem", words)`` with what the first diagnosed failing
+        case looks like or the first clause of the first failure (never the tolerances).
+        Read from the verdicts the trusted checks store as data in the test cells' metadata
+        (:func:`cvkit.grading.nbgrader_plugins.cell_report`); a notebook graded before they did
+        (no ``metadata.cvkit.reports_in_cells``) is read from its reports' JSON outputs.
+    """
+    found: dict[str, list[tuple[str, str]]] = {}
     for path in sorted(folder.glob("*.ipynb")):
         nb = json.loads(path.read_text())
+        in_cells = bool(nb.get("metadata", {}).get("cvkit", {}).get("reports_in_cells"))
         for cell in nb.get("cells", []):
             cell_id = grade_id(cell)
-            for output in cell.get("outputs", []):
-                report = output.get("data", {}).get(MIME_TYPE)
-                if not report or not cell_id or not isinstance(report, dict):
-                    continue
+            if not cell_id:
+                continue
+            for item in _cell_findings(cell) if in_cells else _output_findings(cell):
                 items = found.setdefault(cell_id, [])
-                failures = [c for c in report.get("cases", []) if isinstance(c, dict) and not c.get("passed")]
-                if report.get("mistake"):
-                    item = f"mistake:{report['mistake']}"
-                elif failures:
-                    diagnosis = report.get("diagnosis") or next((c.get("diagnosis") for c in failures
-                                                                 if c.get("diagnosis")), None)
-                    item = f"problem:{_headline(diagnosis or failures[0].get('message') or 'failed')}"
-                else:
-                    continue
                 if item not in items:
                     items.append(item)
     return found
 
 
-#: the numpy.testing vocabulary of reports written before plain words came first
-_TECHNICAL_LINE = re.compile(r"\b(rtol|atol)\b|to tolerance|^Mismatched elements")
+def _cell_findings(cell: dict[str, Any]) -> list[tuple[str, str]]:
+    """The findings of a test cell's verdicts stored as data (``metadata.cvkit.report``)."""
+    report = cell.get("metadata", {}).get("cvkit", {}).get("report")
+    checks = report.get("checks") if isinstance(report, dict) else None
+    items = []
+    for check in checks if isinstance(checks, list) else []:
+        if not isinstance(check, dict):
+            continue
+        if check.get("mistake"):
+            items.append(("mistake", str(check["mistake"])))
+        elif check.get("problem"):
+            items.append(("problem", str(check["problem"])))
+    return items
 
 
-def _headline(message: str, width: int = 90) -> str:
-    """The first clause of a failure message, in plain words: "calls X, which would..." →
-    "calls X"; "60 of 90 values differ, all in the border frame 2 pixels wide (the interior is
-    right); first at ..." → up to the semicolon; "Your output is shifted by 1 row down: ..." →
-    "your output is shifted by 1 row down". Reports in the old numpy.testing wording ("Not
-    equal to tolerance rtol=…") become "N of M values differ"."""
-    lines = [line.strip() for line in str(message or "").splitlines() if line.strip()]
-    if not lines:
-        return "failed"
-    first = lines[0]
-    if _TECHNICAL_LINE.search(first):
-        counted = re.search(r"Mismatched elements: (\d+) / (\d+)", str(message))
-        first = (f"{counted.group(1)} of {counted.group(2)} values differ" if counted
-                 else "the values differ from the expected ones")
-    first = re.sub(r"\s*\([^()]*\b(?:rtol|atol)\b[^()]*\)", "", first)
-    prefix = re.match(r"(result \[\d+\]: )?", first)
-    first = first[len(prefix.group(0)):] if prefix else first
-    if not first.startswith(("shape mismatch", "dtype mismatch", "raised ")):
-        first = re.split(r"; |\. (?=[A-Z])", first, maxsplit=1)[0]
-        for stop in (", which", ": "):
-            if stop in first:
-                first = first.split(stop, 1)[0]
-                break
-    first = (prefix.group(0) if prefix else "") + first
-    first = first.rstrip(" .")
-    if first[:1].isupper() and first[1:2].islower():
-        first = first[0].lower() + first[1:]
-    return first if len(first) <= width else first[: width - 1].rsplit(" ", 1)[0] + "…"
+def _output_findings(cell: dict[str, Any]) -> list[tuple[str, str]]:
+    """The findings of the reports in a cell's outputs (notebooks graded before the verdicts
+    were stored as data)."""
+    reports = [output.get("data", {}).get(MIME_TYPE) for output in cell.get("outputs", [])]
+    return [item for item in (finding(r) for r in reports if r and isinstance(r, dict)) if item is not None]
+
+
+def _reported_mistakes(folder: Path) -> dict[str, list[str]]:
+    """:func:`reported_findings` as ``"mistake:<name>"`` / ``"problem:<words>"`` strings
+    (kept for tests/test_feedback_words.py)."""
+    return {cell_id: [f"{kind}:{text}" for kind, text in items]
+            for cell_id, items in reported_findings(folder).items()}
 
 
 def audit(course: Course, jobs: Iterable[tuple[str, str]]) -> list[tuple[str, str]]:

@@ -109,12 +109,14 @@ def _nbgrader_meta(cell: dict) -> dict:
 def prepare(notebook: dict, release: dict | None) -> dict:
     """The notebook as nbgrader would execute it: locked and test cells restored from
     ``release`` (by grade id), every output cleared. ``notebook`` is not modified."""
+    from .nbgrader_plugins import is_answer_cell, is_test_cell
+
     nb = copy.deepcopy(notebook)
     originals = {}
     if release is not None:
         for cell in release.get("cells", []):
             meta = _nbgrader_meta(cell)
-            if meta.get("grade_id") and (meta.get("locked") or (meta.get("grade") and not meta.get("solution"))):
+            if meta.get("grade_id") and (meta.get("locked") or is_test_cell(cell)):
                 originals[meta["grade_id"]] = cell
         kernelspec = release.get("metadata", {}).get("kernelspec")
         if kernelspec:
@@ -122,7 +124,7 @@ def prepare(notebook: dict, release: dict | None) -> dict:
     for index, cell in enumerate(nb.get("cells", [])):
         meta = _nbgrader_meta(cell)
         original = originals.get(meta.get("grade_id"))
-        if original is not None and not meta.get("solution"):
+        if original is not None and not is_answer_cell(cell):
             cell = nb["cells"][index] = dict(cell, source=original["source"], cell_type=original["cell_type"],
                                              metadata=copy.deepcopy(original.get("metadata", {})))
         if cell.get("cell_type") == "code":

@@ -3,8 +3,9 @@
 - :class:`TrustedChecks` — an autograde preprocessor placed after execution: it decides every
   ``check(...)`` of the test cells outside the student's kernel (:mod:`cvkit.grading.trusted`)
   and replaces those cells' outputs by the trusted report and partial credit, which is what
-  nbgrader then records. Flags from the static scan go into the notebook's metadata
-  (``metadata.cvkit.flags``) for the grade export.
+  nbgrader then records. The verdicts also travel as data in each test cell's metadata
+  (``metadata.cvkit.report``, :func:`cell_report`) for the grade table and exports; flags from
+  the static scan go into the notebook's metadata (``metadata.cvkit.flags``).
 - :class:`HideHiddenTests` — a feedback preprocessor: students see the results of the hidden
   tests, never their source.
 - :class:`SanitizeStudentContent` and :class:`SafeFeedbackExporter` (from
@@ -24,9 +25,9 @@ from nbgrader.preprocessors import NbGraderPreprocessor
 from nbgrader.utils import is_grade, is_solution
 from traitlets import Bool, Int, Unicode
 
-from .report import MIME_TYPE
+from .report import MIME_TYPE, Report
 from .safety import SafeFeedbackExporter, SanitizeStudentContent  # noqa: F401  (re-exported for the config)
-from .trusted import grade_notebook, hide_hidden_tests
+from .trusted import CheckCall, grade_notebook, hide_hidden_tests
 
 TRUSTED_VARIABLE = "CVKIT_TRUSTED_GRADING"
 
@@ -59,7 +60,7 @@ def is_answer_cell(cell: Any) -> bool:
     return bool(is_solution(_cell_node(cell)))
 
 
-def _bundle(report) -> dict:
+def _bundle(report: Report) -> dict[str, Any]:
     bundle = {"text/plain": report.text(), MIME_TYPE: json.loads(json.dumps(report.to_dict(), default=str))}
     try:
         bundle["text/html"] = report._repr_html_()
@@ -141,22 +142,59 @@ class HideHiddenTests(NbGraderPreprocessor):
         return cell, resources
 
 
-def apply_trusted_checks(nb, *, student: str, salt: str, source_notebook=None, memory_mb: int = 3072) -> list[str]:
+def cell_report(grade_id: str, entries: list[tuple[CheckCall, Report]], points: float, credit: float,
+                flags: list[str]) -> dict[str, Any]:
+    """The trusted verdicts of one test cell as data: what :func:`apply_trusted_checks` stores in
+    the cell's ``metadata.cvkit.report`` and the course's results read (JSON-ready).
+
+    Parameters
+    ----------
+    grade_id : str
+        The test cell's grade id.
+    entries : list of (CheckCall, Report)
+        Its ``check(...)`` calls and their trusted reports, in order.
+    points, credit : float
+        The cell's points and the credit it earned.
+    flags : list of str
+        The notebook's flags (``"<grade id>: <what>"``); the cell keeps its own.
+
+    Returns
+    -------
+    dict
+        ``points``, ``credit``, ``checks`` (per call: :meth:`Report.verdict` and the graded
+        ``function``) and ``flags`` (what was flagged on this cell).
+    """
+    own = f"{grade_id}: "
+    return {
+        "points": points,
+        "credit": credit,
+        "checks": [dict(report.verdict(), function=call.function) for call, report in entries],
+        "flags": [flag[len(own):] for flag in flags if flag.startswith(own)],
+    }
+
+
+def apply_trusted_checks(nb: NotebookNode, *, student: str, salt: str, source_notebook: Any = None,
+                         memory_mb: int = 3072) -> list[str]:
     """Decide every check of ``nb`` (a NotebookNode) outside the student's kernel and put the
     verdicts in place: each test cell's outputs become the trusted reports and its credit
     (an error for a failed visible test, the partial credit of a hidden one), which is what
-    nbgrader's ``SaveAutoGrades`` records. Returns the flags of the static scan, which also go
+    nbgrader's ``SaveAutoGrades`` records. The same verdicts travel as data in the cell's
+    ``metadata.cvkit.report`` (:func:`cell_report`; any ``cvkit`` metadata a cell brought along
+    is dropped first), which the course's results read; the notebook is marked
+    ``metadata.cvkit.reports_in_cells``. Returns the flags of the static scan, which also go
     into ``nb.metadata.cvkit``. Used by :class:`TrustedChecks` and by the parallel phase of
     :meth:`cvkit.course.Course.grade`."""
     grade = grade_notebook(nb, student=student, salt=salt, source_notebook=source_notebook, memory_mb=memory_mb)
     for cell in nb.cells:
-        meta = cell.metadata.get("nbgrader", {})
-        grade_id = meta.get("grade_id")
-        if not (meta.get("grade") and not meta.get("solution")) or grade_id not in grade.reports:
+        cell.metadata.pop("cvkit", None)  # only the trusted grader writes there
+        grade_id = cell.metadata.get("nbgrader", {}).get("grade_id")
+        if not is_test_cell(cell) or grade_id not in grade.reports:
             continue
-        outputs = [new_output("display_data", data=_bundle(report)) for _, report in grade.reports[grade_id]]
-        credit, reasons = grade.credit(grade_id, float(meta.get("points", 0)))
-        hidden = any(call.hidden for call, _ in grade.reports[grade_id])
+        entries = grade.reports[grade_id]
+        outputs = [new_output("display_data", data=_bundle(report)) for _, report in entries]
+        points = float(cell.metadata["nbgrader"].get("points", 0))
+        credit, reasons = grade.credit(grade_id, points)
+        hidden = any(call.hidden for call, _ in entries)
         if hidden:
             outputs.append(new_output("execute_result", data={"text/plain": repr(credit)},
                                       execution_count=cell.get("execution_count")))
@@ -165,6 +203,7 @@ def apply_trusted_checks(nb, *, student: str, salt: str, source_notebook=None, m
             outputs.append(new_output("error", ename="AssertionError", evalue=message,
                                       traceback=[f"AssertionError: {message}"]))
         cell.outputs = outputs
+        cell.metadata["cvkit"] = {"report": cell_report(grade_id, entries, points, credit, grade.flags)}
     if not grade.sandboxed and not nb.metadata.get("cvkit", {}).get("unsandboxed_note"):
         from nbformat.v4 import new_markdown_cell
 
@@ -174,7 +213,7 @@ def apply_trusted_checks(nb, *, student: str, salt: str, source_notebook=None, m
     cvkit_meta = dict(nb.metadata.get("cvkit", {}))
     cvkit_meta.update(trusted=True, flags=grade.flags, worker_problem=grade.worker_problem,
                       cell_errors=grade.cell_errors[:20], sandboxed=grade.sandboxed,
-                      unsandboxed_note=not grade.sandboxed)
+                      unsandboxed_note=not grade.sandboxed, reports_in_cells=True)
     nb.metadata["cvkit"] = cvkit_meta
     return list(grade.flags)
 

@@ -4,8 +4,9 @@ from __future__ import annotations
 import base64
 import html
 import io
+import re
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -180,6 +181,29 @@ class Report:
     def __str__(self) -> str:
         return self.text()
 
+    def verdict(self) -> dict[str, Any]:
+        """The report as the course's results read it (JSON-ready): what was graded, how many
+        counted cases passed, and what went wrong in plain words.
+
+        Returns
+        -------
+        dict
+            ``algorithm``, ``hidden``, ``passed`` and ``total`` (counted cases), ``score``
+            (0..1), ``mistake`` (the named mistake the output matches, or None) and ``problem``
+            (when no mistake is named and a case failed: the first diagnosis, else the first
+            clause of the first failure's message, see :func:`headline`; otherwise None).
+        """
+        found = finding(self.to_dict())
+        return {
+            "algorithm": self.algorithm,
+            "hidden": self.hidden,
+            "passed": sum(bool(c.passed) for c in self.cases),
+            "total": len(self.cases),
+            "score": self.score,
+            "mistake": found[1] if found and found[0] == "mistake" else None,
+            "problem": found[1] if found and found[0] == "problem" else None,
+        }
+
     def to_dict(self) -> dict:
         return {
             "algorithm": self.algorithm,
@@ -262,6 +286,79 @@ class Report:
             parts.append(_image_comparison(first))
         parts.append("</section>")
         return "".join(parts)
+
+
+#: the numpy.testing vocabulary of reports written before plain words came first
+_TECHNICAL_LINE = re.compile(r"\b(rtol|atol)\b|to tolerance|^Mismatched elements")
+
+
+def headline(message: str, width: int = 90) -> str:
+    """The first clause of a failure message, in plain words.
+
+    "calls X, which would..." → "calls X"; "60 of 90 values differ, all in the border frame 2
+    pixels wide (the interior is right); first at ..." → up to the semicolon; "Your output is
+    shifted by 1 row down: ..." → "your output is shifted by 1 row down". Messages in the old
+    numpy.testing wording ("Not equal to tolerance rtol=…") become "N of M values differ".
+
+    Parameters
+    ----------
+    message : str
+        A case's failure message (or a diagnosis).
+    width : int, optional
+        Longest result; a longer clause is cut at a word and ends with "…".
+
+    Returns
+    -------
+    str
+        The clause, never the tolerances; ``"failed"`` for an empty message.
+    """
+    lines = [line.strip() for line in str(message or "").splitlines() if line.strip()]
+    if not lines:
+        return "failed"
+    first = lines[0]
+    if _TECHNICAL_LINE.search(first):
+        counted = re.search(r"Mismatched elements: (\d+) / (\d+)", str(message))
+        first = (f"{counted.group(1)} of {counted.group(2)} values differ" if counted
+                 else "the values differ from the expected ones")
+    first = re.sub(r"\s*\([^()]*\b(?:rtol|atol)\b[^()]*\)", "", first)
+    prefix = re.match(r"(result \[\d+\]: )?", first)
+    lead = prefix.group(0) if prefix else ""
+    first = first[len(lead):]
+    if not first.startswith(("shape mismatch", "dtype mismatch", "raised ")):
+        first = re.split(r"; |\. (?=[A-Z])", first, maxsplit=1)[0]
+        for stop in (", which", ": "):
+            if stop in first:
+                first = first.split(stop, 1)[0]
+                break
+    first = (lead + first).rstrip(" .")
+    if first[:1].isupper() and first[1:2].islower():
+        first = first[0].lower() + first[1:]
+    return first if len(first) <= width else first[: width - 1].rsplit(" ", 1)[0] + "…"
+
+
+def finding(report: Mapping[str, Any]) -> tuple[str, str] | None:
+    """What a report found, from its dict (:meth:`Report.to_dict`, as stored in a notebook).
+
+    Parameters
+    ----------
+    report : mapping
+        A report's dict: ``mistake``, ``diagnosis`` and ``cases`` (each with ``passed``,
+        ``diagnosis``, ``message``) are read.
+
+    Returns
+    -------
+    tuple of (str, str) or None
+        ``("mistake", name)`` when the output matches a named mistake; else, when a case
+        failed, ``("problem", words)`` with what the first diagnosed failing case looks like
+        or the first clause of the first failure's message (:func:`headline`); else None.
+    """
+    if report.get("mistake"):
+        return "mistake", str(report["mistake"])
+    failures = [c for c in report.get("cases", []) if isinstance(c, Mapping) and not c.get("passed")]
+    if not failures:
+        return None
+    diagnosis = report.get("diagnosis") or next((c.get("diagnosis") for c in failures if c.get("diagnosis")), None)
+    return "problem", headline(diagnosis or failures[0].get("message") or "failed")
 
 
 # JupyterLab theme variables, with fallbacks (GitHub's light palette) for plain HTML pages
