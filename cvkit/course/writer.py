@@ -11,7 +11,6 @@ import json
 import shutil
 import subprocess
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .cells import cell_source, grade_id
@@ -20,7 +19,7 @@ if TYPE_CHECKING:
     from traitlets.config import Config
 
     from .course import Course
-    from .parallel import ExecutedSubmission
+    from .jobs import ExecutedSubmission
 
 REPAIRED_FLAG = "(notebook): graded cells were deleted, duplicated or retyped; graded from a repaired copy"
 
