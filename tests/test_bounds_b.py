@@ -237,7 +237,7 @@ def test_undistort_points_converges_where_the_fixed_point_iteration_does_not():
     assert _residual(fixed, xd, STRONG_K, STRONG_P).max() > 1e-12         # 20 steps are not enough here
     with warnings.catch_warnings():
         warnings.simplefilter("error")                                     # and no warning: all converge
-        solved = camera.undistort_points(xd, STRONG_K, STRONG_P)
+        solved = camera.undistort_points(xd, STRONG_K, STRONG_P, iterations=None)
     assert _residual(solved, xd, STRONG_K, STRONG_P).max() <= 1e-12
     slow = _residual(fixed, xd, STRONG_K, STRONG_P) > 1e-12
     np.testing.assert_array_equal(solved[~slow], fixed[~slow])           # converged points: unchanged
@@ -249,14 +249,15 @@ def test_undistort_points_keeps_the_fixed_point_result_where_it_converged():
         xd = camera.distort(ideal, k, p)
         with warnings.catch_warnings():
             warnings.simplefilter("error")
-            np.testing.assert_array_equal(camera.undistort_points(xd, k, p), camera.undistort_points(xd, k, p, 20))
+            np.testing.assert_array_equal(camera.undistort_points(xd, k, p, iterations=None),
+                                          camera.undistort_points(xd, k, p, 20))
 
 
 def test_undistort_points_reports_points_without_an_inverse():
     """k1 = −0.5: r(1 − r²/2) is largest, 0.544, at r = 0.816; no ideal point distorts farther."""
     xd = np.array([[0.3, 0.1], [0.6, 0.0], [0.0, -0.7], [-0.2, 0.2]])
     with pytest.warns(ConvergenceWarning, match=r"xy_distorted: 2 of 4 points .* row 2"):
-        got = camera.undistort_points(xd, (-0.5,), (0.0, 0.0))
+        got = camera.undistort_points(xd, (-0.5,), (0.0, 0.0), iterations=None)
     assert issubclass(ConvergenceWarning, RuntimeWarning)
     residual = _residual(got, xd, (-0.5,), (0.0, 0.0))
     assert residual[[0, 3]].max() <= 1e-12                               # the others are undistorted
@@ -266,10 +267,19 @@ def test_undistort_points_reports_points_without_an_inverse():
         camera.undistort_points(xd, (-0.5,), (0.0, 0.0), strict=True)
 
 
+def test_undistort_points_by_default_reports_an_iterate_far_from_the_inverse():
+    """The catalog's default, 20 fixed-point steps, is kept; a result that distort maps far
+    from the input (here 0.108: beyond the fold of k1 = -0.5) is never returned without a word."""
+    with pytest.warns(ConvergenceWarning, match=r"1 of 1 points .* 0\.108 away after 20 fixed-point steps"):
+        camera.undistort_points([[0.6, 0.0]], (-0.5,), (0.0, 0.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                       # converged to 1e-8: within the report tolerance
+        camera.undistort_points(_grid(0.4), STRONG_K, STRONG_P)
+
+
 def test_undistort_points_with_a_number_of_iterations_is_that_iterate():
     xd = _grid(0.4, 5)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")                                    # the caller chose the steps
+    with pytest.warns(ConvergenceWarning, match="after 1 fixed-point steps"):  # far from the inverse: said
         one = camera.undistort_points(xd, STRONG_K, STRONG_P, 1)
     radial = 1 + (xd ** 2).sum(1) * (-0.3 + (xd ** 2).sum(1) * (-0.1 - 0.02 * (xd ** 2).sum(1)))
     x, y = xd.T

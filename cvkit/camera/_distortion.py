@@ -18,11 +18,16 @@ from ._common import (
     radial_tangential,
 )
 
-__all__ = ["distort", "undistort_points", "project_full", "ConvergenceWarning", "TOLERANCE", "MAX_ITERATIONS"]
+__all__ = ["distort", "undistort_points", "project_full", "ConvergenceWarning", "TOLERANCE", "REPORT_TOLERANCE",
+           "MAX_ITERATIONS"]
 
 #: ``undistort_points(iterations=None)``: a point is undistorted when ``distort`` of the result is
 #: within TOLERANCE·max(1, |x_d|, |y_d|) of x_d, in each coordinate
 TOLERANCE = 1e-12
+#: ``undistort_points(iterations=n)``: a result whose ``distort`` is farther than
+#: REPORT_TOLERANCE·max(1, |x_d|, |y_d|) from x_d is reported (the n-step iterate is far from the
+#: inverse: 1e-6 in normalised coordinates is about a thousandth of a pixel for f = 1000 px)
+REPORT_TOLERANCE = 1e-6
 #: the fixed-point steps taken before Newton's method (OpenCV's count, the notes' default)
 DEFAULT_ITERATIONS = 20
 #: the largest ``iterations`` accepted (each step is one pass over the points)
@@ -32,8 +37,8 @@ _HALVINGS = 30         # step halvings tried before a point is left where it is
 
 
 class ConvergenceWarning(RuntimeWarning):
-    """:func:`undistort_points` could not invert the distortion at some points to
-    :data:`TOLERANCE` (the message names how many, and the worst)."""
+    """:func:`undistort_points` could not invert the distortion at some points (the message
+    names how many, and the worst)."""
 
 
 @algorithm("camera.distort", section="7.7.2", check="cvkit.camera.checks:distort")
@@ -93,7 +98,7 @@ def distort(xy_normalized: ArrayLike, k: ArrayLike = (0.0, 0.0, 0.0), p: ArrayLi
 
 
 @algorithm("camera.undistort_points", section="7.7", check="cvkit.camera.checks:undistort_points")
-def undistort_points(xy_distorted: ArrayLike, k: ArrayLike, p: ArrayLike, iterations: int | None = None, *,
+def undistort_points(xy_distorted: ArrayLike, k: ArrayLike, p: ArrayLike, iterations: int | None = DEFAULT_ITERATIONS, *,
                      strict: bool = False) -> np.ndarray:
     """Invert :func:`distort`: ideal normalised coordinates from distorted ones.
 
@@ -106,17 +111,16 @@ def undistort_points(xy_distorted: ArrayLike, k: ArrayLike, p: ArrayLike, iterat
     p : sequence of 2 floats
         Tangential coefficients ``(p1, p2)``.
     iterations : int or None
-        ``None`` (the default): the inverse, to :data:`TOLERANCE` — 20 fixed-point steps
-        (OpenCV's), then Newton steps for the points not yet within the tolerance, and a report
-        of those that still are not (see ``strict``). An int ``0 ≤ n ≤ 1000``
-        (:data:`MAX_ITERATIONS`): exactly ``n`` fixed-point steps and nothing else — the
-        iterate of the notes, whatever its accuracy (0 returns the input as float64).
+        An int ``0 ≤ n ≤ 1000`` (:data:`MAX_ITERATIONS`; default 20, the catalog's and
+        OpenCV's count): exactly ``n`` fixed-point steps — the iterate of the notes (0 returns
+        the input as float64); points whose iterate ``distort`` maps farther than
+        :data:`REPORT_TOLERANCE` from ``x_d`` are reported (see ``strict``). ``None``: the
+        inverse to :data:`TOLERANCE` — 20 fixed-point steps, then Newton steps for the points
+        not yet within it; points that still are not are reported.
     strict : bool, keyword-only
-        What to do with points that do not converge. False (default): with
-        ``iterations=None``, warn with :class:`ConvergenceWarning` (a ``RuntimeWarning``) and
-        return the best estimate found; with an int ``iterations``, nothing. True: raise
-        ``ValueError`` naming ``xy_distorted`` and the worst point, in both modes (with an int
-        ``iterations``: when the ``n``-step iterate is not within the tolerance).
+        What to do with the points reported. False (default): warn with
+        :class:`ConvergenceWarning` (a ``RuntimeWarning``) and return the estimate. True: raise
+        ``ValueError`` naming ``xy_distorted`` and the worst point.
 
     Returns
     -------
@@ -132,9 +136,9 @@ def undistort_points(xy_distorted: ArrayLike, k: ArrayLike, p: ArrayLike, iterat
     Warns
     -----
     ConvergenceWarning
-        ``iterations=None`` and ``strict=False``: some points could not be undistorted to
-        :data:`TOLERANCE` (typically beyond the fold of a strong barrel distortion, where
-        ``distort`` has no inverse: no x gives that x_d).
+        ``strict=False`` and some points are reported: the ``n`` steps left them far from the
+        inverse (strong distortion far from the centre: pass ``iterations=None``), or they have
+        no inverse at all (beyond the fold of a strong barrel distortion, no x gives that x_d).
 
     Notes
     -----
@@ -177,7 +181,7 @@ def undistort_points(xy_distorted: ArrayLike, k: ArrayLike, p: ArrayLike, iterat
     >>> np.round(undistort_points(xd, k=(-0.25, 0.05), p=(0.001, -0.002)), 12)
     array([[ 0.3, -0.2]])
     >>> # beyond the fold of k1 = -0.5 (distorted radii above 0.544) there is no inverse
-    >>> undistort_points([[0.6, 0.0]], k=(-0.5,), p=(0, 0), strict=True)   # doctest: +ELLIPSIS
+    >>> undistort_points([[0.6, 0.0]], k=(-0.5,), p=(0, 0), iterations=None, strict=True)   # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
     ValueError: xy_distorted: 1 of 1 points could not be undistorted to 1e-12 ...
@@ -195,9 +199,9 @@ def undistort_points(xy_distorted: ArrayLike, k: ArrayLike, p: ArrayLike, iterat
         for _ in range(steps):
             radial, dx, dy = radial_tangential(x, y, kk, pp)
             x, y = (xd - dx) / radial, (yd - dy) / radial
-        if not (converge or strict) or xy.shape[0] == 0:
+        if xy.shape[0] == 0:
             return np.stack([x, y], axis=1)
-        scale = TOLERANCE * np.maximum(1.0, np.maximum(np.abs(xd), np.abs(yd)))
+        scale = (TOLERANCE if converge else REPORT_TOLERANCE) * np.maximum(1.0, np.maximum(np.abs(xd), np.abs(yd)))
         error = _residual_norm(x, y, xd, yd, kk, pp)
         if converge:
             todo = np.flatnonzero(~(error <= scale))          # NaN counts as not converged
@@ -209,10 +213,11 @@ def undistort_points(xy_distorted: ArrayLike, k: ArrayLike, p: ArrayLike, iterat
     if failed.size:
         worst = failed[int(np.argmax(np.where(np.isfinite(error[failed]), error[failed], np.inf)))]
         message = (
-            f"xy_distorted: {failed.size} of {xy.shape[0]} points could not be undistorted to {TOLERANCE:g} "
+            f"xy_distorted: {failed.size} of {xy.shape[0]} points could not be undistorted to "
+            f"{TOLERANCE if converge else REPORT_TOLERANCE:g} "
             f"(worst: row {worst}, x_d = ({xd[worst]:.6g}, {yd[worst]:.6g}), distort(result) is {error[worst]:.3g} "
             + ("away after the Newton steps; beyond the fold of the distortion model there is no inverse)"
-               if converge else f"away after {steps} fixed-point steps; pass iterations=None)"))
+               if converge else f"away after {steps} fixed-point steps; iterations=None adds Newton steps where an inverse exists)"))
         if strict:
             raise ValueError(message)
         warnings.warn(message, ConvergenceWarning, stacklevel=2)
