@@ -213,6 +213,17 @@ def test_public_function_is_fully_annotated(qualname, function):
     assert "return" in hints, f"{qualname}: no return type"
 
 
+def test_cvkit_data_exports_every_submodules_names_statically():
+    # written out in cvkit/data/__init__.py so that type checkers see them: keep the list whole
+    exported = []
+    for info in sorted(pkgutil.iter_modules(data.__path__), key=lambda m: m.name):
+        module = importlib.import_module(f"cvkit.data.{info.name}")
+        for name in getattr(module, "__all__", ()):
+            assert getattr(data, name) is getattr(module, name), name
+            exported.append(name)
+    assert sorted(data.__all__) == sorted(exported) and len(set(exported)) == len(exported)
+
+
 # -------------------------------------------------------------------- optional extras
 @pytest.fixture
 def without(monkeypatch):

@@ -15,18 +15,28 @@ submodule (its ``__all__``) is available here.
 """
 from __future__ import annotations
 
-import importlib
-import pkgutil
+# Written out (not gathered at import time) so that type checkers see every name; a test
+# (tests/test_bounds_a.py) keeps this list equal to the submodules' ``__all__``.
+from ._chessboard import ChessboardViews, render_chessboard, random_board_poses, chessboard_views
+from ._digits import digits
+from ._files import read_idx, mnist, read_cifar_batch, cifar10, CIFAR10_CLASSES
+from ._images import (
+    camera, astronaut, coins, moon, text, brick, coffee, chelsea, image, resize_half, noisy_stack,
+    with_gaussian_noise, with_impulse_noise, step_edge, psnr,
+)
+from ._scenes import polygon_image, part_outline, part_template, part_scene, to_scene, segments_image
+from ._stereo import stereo_motorcycle, MOTORCYCLE_CALIBRATION
+from ._synthetic import disk_image, square_image, oriented_step_image, step_signal
+from ._textures import textures, TEXTURE_CLASSES
 
-__all__: list[str] = []
-
-for _info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
-    if not _info.name.startswith("_"):
-        continue
-    _module = importlib.import_module(f"{__name__}.{_info.name}")
-    for _name in getattr(_module, "__all__", ()):
-        if _name in globals() and globals()[_name] is not getattr(_module, _name):
-            raise ImportError(f"cvkit.data: {_name!r} is defined by two data modules")
-        globals()[_name] = getattr(_module, _name)
-        __all__.append(_name)
-del _info, _module
+__all__ = [
+    "ChessboardViews", "render_chessboard", "random_board_poses", "chessboard_views",
+    "digits",
+    "read_idx", "mnist", "read_cifar_batch", "cifar10", "CIFAR10_CLASSES",
+    "camera", "astronaut", "coins", "moon", "text", "brick", "coffee", "chelsea", "image", "resize_half",
+    "noisy_stack", "with_gaussian_noise", "with_impulse_noise", "step_edge", "psnr",
+    "polygon_image", "part_outline", "part_template", "part_scene", "to_scene", "segments_image",
+    "stereo_motorcycle", "MOTORCYCLE_CALIBRATION",
+    "disk_image", "square_image", "oriented_step_image", "step_signal",
+    "textures", "TEXTURE_CLASSES",
+]
