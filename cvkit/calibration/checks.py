@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any, Callable
 
 import numpy as np
 
@@ -39,6 +40,9 @@ from ..camera import project_full as _project_full
 from ..camera import rotation_matrix as _rotation_matrix
 from ..camera.checks import FloatClose, Parts
 from ..grading import Case, Check, Comparator, Mismatch, Mistake
+from ..grading.casekit import variant
+from ..grading.casekit import uniform as _u
+from ..grading.compare import FloatArrayComparator, as_float_array, tuple_problem
 from ._homography import _apply, _dlt_matrix, _null_vector, _scaled, hartley_normalization
 from ._homography import homography_dlt as _homography_dlt
 from ._homography import refine_homography as _refine_homography
@@ -77,16 +81,7 @@ CAMERA_BLOCKS = ("camera.to_homogeneous", "camera.from_homogeneous", "camera.int
 # comparators
 # --------------------------------------------------------------------------------------------
 def _as_matrix(got, shape=(3, 3)) -> tuple[np.ndarray | None, str | None]:
-    if got is None:
-        return None, "your output is None: did you forget to `return` the result?"
-    try:
-        with np.errstate(all="ignore"):
-            arr = np.asarray(got, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        return None, f"your output could not be turned into a float array ({exc})"
-    if arr.shape != shape:
-        return None, f"shape mismatch: expected {shape}, got {arr.shape}"
-    return arr, None
+    return as_float_array(got, shape=shape)
 
 
 def _map(H: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -106,7 +101,7 @@ class HomographyClose(Comparator):
 
     atol: float = 1e-4
     rtol: float = 1e-8
-    probes: object = None
+    probes: Callable[[Any], Any] | None = None
     corners: bool = True
     elementwise = True  # a normalised H is compared entry by entry by the diagnosis
 
@@ -175,13 +170,15 @@ class HomographyClose(Comparator):
 
 
 @dataclass
-class CornersClose(Comparator):
+class CornersClose(FloatArrayComparator):
     """Chessboard corners in the catalog's order (or its 180° rotation, ``expected[::-1]``)
     within ``mean`` px on average and ``maximum`` px for every corner; None where the
     reference finds no board."""
 
     mean: float = 0.2
     maximum: float = 0.6
+    layout = " (cols·rows corners, (x, y) each)"
+    nonfinite = "your corners contain NaN or inf"
 
     def describe(self) -> str:
         return f"corners in order within {self.mean:g} px on average and {self.maximum:g} px each"
@@ -194,15 +191,9 @@ class CornersClose(Comparator):
                             "grid you find is not exactly cols × rows corners)")
         if got is None:
             return Mismatch(f"you returned None, but the image has a {len(expected)}-corner board of this size")
-        try:
-            pts = np.asarray(got, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            return Mismatch(f"your output could not be turned into a float array ({exc})")
-        exp = np.asarray(expected, dtype=np.float64)
-        if pts.shape != exp.shape:
-            return Mismatch(f"shape mismatch: expected {exp.shape} (cols·rows corners, (x, y) each), got {pts.shape}")
-        if not np.all(np.isfinite(pts)):
-            return Mismatch("your corners contain NaN or inf")
+        return super().__call__(got, expected, case)
+
+    def judge_array(self, pts, exp, case=None):
         best = None
         for order, name in ((exp, "as expected"), (exp[::-1], "rotated by 180°")):
             d = np.hypot(*(pts - order).T)
@@ -237,9 +228,9 @@ class MinimumClose(Comparator):
         return f"same minimum (x within {self.xtol:g}·max(1,|x|), cost within {self.ctol:g} relative)"
 
     def __call__(self, got, expected, case=None):
-        if isinstance(got, np.ndarray) or not isinstance(got, (tuple, list)) or len(got) != 2:
-            what = f"a tuple of {len(got)}" if isinstance(got, (tuple, list)) else type(got).__name__
-            return Mismatch(f"expected a tuple (x, info), got {what}")
+        problem = tuple_problem(got, ("x", "info"))
+        if problem:
+            return Mismatch(problem)
         x, info = got
         x_exp, info_exp = expected
         try:
@@ -352,10 +343,6 @@ class CalibrationClose(Comparator):
 # --------------------------------------------------------------------------------------------
 # case helpers
 # --------------------------------------------------------------------------------------------
-def _u(rng, lo, hi, digits=3):
-    return float(np.round(rng.uniform(lo, hi), digits))
-
-
 def _camera(rng, skew=False, size=(480, 640)):
     rows, cols = size
     fu = _u(rng, 0.9, 1.4, 3) * cols
@@ -601,27 +588,17 @@ find_chessboard_corners = Check(
 # the four steps of the detector (§8.3): response, candidates, grid order, sub-pixel position
 # --------------------------------------------------------------------------------------------
 @dataclass
-class MapClose(Comparator):
+class MapClose(FloatArrayComparator):
     """A float image within ``rtol·max|expected|`` (+ 1e-12) of the expected one, pixel by pixel."""
 
     rtol: float = 1e-6
     elementwise = True
+    layout = " (one value per pixel)"
 
     def describe(self) -> str:
         return f"every pixel within {self.rtol:g}·max|expected|"
 
-    def __call__(self, got, expected, case=None):
-        exp = np.asarray(expected, dtype=np.float64)
-        if got is None:
-            return Mismatch("your output is None: did you forget to `return` the result?")
-        try:
-            arr = np.asarray(got, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            return Mismatch(f"your output could not be turned into a float array ({exc})")
-        if arr.shape != exp.shape:
-            return Mismatch(f"shape mismatch: expected {exp.shape} (one value per pixel), got {arr.shape}")
-        if not np.all(np.isfinite(arr)):
-            return Mismatch("your output contains NaN or inf")
+    def judge_array(self, arr, exp, case=None):
         scale = float(np.abs(exp).max())
         tolerance = self.rtol * scale + 1e-12
         error = np.abs(arr - exp)
@@ -663,9 +640,9 @@ class CandidatesClose(Comparator):
                 f"edge directions within {self.degrees:g}°")
 
     def __call__(self, got, expected, case=None):
-        if isinstance(got, np.ndarray) or not isinstance(got, (tuple, list)) or len(got) != 2:
-            what = f"a tuple of {len(got)}" if isinstance(got, (tuple, list)) else type(got).__name__
-            return Mismatch(f"expected a tuple (points, directions), got {what}")
+        problem = tuple_problem(got, ("points", "directions"))
+        if problem:
+            return Mismatch(problem)
         try:
             pts = np.asarray(got[0], dtype=np.float64).reshape(-1, 2)
             dirs = np.asarray(got[1], dtype=np.float64)
@@ -716,27 +693,18 @@ class CandidatesClose(Comparator):
 
 
 @dataclass
-class PointsClose(Comparator):
+class PointsClose(FloatArrayComparator):
     """(N, 2) points in the expected order within ``mean`` px on average and ``maximum`` px each."""
 
     mean: float = 0.01
     maximum: float = 0.05
+    layout = " (one (x, y) per corner)"
+    nonfinite = "your points contain NaN or inf"
 
     def describe(self) -> str:
         return f"points within {self.mean:g} px on average and {self.maximum:g} px each"
 
-    def __call__(self, got, expected, case=None):
-        exp = np.asarray(expected, dtype=np.float64)
-        if got is None:
-            return Mismatch("your output is None: did you forget to `return` the result?")
-        try:
-            pts = np.asarray(got, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            return Mismatch(f"your output could not be turned into a float array ({exc})")
-        if pts.shape != exp.shape:
-            return Mismatch(f"shape mismatch: expected {exp.shape} (one (x, y) per corner), got {pts.shape}")
-        if not np.all(np.isfinite(pts)):
-            return Mismatch("your points contain NaN or inf")
+    def judge_array(self, pts, exp, case=None):
         if len(exp) == 0:
             return None
         d = np.hypot(*(pts - exp).T)
@@ -1038,20 +1006,10 @@ def _gg_variant(points, directions, seed=0, **options):
     return None if grid is None else _grid_rows(grid)
 
 
-def _gg_swapped(points, directions, seed=0):
-    return _gg_relabelled(points, directions, seed, swap=True)
-
-
-def _gg_negated(points, directions, seed=0):
-    return _gg_relabelled(points, directions, seed, negate=True)
-
-
-def _gg_no_pruning(points, directions, seed=0):
-    return _gg_variant(points, directions, seed, prune=False)
-
-
-def _gg_lines_only(points, directions, seed=0):
-    return _gg_variant(points, directions, seed, parallelogram=False)
+_gg_swapped = variant(_gg_relabelled, swap=True)
+_gg_negated = variant(_gg_relabelled, negate=True)
+_gg_no_pruning = variant(_gg_variant, prune=False)
+_gg_lines_only = variant(_gg_variant, parallelogram=False)
 
 
 def _gg_case(rng, label, board, seed="board", scale=False, as_list=False, **options):
@@ -1268,16 +1226,9 @@ def _rc_identity(image, corners, sigma):
     return np.array(corners, dtype=np.float64)
 
 
-def _rc_one_step(image, corners, sigma):
-    return _rc_newton(image, corners, sigma, iterations=1)
-
-
-def _rc_not_smoothed(image, corners, sigma):
-    return _rc_newton(image, corners, sigma, smooth=False)
-
-
-def _rc_no_shift_limit(image, corners, sigma):
-    return _rc_newton(image, corners, sigma, max_shift=None)
+_rc_one_step = variant(_rc_newton, iterations=1)
+_rc_not_smoothed = variant(_rc_newton, smooth=False)
+_rc_no_shift_limit = variant(_rc_newton, max_shift=None)
 
 
 def _rc_case(rng, label, cols, rows, sigma, offset=0.6, odd=0, **board):
@@ -1557,28 +1508,12 @@ def _lm_core(residuals, x0, jacobian=None, max_iter=100, tol=1e-10, damping=True
     return x, {"iterations": iterations, "cost": float(cost), "converged": bool(converged)}
 
 
-def _lm_gauss_newton(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
-    return _lm_core(residuals, x0, jacobian, max_iter, tol, damping=False)
-
-
-def _lm_uphill(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
-    return _lm_core(residuals, x0, jacobian, max_iter, tol, accept_uphill=True)
-
-
-def _lm_inverted(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
-    return _lm_core(residuals, x0, jacobian, max_iter, tol, inverted=True)
-
-
-def _lm_wrong_sign(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
-    return _lm_core(residuals, x0, jacobian, max_iter, tol, sign=-1.0)
-
-
-def _lm_jacobian_once(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
-    return _lm_core(residuals, x0, jacobian, max_iter, tol, jacobian_once=True)
-
-
-def _lm_full_cost(residuals, x0, jacobian=None, max_iter=100, tol=1e-10):
-    return _lm_core(residuals, x0, jacobian, max_iter, tol, full_cost=True)
+_lm_gauss_newton = variant(_lm_core, damping=False)
+_lm_uphill = variant(_lm_core, accept_uphill=True)
+_lm_inverted = variant(_lm_core, inverted=True)
+_lm_wrong_sign = variant(_lm_core, sign=-1.0)
+_lm_jacobian_once = variant(_lm_core, jacobian_once=True)
+_lm_full_cost = variant(_lm_core, full_cost=True)
 
 
 def _circle_problem(rng, n=None, noise=None):
@@ -2053,16 +1988,9 @@ def _rd_solve(*args, **kwargs):
     return np.linalg.lstsq(D, d, rcond=None)[0]
 
 
-def _rd_pixels(A, world_points, image_points_list, rotations, translations):
-    return _rd_solve(A, world_points, image_points_list, rotations, translations, pixels_r=True)
-
-
-def _rd_swapped(A, world_points, image_points_list, rotations, translations):
-    return _rd_solve(A, world_points, image_points_list, rotations, translations, swapped=True)
-
-
-def _rd_no_centre(A, world_points, image_points_list, rotations, translations):
-    return _rd_solve(A, world_points, image_points_list, rotations, translations, no_centre=True)
+_rd_pixels = variant(_rd_solve, pixels_r=True)
+_rd_swapped = variant(_rd_solve, swapped=True)
+_rd_no_centre = variant(_rd_solve, no_centre=True)
 
 
 def _rd_k1_only(A, world_points, image_points_list, rotations, translations):
@@ -2071,8 +1999,7 @@ def _rd_k1_only(A, world_points, image_points_list, rotations, translations):
     return np.array([k1, 0.0])
 
 
-def _rd_distorted_r(A, world_points, image_points_list, rotations, translations):
-    return _rd_solve(A, world_points, image_points_list, rotations, translations, distorted_r=True)
+_rd_distorted_r = variant(_rd_solve, distorted_r=True)
 
 
 def _rd_case(rng, label, n_views, k, noise=0.0, skew=False, form="list", board=(6, 4)):
@@ -2136,8 +2063,7 @@ estimate_radial_distortion = Check(
 # --------------------------------------------------------------------------------------------
 # calibration.calibrate (§8.2–8.3.8)
 # --------------------------------------------------------------------------------------------
-def _cal_no_refinement(world_points, image_points_list):
-    return _calibrate(world_points, image_points_list, refine=False)
+_cal_no_refinement = variant(_calibrate, refine=False)
 
 
 def _cal_mean_error(world_points, image_points_list):
@@ -2152,12 +2078,8 @@ def _cal_per_coordinate(world_points, image_points_list):
     return result
 
 
-def _cal_k_fixed(world_points, image_points_list):
-    return _calibrate(world_points, image_points_list, refine_distortion=False)
-
-
-def _cal_free_skew(world_points, image_points_list):
-    return _calibrate(world_points, image_points_list, free_skew=True)
+_cal_k_fixed = variant(_calibrate, refine_distortion=False)
+_cal_free_skew = variant(_calibrate, free_skew=True)
 
 
 def _closed_form_fits(A, world, images, tolerance=0.3) -> bool:

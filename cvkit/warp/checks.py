@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Callable
 
 import numpy as np
 
@@ -23,6 +24,8 @@ from ..camera import rotation_matrix as _rotation_matrix
 from ..camera import undistort_points as _undistort_points
 from ..camera.checks import FloatClose
 from ..grading import Case, Check, Close, Comparator, Mistake
+from ..grading.casekit import argument as _argument
+from ..grading.casekit import uniform as _u
 from ._sampling import bilinear_sample as _bilinear_sample
 from ._sampling import undistort_image as _undistort_image
 from ._sampling import warp_homography as _warp_homography
@@ -36,12 +39,6 @@ __all__ = ["WarpClose", "bilinear_sample", "warp_homography", "undistort_image",
 # --------------------------------------------------------------------------------------------
 # comparator
 # --------------------------------------------------------------------------------------------
-def _argument(case, index, name, default=None):
-    if len(case.args) > index:
-        return case.args[index]
-    return case.kwargs.get(name, default)
-
-
 def _warp_sources(case):
     """Source positions (x, y) of every output pixel of a warp_homography case."""
     H = np.asarray(_argument(case, 1, "H"), dtype=np.float64)
@@ -78,7 +75,7 @@ class WarpClose(Comparator):
     ``sources(case)`` returns the source positions (x, y), each of the output's (rows, cols).
     """
 
-    sources: object = None
+    sources: Callable[[Any], Any] | None = None
     rtol: float = 1e-9
     atol: float = 1e-9
     margin: float = 1e-7
@@ -115,10 +112,6 @@ class WarpClose(Comparator):
 # --------------------------------------------------------------------------------------------
 # case helpers
 # --------------------------------------------------------------------------------------------
-def _u(rng, lo, hi, digits=3):
-    return float(np.round(rng.uniform(lo, hi), digits))
-
-
 def _texture(rng, rows, cols, color=False, dtype="float"):
     """A smooth random texture plus a few sharp steps (so that sampling mistakes show)."""
     y, x = np.mgrid[0:rows, 0:cols].astype(float)
