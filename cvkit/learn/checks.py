@@ -44,6 +44,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
+from ..grading.casekit import variant
+from ..grading.casekit import argument as _arg
+from ..grading.casekit import rounded as _round
+from ..grading.casekit import seed as _seed
+from ..grading.casekit import size as _size
+from ..grading.casekit import uniform as _u
 from ..grading.compare import Close
 from ..grading.runtime.adapters import TEST_FUNCTIONS, TestFunction, call_with_test_function
 from ._clustering import _assign, _update
@@ -65,32 +71,12 @@ _BUILDING_BLOCKS = ("learn.linear_scores", "learn.softmax", "learn.cross_entropy
 # --------------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------------
-def _arg(case: Case, index: int, name: str, default=None):
-    if name in case.kwargs:
-        return case.kwargs[name]
-    if len(case.args) > index:
-        return case.args[index]
-    return default
-
-
-def _seed(rng: np.random.Generator) -> int:
-    return int(rng.integers(0, 2**32))
-
-
-def _size(rng: np.random.Generator, lo: int, hi: int) -> int:
-    return int(rng.integers(lo, hi + 1))
-
-
 def _labels(rng: np.random.Generator, n: int, c: int, every: bool = True) -> np.ndarray:
     """n labels in 0..c−1 (each class present when ``every`` and n ≥ c)."""
     y = rng.integers(0, c, n)
     if every and n >= c:
         y[rng.permutation(n)[:c]] = np.arange(c)
     return y.astype(np.int64)
-
-
-def _round(a, decimals: int = 3):
-    return np.round(np.asarray(a, dtype=np.float64), decimals)
 
 
 def _blobs(rng: np.random.Generator, n: int, d: int, c: int, spread: float = 1.0, distance: float = 2.0,
@@ -249,7 +235,7 @@ def _softmax_hidden(rng):
         Case((_round(rng.normal(0, 1, (1, _size(rng, 3, 8)))),), {}, "a single row (1, C)"),
         Case((_round(rng.normal(0, 2, _size(rng, 3, 8))),), {}, "1-D scores (C,): one row"),
         Case((_round(rng.normal(0, 2, (_size(rng, 3, 6), 1))),), {}, "one class (all probabilities 1)"),
-        Case((np.full((_size(rng, 2, 4), _size(rng, 3, 6)), float(np.round(rng.uniform(-5, 5), 2))),), {},
+        Case((np.full((_size(rng, 2, 4), _size(rng, 3, 6)), _u(rng, -5, 5, 2)),), {},
              "constant scores (uniform probabilities)"),
         Case((rng.integers(-5, 6, (_size(rng, 3, 6), _size(rng, 3, 6))),), {}, "integer scores"),
     ]
@@ -420,14 +406,14 @@ def _llg_case(rng, n, d, c, reg, label, kind="normal"):
 
 def _llg_hidden(rng):
     return [
-        _llg_case(rng, _size(rng, 6, 12), _size(rng, 3, 7), _size(rng, 3, 5), float(np.round(rng.uniform(0.05, 0.5), 3)),
+        _llg_case(rng, _size(rng, 6, 12), _size(rng, 3, 7), _size(rng, 3, 5), _u(rng, 0.05, 0.5),
                   "reg > 0"),
         _llg_case(rng, _size(rng, 5, 10), _size(rng, 3, 7), _size(rng, 2, 5), 0.0, "reg = 0"),
         _llg_case(rng, 1, _size(rng, 3, 6), _size(rng, 2, 4), 0.1, "a single sample"),
         _llg_case(rng, _size(rng, 4, 8), 3, 3, 0.25, "D = C (square W)"),
         _llg_case(rng, _size(rng, 4, 8), _size(rng, 8, 20), _size(rng, 3, 6), 1e-3, "uint8 pixels, reg 1e-3",
                   kind="uint8"),
-        _llg_case(rng, _size(rng, 5, 9), _size(rng, 2, 5), 2, float(np.round(rng.uniform(1.0, 3.0), 2)),
+        _llg_case(rng, _size(rng, 5, 9), _size(rng, 2, 5), 2, _u(rng, 1.0, 3.0, 2),
                   "two classes, strong reg"),
         _llg_case(rng, _size(rng, 3, 6), 1, _size(rng, 2, 4), 0.5, "one feature"),
         Case((np.zeros((3, 4)), np.zeros(3), _round(rng.normal(0, 1, (5, 4))), _labels(rng, 5, 3)), {"reg": 0.7},
@@ -488,7 +474,7 @@ def _ng_forward(f, x, eps=1e-5):
     return grad
 
 
-def _ng_central(f, x, eps, denominator_factor=2.0, as_float=True):
+def _ng_central(f, x, eps=1e-5, denominator_factor=2.0, as_float=True):
     x = np.array(x, dtype=np.float64) if as_float else np.array(x)
     grad = np.empty(x.shape)
     for i in np.ndindex(x.shape):
@@ -502,16 +488,14 @@ def _ng_central(f, x, eps, denominator_factor=2.0, as_float=True):
     return grad
 
 
-def _ng_half_step(f, x, eps=1e-5):
-    return _ng_central(f, x, eps, denominator_factor=1.0)
+_ng_half_step = variant(_ng_central, denominator_factor=1.0)
 
 
 def _ng_eps_ignored(f, x, eps=1e-5):
     return _ng_central(f, x, 1e-5)
 
 
-def _ng_integer_x(f, x, eps=1e-5):
-    return _ng_central(f, x, eps, as_float=False)
+_ng_integer_x = variant(_ng_central, as_float=False)
 
 
 def _ng_all_at_once(f, x, eps=1e-5):
@@ -675,28 +659,12 @@ def _sgd_loop(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None, *, shuff
     return W, b, np.array(losses)
 
 
-def _sgd_no_shuffle(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None):
-    return _sgd_loop(X, y, classes, lr, epochs, batch_size, reg, rng, shuffle=False)
-
-
-def _sgd_ascent(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None):
-    return _sgd_loop(X, y, classes, lr, epochs, batch_size, reg, rng, sign=-1.0)
-
-
-def _sgd_summed_steps(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None):
-    return _sgd_loop(X, y, classes, lr, epochs, batch_size, reg, rng, sum_steps=True)
-
-
-def _sgd_no_bias(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None):
-    return _sgd_loop(X, y, classes, lr, epochs, batch_size, reg, rng, bias=False)
-
-
-def _sgd_loss_sum(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None):
-    return _sgd_loop(X, y, classes, lr, epochs, batch_size, reg, rng, loss_sum=True)
-
-
-def _sgd_one_batch(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None):
-    return _sgd_loop(X, y, classes, lr, epochs, batch_size, reg, rng, one_batch=True)
+_sgd_no_shuffle = variant(_sgd_loop, shuffle=False)
+_sgd_ascent = variant(_sgd_loop, sign=-1.0)
+_sgd_summed_steps = variant(_sgd_loop, sum_steps=True)
+_sgd_no_bias = variant(_sgd_loop, bias=False)
+_sgd_loss_sum = variant(_sgd_loop, loss_sum=True)
+_sgd_one_batch = variant(_sgd_loop, one_batch=True)
 
 
 def _full_batch_case(rng, label, n=None, d=None, c=None, reg=None, uint8=False):
@@ -706,11 +674,11 @@ def _full_batch_case(rng, label, n=None, d=None, c=None, reg=None, uint8=False):
     X, y = _blobs(rng, n, d, c, spread=1.0)
     y = y.copy()
     y[: n // 3] = 0  # unbalanced classes: the bias must move
-    lr = float(np.round(rng.uniform(0.1, 0.5), 2))
+    lr = _u(rng, 0.1, 0.5, 2)
     if uint8:
         X = rng.integers(0, 256, (n, d), dtype=np.uint8)
         lr = 1e-4
-    reg = float(np.round(rng.uniform(0.01, 0.2), 3)) if reg is None else reg
+    reg = _u(rng, 0.01, 0.2) if reg is None else reg
     batch = n if rng.random() < 0.5 else n + _size(rng, 1, 20)
     return Case((X, y, c, lr, _size(rng, 3, 12), batch), {"reg": reg, "rng": _seed(rng)}, label)
 
@@ -801,14 +769,13 @@ sgd_train = Check(
 # --------------------------------------------------------------------------------------------
 # learn.top_k_accuracy (§9.5)
 # --------------------------------------------------------------------------------------------
-def _topk_sorted(scores, y, k, descending=True, stable=True):
+def _topk_sorted(scores, y, k=5, descending=True, stable=True):
     s = np.asarray(scores, dtype=np.float64)
     order = np.argsort(-s if descending else s, axis=1, kind="stable" if stable else "quicksort")[:, :k]
     return float(np.mean(np.any(order == np.asarray(y)[:, None], axis=1)))
 
 
-def _topk_smallest(scores, y, k=5):
-    return _topk_sorted(scores, y, k, descending=False)
+_topk_smallest = variant(_topk_sorted, descending=False)
 
 
 def _topk_count(scores, y, k=5):
@@ -937,8 +904,7 @@ def _knn_generic(X_train, y_train, X_test, k=1, metric="l2", *, farthest=False, 
     return _knn_vote(np.asarray(y_train), order, rule)
 
 
-def _knn_farthest(X_train, y_train, X_test, k=1, metric="l2"):
-    return _knn_generic(X_train, y_train, X_test, k, metric, farthest=True)
+_knn_farthest = variant(_knn_generic, farthest=True)
 
 
 def _knn_k_ignored(X_train, y_train, X_test, k=1, metric="l2"):
@@ -949,16 +915,9 @@ def _knn_metric_ignored(X_train, y_train, X_test, k=1, metric="l2"):
     return _knn_generic(X_train, y_train, X_test, k, "l2")
 
 
-def _knn_nearest_wins_tie(X_train, y_train, X_test, k=1, metric="l2"):
-    return _knn_generic(X_train, y_train, X_test, k, metric, rule="nearest")
-
-
-def _knn_largest_wins_tie(X_train, y_train, X_test, k=1, metric="l2"):
-    return _knn_generic(X_train, y_train, X_test, k, metric, rule="largest")
-
-
-def _knn_later_first(X_train, y_train, X_test, k=1, metric="l2"):
-    return _knn_generic(X_train, y_train, X_test, k, metric, later_first=True)
+_knn_nearest_wins_tie = variant(_knn_generic, rule="nearest")
+_knn_largest_wins_tie = variant(_knn_generic, rule="largest")
+_knn_later_first = variant(_knn_generic, later_first=True)
 
 
 def _knn_grid_case(rng, n, m, k, metric, label, d=2, side=4, classes=3, dtype=np.float64):
@@ -1212,24 +1171,11 @@ def _km_run(X, k, iterations=50, rng=None, init=None, *, empty="reseed", relabel
     return centers, (labels if relabel else previous).astype(np.int64)
 
 
-def _km_nan(X, k, iterations=50, rng=None, init=None):
-    return _km_run(X, k, iterations, rng, init, empty="nan")
-
-
-def _km_keep(X, k, iterations=50, rng=None, init=None):
-    return _km_run(X, k, iterations, rng, init, empty="keep")
-
-
-def _km_random(X, k, iterations=50, rng=None, init=None):
-    return _km_run(X, k, iterations, rng, init, empty="random")
-
-
-def _km_stale_labels(X, k, iterations=50, rng=None, init=None):
-    return _km_run(X, k, iterations, rng, init, relabel=False)
-
-
-def _km_first_k(X, k, iterations=50, rng=None, init=None):
-    return _km_run(X, k, iterations, rng, init, seeding="first")
+_km_nan = variant(_km_run, empty="nan")
+_km_keep = variant(_km_run, empty="keep")
+_km_random = variant(_km_run, empty="random")
+_km_stale_labels = variant(_km_run, relabel=False)
+_km_first_k = variant(_km_run, seeding="first")
 
 
 def _km_blobs(rng, n, d, k, sort=True, scale=1.0):

@@ -35,11 +35,17 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
+from ..grading.casekit import distinct, variant
+from ..grading.casekit import rounded as _round
+from ..grading.casekit import seed as _any_seed
+from ..grading.casekit import size as _size
+from ..grading.casekit import uniform as _u
 from ..grading.runtime.adapters import (  # noqa: F401  (CACHE_KEYS is part of this module's API)
     CACHE_KEYS, call_batchnorm2d_forward, call_conv2d_forward, call_dropout_forward, call_global_avg_pool_forward,
     call_leaky_relu_forward, call_linear_forward, call_maxpool2d_forward, call_relu_forward,
@@ -56,7 +62,6 @@ from ._norm import batchnorm2d_backward as _bn_backward
 from ._norm import batchnorm2d_forward as _bn_forward
 from ._norm import dropout_forward as _dropout_forward
 from ._pool import global_avg_pool_forward as _gap_forward
-from ._pool import maxpool2d_backward as _pool_backward
 from ._pool import maxpool2d_forward as _pool_forward
 from ._residual import residual_block_backward as _res_backward
 from ._residual import residual_block_forward as _res_forward
@@ -210,16 +215,8 @@ class SpecList(list):
         return SpecList(copy.deepcopy(list(self), memo))
 
 
-def _seed(rng) -> int:
-    return int(rng.integers(0, 2**31))
-
-
-def _size(rng, lo: int, hi: int) -> int:
-    return int(rng.integers(lo, hi + 1))
-
-
-def _round(a, decimals: int = 3) -> np.ndarray:
-    return np.round(np.asarray(a, dtype=np.float64), decimals)
+#: seeds of the random layers' cases: 31 bits
+_seed = partial(_any_seed, high=2**31)
 
 
 def _normal(rng, shape, scale: float = 1.0, decimals: int = 3) -> np.ndarray:
@@ -228,8 +225,8 @@ def _normal(rng, shape, scale: float = 1.0, decimals: int = 3) -> np.ndarray:
 
 def _distinct(shape, seed: int = 3, offset: float = 0.0, scale: float = 0.25) -> np.ndarray:
     """Distinct values (a shuffled ramp, centred near 0): every position shows in the output."""
-    n = int(np.prod(shape))
-    return ((np.random.default_rng(seed).permutation(n) - n // 2) * scale + offset).reshape(shape)
+    values = distinct(shape, seed=seed, dtype=np.int64)
+    return (values - values.size // 2) * scale + offset
 
 
 def _with_zeros(rng, shape, fraction: float = 0.3) -> np.ndarray:
@@ -486,7 +483,7 @@ def _leaky_no_alpha(x, alpha=0.01):
 
 
 def _alpha(rng) -> float:
-    return float(np.round(rng.uniform(0.05, 0.4), 3))
+    return _u(rng, 0.05, 0.4)
 
 
 def _leaky_hidden(rng):
@@ -496,7 +493,7 @@ def _leaky_hidden(rng):
             cases[i] = Case(case.args, {}, case.label + ", default alpha")
         else:
             cases[i] = Case(case.args, {"alpha": _alpha(rng)}, case.label)
-    cases.append(Case((_normal(rng, (3, 5), 2.0),), {"alpha": float(np.round(rng.uniform(1.5, 3.0), 2))},
+    cases.append(Case((_normal(rng, (3, 5), 2.0),), {"alpha": _u(rng, 1.5, 3.0, 2)},
                       "alpha > 1 (np.maximum(x, alpha * x) is not leaky ReLU then)"))
     cases.append(Case((_normal(rng, (2, 6), 2.0),), {"alpha": -0.5}, "negative alpha"))
     return cases
@@ -1450,24 +1447,11 @@ def _bn_backward_variant(dout, cache, *, constants=False, dgamma_plain=False, no
     return dx, dgamma, dbeta
 
 
-def _bn_b_constants(dout, cache):
-    return _bn_backward_variant(dout, cache, constants=True)
-
-
-def _bn_b_dgamma_plain(dout, cache):
-    return _bn_backward_variant(dout, cache, dgamma_plain=True)
-
-
-def _bn_b_no_mean_term(dout, cache):
-    return _bn_backward_variant(dout, cache, no_mean_term=True)
-
-
-def _bn_b_running(dout, cache):
-    return _bn_backward_variant(dout, cache, running=True)
-
-
-def _bn_b_unbiased(dout, cache):
-    return _bn_backward_variant(dout, cache, ddof=1)
+_bn_b_constants = variant(_bn_backward_variant, constants=True)
+_bn_b_dgamma_plain = variant(_bn_backward_variant, dgamma_plain=True)
+_bn_b_no_mean_term = variant(_bn_backward_variant, no_mean_term=True)
+_bn_b_running = variant(_bn_backward_variant, running=True)
+_bn_b_unbiased = variant(_bn_backward_variant, ddof=1)
 
 
 def _bn_backward_cases(cases, rng):
@@ -1620,7 +1604,7 @@ def _nonzero(rng, shape, scale=1.0):
 
 
 def _p(rng, lo=0.6, hi=0.9) -> float:
-    return float(np.round(rng.uniform(lo, hi), 2))
+    return _u(rng, lo, hi, 2)
 
 
 def _dropout_hidden(rng):
@@ -1725,8 +1709,9 @@ dropout_backward = Check(
 _BN_NAMES = ("gamma", "beta", "running_mean", "running_var")
 
 
-def _residual_parts(x, params, training, momentum, eps, *, relu_before_sum=False, no_final_relu=False,
-                    no_shortcut=False, proj_stride=2, proj_bn=True, bn_running=False, stride_in_second=False):
+def _residual_parts(x, params, training=True, momentum=0.1, eps=1e-5, *, relu_before_sum=False,
+                    no_final_relu=False, no_shortcut=False, proj_stride=2, proj_bn=True, bn_running=False,
+                    stride_in_second=False):
     """A configurable residual block built from the reference layers (for the mistakes)."""
     x = _f(x)
     p = {k: _f(v) for k, v in params.items()}
@@ -1765,32 +1750,13 @@ def _residual_parts(x, params, training, momentum, eps, *, relu_before_sum=False
     return out, {"x": x, "params": params, "training": training}
 
 
-def _res_relu_before_sum(x, params, training=True, momentum=0.1, eps=1e-5):
-    return _residual_parts(x, params, training, momentum, eps, relu_before_sum=True)
-
-
-def _res_no_final_relu(x, params, training=True, momentum=0.1, eps=1e-5):
-    return _residual_parts(x, params, training, momentum, eps, no_final_relu=True)
-
-
-def _res_no_shortcut(x, params, training=True, momentum=0.1, eps=1e-5):
-    return _residual_parts(x, params, training, momentum, eps, no_shortcut=True)
-
-
-def _res_projection_no_stride(x, params, training=True, momentum=0.1, eps=1e-5):
-    return _residual_parts(x, params, training, momentum, eps, proj_stride=1)
-
-
-def _res_projection_no_bn(x, params, training=True, momentum=0.1, eps=1e-5):
-    return _residual_parts(x, params, training, momentum, eps, proj_bn=False)
-
-
-def _res_bn_running(x, params, training=True, momentum=0.1, eps=1e-5):
-    return _residual_parts(x, params, training, momentum, eps, bn_running=True)
-
-
-def _res_stride_second(x, params, training=True, momentum=0.1, eps=1e-5):
-    return _residual_parts(x, params, training, momentum, eps, stride_in_second=True)
+_res_relu_before_sum = variant(_residual_parts, relu_before_sum=True)
+_res_no_final_relu = variant(_residual_parts, no_final_relu=True)
+_res_no_shortcut = variant(_residual_parts, no_shortcut=True)
+_res_projection_no_stride = variant(_residual_parts, proj_stride=1)
+_res_projection_no_bn = variant(_residual_parts, proj_bn=False)
+_res_bn_running = variant(_residual_parts, bn_running=True)
+_res_stride_second = variant(_residual_parts, stride_in_second=True)
 
 
 def _res_params(rng, c, f, projection, scale=0.4):
@@ -1924,24 +1890,11 @@ def _res_backward_variant(dz, cache, bn_constants=False):
     return dx, {k: g[k] for k in order}
 
 
-def _res_b_no_identity(dout, cache):
-    return _res_b(dout, cache, drop_identity=True)
-
-
-def _res_b_ignore_relu(dout, cache):
-    return _res_b(dout, cache, ignore_relu=True)
-
-
-def _res_b_no_projection_dx(dout, cache):
-    return _res_b(dout, cache, drop_projection=True)
-
-
-def _res_b_bn_constants(dout, cache):
-    return _res_b(dout, cache, bn_constants=True)
-
-
-def _res_b_no_proj_grads(dout, cache):
-    return _res_b(dout, cache, no_proj_grads=True)
+_res_b_no_identity = variant(_res_b, drop_identity=True)
+_res_b_ignore_relu = variant(_res_b, ignore_relu=True)
+_res_b_no_projection_dx = variant(_res_b, drop_projection=True)
+_res_b_bn_constants = variant(_res_b, bn_constants=True)
+_res_b_no_proj_grads = variant(_res_b, no_proj_grads=True)
 
 
 def _res_backward_cases(cases, rng):
@@ -2140,28 +2093,12 @@ def _param_variant(spec, *, no_bias=False, no_bn=False, bn_four=False, no_in=Fal
     return total
 
 
-def _params_no_bias(spec):
-    return _param_variant(spec, no_bias=True)
-
-
-def _params_no_bn(spec):
-    return _param_variant(spec, no_bn=True)
-
-
-def _params_bn_four(spec):
-    return _param_variant(spec, bn_four=True)
-
-
-def _params_no_in(spec):
-    return _param_variant(spec, no_in=True)
-
-
-def _params_no_shortcut(spec):
-    return _param_variant(spec, no_shortcut=True)
-
-
-def _params_first_branch(spec):
-    return _param_variant(spec, first_branch=True)
+_params_no_bias = variant(_param_variant, no_bias=True)
+_params_no_bn = variant(_param_variant, no_bn=True)
+_params_bn_four = variant(_param_variant, bn_four=True)
+_params_no_in = variant(_param_variant, no_in=True)
+_params_no_shortcut = variant(_param_variant, no_shortcut=True)
+_params_first_branch = variant(_param_variant, first_branch=True)
 
 
 def _random_conv(rng, cin, cout=None, *, kernel=None, bias=None, stride=None, padding=None):

@@ -33,13 +33,16 @@ from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Callable, ClassVar
 
 import numpy as np
 
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, Statistics, close
-from ..grading import engine as _engine
+from ..grading.casekit import variant
+from ..grading.casekit import argument as _arg
+from ..grading.casekit import seed as _seed
+from ..grading.casekit import size as _size
 
 __all__ = [
     "step_decay", "cosine_decay", "warmup", "one_cycle", "sgd_weight_decay_step", "early_stopping",
@@ -50,19 +53,10 @@ __all__ = [
 _SQRT2 = math.sqrt(2.0)
 
 
-def _engine_compares_structures() -> bool:
-    """Whether the engine's seeded re-run compares tuples, lists and dicts (mixup, cutmix and
-    random search return those); until it does, their checks cannot require reproducibility
-    without failing every correct answer."""
-    try:
-        a = (np.zeros(2), [{"k": "v", "x": 1.5}], 0.25)
-        b = (np.zeros(2), [{"k": "v", "x": 1.5}], 0.25)
-        return bool(_engine._identical(a, b)) and not bool(_engine._identical(a, (np.ones(2),) + a[1:]))
-    except Exception:
-        return False
-
-
-_STRUCTURED_SEEDED = _engine_compares_structures()
+#: mixup, cutmix and random search return tuples, lists and dicts: the engine's seeded re-run
+#: compares those element by element (:func:`cvkit.grading.engine.identical`), so their checks
+#: require reproducibility like the others
+_STRUCTURED_SEEDED = True
 
 
 # --------------------------------------------------------------------------------------------
@@ -97,16 +91,15 @@ class ExactValue(Comparator):
 
 
 @dataclass
-class StructuredStatistics(Comparator):
+class StructuredStatistics(Statistics):
     """Random outputs that are not a single array (a tuple, a list of dicts), judged like
     :class:`~cvkit.grading.Statistics`: ``structure(got, expected, case)`` returns a message
     when the output's form is wrong (``None`` if fine); ``statistics(output, case)`` returns
     named numbers of an output, ``tolerance(case)`` how far the candidate's may be from the
     reference draw's."""
 
-    structure: Callable[[Any, Any, Any], str | None]
-    statistics: Callable[[Any, Any], Mapping[str, float]]
-    tolerance: Callable[[Any], Mapping[str, float]]
+    structure: Callable[[Any, Any, Any], str | None] = field(kw_only=True)
+    heading: ClassVar[str] = "Properties or statistics differ from the expected ones"
 
     def describe(self) -> str:
         return "properties and statistics of the output (two correct versions may draw differently)"
@@ -115,40 +108,12 @@ class StructuredStatistics(Comparator):
         problem = self.structure(got, expected, case)
         if problem:
             return Mismatch(problem)
-        with np.errstate(all="ignore"):
-            got_stats = dict(self.statistics(got, case))
-            exp_stats = dict(self.statistics(expected, case))
-        tolerances = self.tolerance(case)
-        wrong = []
-        for name, expected_value in exp_stats.items():
-            value = got_stats.get(name, np.nan)
-            tol = tolerances.get(name, 0.0)
-            if not (abs(value - expected_value) <= tol) and not (np.isnan(value) and np.isnan(expected_value)):
-                wrong.append(f"{name}: yours {value:.6g}, expected {expected_value:.6g} ± {tol:.3g}")
-        if wrong:
-            return Mismatch("Properties or statistics differ from the expected ones:\n" + "\n".join(wrong))
-        return None
+        return self.judge(got, expected, case)
 
 
 # --------------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------------
-def _arg(case: Case, index: int, name: str, default=None):
-    if name in case.kwargs:
-        return case.kwargs[name]
-    if len(case.args) > index:
-        return case.args[index]
-    return default
-
-
-def _seed(rng: np.random.Generator) -> int:
-    return int(rng.integers(0, 2**32))
-
-
-def _size(rng: np.random.Generator, lo: int, hi: int) -> int:
-    return int(rng.integers(lo, hi + 1))
-
-
 def _round(value: float, digits: int = 4) -> float:
     return float(np.round(value, digits))
 
@@ -451,27 +416,11 @@ def _one_cycle_variant(step, total_steps, lr_max, pct_start=0.3, div=25.0, final
     return _scalar_or_array(lr, scalar)
 
 
-def _oc_late(step, total_steps, lr_max, pct_start=0.3, div=25.0, final_div=1e4):
-    return _one_cycle_variant(step, total_steps, lr_max, pct_start, div, final_div,
-                              peak=lambda p, T: float(p * T))
-
-
-def _oc_int_peak(step, total_steps, lr_max, pct_start=0.3, div=25.0, final_div=1e4):
-    return _one_cycle_variant(step, total_steps, lr_max, pct_start, div, final_div,
-                              peak=lambda p, T: float(int(p * T)) - 1.0)
-
-
-def _oc_linear(step, total_steps, lr_max, pct_start=0.3, div=25.0, final_div=1e4):
-    return _one_cycle_variant(step, total_steps, lr_max, pct_start, div, final_div, linear=True)
-
-
-def _oc_final(step, total_steps, lr_max, pct_start=0.3, div=25.0, final_div=1e4):
-    return _one_cycle_variant(step, total_steps, lr_max, pct_start, div, final_div,
-                              final=lambda m, d, f: m / f)
-
-
-def _oc_end_T(step, total_steps, lr_max, pct_start=0.3, div=25.0, final_div=1e4):
-    return _one_cycle_variant(step, total_steps, lr_max, pct_start, div, final_div, end=lambda T: float(T))
+_oc_late = variant(_one_cycle_variant, peak=lambda p, T: float(p * T))
+_oc_int_peak = variant(_one_cycle_variant, peak=lambda p, T: float(int(p * T)) - 1.0)
+_oc_linear = variant(_one_cycle_variant, linear=True)
+_oc_final = variant(_one_cycle_variant, final=lambda m, d, f: m / f)
+_oc_end_T = variant(_one_cycle_variant, end=lambda T: float(T))
 
 
 def _one_cycle_hidden(rng):
@@ -637,14 +586,8 @@ def _es_scan(val_losses, patience, *, improves, stop, none_ok=True, best_instead
     return None if none_ok else len(losses) - 1
 
 
-def _es_ties(val_losses, patience):
-    return _es_scan(val_losses, patience, improves=lambda l, b, ls, i: l <= b,
-                    stop=lambda i, b, p, ls: i - b >= p)
-
-
-def _es_late(val_losses, patience):
-    return _es_scan(val_losses, patience, improves=lambda l, b, ls, i: l < b,
-                    stop=lambda i, b, p, ls: i - b > p)
+_es_ties = variant(_es_scan, improves=lambda l, b, ls, i: l <= b, stop=lambda i, b, p, ls: i - b >= p)
+_es_late = variant(_es_scan, improves=lambda l, b, ls, i: l < b, stop=lambda i, b, p, ls: i - b > p)
 
 
 def _es_previous(val_losses, patience):
@@ -658,14 +601,8 @@ def _es_previous(val_losses, patience):
     return None
 
 
-def _es_best(val_losses, patience):
-    return _es_scan(val_losses, patience, improves=lambda l, b, ls, i: l < b,
-                    stop=lambda i, b, p, ls: i - b >= p, best_instead=True)
-
-
-def _es_never_none(val_losses, patience):
-    return _es_scan(val_losses, patience, improves=lambda l, b, ls, i: l < b,
-                    stop=lambda i, b, p, ls: i - b >= p, none_ok=False)
+_es_best = variant(_es_scan, improves=lambda l, b, ls, i: l < b, stop=lambda i, b, p, ls: i - b >= p, best_instead=True)
+_es_never_none = variant(_es_scan, improves=lambda l, b, ls, i: l < b, stop=lambda i, b, p, ls: i - b >= p, none_ok=False)
 
 
 def _curve(rng, n, noise=0.02):
@@ -1073,24 +1010,11 @@ def _rrc_variant(image, output_size, scale=(0.08, 1.0), ratio=(3 / 4, 4 / 3), rn
     return _bilinear(img[top: top + h, left: left + w], int(oh), int(ow), nearest=nearest)
 
 
-def _rrc_side(image, output_size, scale=(0.08, 1.0), ratio=(3 / 4, 4 / 3), rng=None):
-    return _rrc_variant(image, output_size, scale, ratio, rng, side=True)
-
-
-def _rrc_inverted(image, output_size, scale=(0.08, 1.0), ratio=(3 / 4, 4 / 3), rng=None):
-    return _rrc_variant(image, output_size, scale, ratio, rng, inverted=True)
-
-
-def _rrc_square(image, output_size, scale=(0.08, 1.0), ratio=(3 / 4, 4 / 3), rng=None):
-    return _rrc_variant(image, output_size, scale, ratio, rng, square=True)
-
-
-def _rrc_nearest(image, output_size, scale=(0.08, 1.0), ratio=(3 / 4, 4 / 3), rng=None):
-    return _rrc_variant(image, output_size, scale, ratio, rng, nearest=True)
-
-
-def _rrc_swapped(image, output_size, scale=(0.08, 1.0), ratio=(3 / 4, 4 / 3), rng=None):
-    return _rrc_variant(image, output_size, scale, ratio, rng, swap_size=True)
+_rrc_side = variant(_rrc_variant, side=True)
+_rrc_inverted = variant(_rrc_variant, inverted=True)
+_rrc_square = variant(_rrc_variant, square=True)
+_rrc_nearest = variant(_rrc_variant, nearest=True)
+_rrc_swapped = variant(_rrc_variant, swap_size=True)
 
 
 def _rrc_hidden(rng):
@@ -1215,20 +1139,10 @@ def _cutout_variant(image, size, rng=None, *, half_odd=False, double=False, one_
     return img
 
 
-def _co_half(image, size, rng=None):
-    return _cutout_variant(image, size, rng, half_odd=True)
-
-
-def _co_double(image, size, rng=None):
-    return _cutout_variant(image, size, rng, double=True)
-
-
-def _co_channel(image, size, rng=None):
-    return _cutout_variant(image, size, rng, one_channel=True)
-
-
-def _co_mean(image, size, rng=None):
-    return _cutout_variant(image, size, rng, fill_mean=True)
+_co_half = variant(_cutout_variant, half_odd=True)
+_co_double = variant(_cutout_variant, double=True)
+_co_channel = variant(_cutout_variant, one_channel=True)
+_co_mean = variant(_cutout_variant, fill_mean=True)
 
 
 def _no_zero_image(rng, h, w, channels=None, dtype=np.float64):
@@ -1381,24 +1295,11 @@ def _mixup_variant(x, y_onehot, alpha=0.2, rng=None, *, labels="mixed", per_samp
     return xm, ym, (1 - lam_out) if return_complement else lam_out
 
 
-def _mx_swapped(x, y_onehot, alpha=0.2, rng=None):
-    return _mixup_variant(x, y_onehot, alpha, rng, labels="swapped")
-
-
-def _mx_unmixed(x, y_onehot, alpha=0.2, rng=None):
-    return _mixup_variant(x, y_onehot, alpha, rng, labels="unmixed")
-
-
-def _mx_per_sample(x, y_onehot, alpha=0.2, rng=None):
-    return _mixup_variant(x, y_onehot, alpha, rng, per_sample=True)
-
-
-def _mx_replace(x, y_onehot, alpha=0.2, rng=None):
-    return _mixup_variant(x, y_onehot, alpha, rng, replace=True)
-
-
-def _mx_complement(x, y_onehot, alpha=0.2, rng=None):
-    return _mixup_variant(x, y_onehot, alpha, rng, return_complement=True)
+_mx_swapped = variant(_mixup_variant, labels="swapped")
+_mx_unmixed = variant(_mixup_variant, labels="unmixed")
+_mx_per_sample = variant(_mixup_variant, per_sample=True)
+_mx_replace = variant(_mixup_variant, replace=True)
+_mx_complement = variant(_mixup_variant, return_complement=True)
 
 
 def _onehot(rng, n, c):
@@ -1525,24 +1426,11 @@ def _cutmix_variant(x, y_onehot, alpha=1.0, rng=None, *, lam_rule="area", labels
     return out, ym, float(lam)
 
 
-def _cm_side(x, y_onehot, alpha=1.0, rng=None):
-    return _cutmix_variant(x, y_onehot, alpha, rng, lam_rule="side")
-
-
-def _cm_lam0(x, y_onehot, alpha=1.0, rng=None):
-    return _cutmix_variant(x, y_onehot, alpha, rng, lam_rule="draw")
-
-
-def _cm_swapped(x, y_onehot, alpha=1.0, rng=None):
-    return _cutmix_variant(x, y_onehot, alpha, rng, labels="swapped")
-
-
-def _cm_replace(x, y_onehot, alpha=1.0, rng=None):
-    return _cutmix_variant(x, y_onehot, alpha, rng, replace=True)
-
-
-def _cm_per_sample(x, y_onehot, alpha=1.0, rng=None):
-    return _cutmix_variant(x, y_onehot, alpha, rng, per_sample=True)
+_cm_side = variant(_cutmix_variant, lam_rule="side")
+_cm_lam0 = variant(_cutmix_variant, lam_rule="draw")
+_cm_swapped = variant(_cutmix_variant, labels="swapped")
+_cm_replace = variant(_cutmix_variant, replace=True)
+_cm_per_sample = variant(_cutmix_variant, per_sample=True)
 
 
 def _cutmix_hidden(rng):
@@ -1713,24 +1601,11 @@ def _rs_variant(space, trials, rng=None, *, log_as_uniform=False, exponents=Fals
     return [{name: columns[name][0 if shared else t] for name in space} for t in range(trials)]
 
 
-def _rs_log_uniform(space, trials, rng=None):
-    return _rs_variant(space, trials, rng, log_as_uniform=True)
-
-
-def _rs_exponents(space, trials, rng=None):
-    return _rs_variant(space, trials, rng, exponents=True)
-
-
-def _rs_shared(space, trials, rng=None):
-    return _rs_variant(space, trials, rng, shared=True)
-
-
-def _rs_last_missing(space, trials, rng=None):
-    return _rs_variant(space, trials, rng, last_missing=True)
-
-
-def _rs_uniform_log(space, trials, rng=None):
-    return _rs_variant(space, trials, rng, uniform_as_log=True)
+_rs_log_uniform = variant(_rs_variant, log_as_uniform=True)
+_rs_exponents = variant(_rs_variant, exponents=True)
+_rs_shared = variant(_rs_variant, shared=True)
+_rs_last_missing = variant(_rs_variant, last_missing=True)
+_rs_uniform_log = variant(_rs_variant, uniform_as_log=True)
 
 
 def _rs_hidden(rng):
