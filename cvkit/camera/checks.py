@@ -29,9 +29,9 @@ import numpy as np
 import scipy.linalg
 
 from ..grading import Case, Check, Close, Comparator, Mismatch, Mistake
+from ..grading.casekit import variant
 from ..grading.casekit import size as _n
 from ..grading.casekit import uniform as _u
-from ..grading.casekit import variant
 from ..grading.compare import tuple_problem
 from ._common import distortion_coefficients, radial_tangential
 from ._distortion import distort as _distort

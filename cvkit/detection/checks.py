@@ -29,13 +29,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..data._scenes import part_scene, part_template, polygon_image
-from ..data._synthetic import disk_image, square_image
-from ..edges._canny import canny as _canny
-from ..edges._gradient import sobel as _sobel
+from ..data import disk_image, part_scene, part_template, polygon_image, square_image
+from ..edges import canny as _canny
+from ..edges import sobel as _sobel
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
-from ..grading.casekit import size as _size
 from ..grading.casekit import variant
+from ..grading.casekit import size as _size
 from ..grading.casekit import uniform as _u
 from ..grading.compare import as_numeric, shape_advice
 from . import _hough

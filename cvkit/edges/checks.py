@@ -28,9 +28,9 @@ from functools import partial
 
 import numpy as np
 
-from ..data._synthetic import disk_image, oriented_step_image, square_image
-from ..filters._linear import correlate as _correlate
-from ..filters._linear import gaussian as _gaussian
+from ..data import disk_image, oriented_step_image, square_image
+from ..filters import correlate as _correlate
+from ..filters import gaussian as _gaussian
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
 from ..grading.casekit import BORDERS, random_image, variant
 from ..grading.casekit import SWAPPED_REFLECT as _SWAP

@@ -37,11 +37,11 @@ from functools import partial
 
 import numpy as np
 
-from ..edges._gradient import sobel as _sobel
-from ..edges._laplacian import log as _log
+from ..edges import log as _log
+from ..edges import sobel as _sobel
 from ..edges.checks import Angles
-from ..filters._linear import gaussian as _gaussian
-from ..filters._padding import pad as _pad
+from ..filters import gaussian as _gaussian
+from ..filters import pad as _pad
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close, instance_call
 from ..grading.casekit import BORDERS, variant
 from ..grading.casekit import distinct as _distinct
@@ -82,8 +82,8 @@ def _fmt(row) -> str:
 def _rows_of(got, columns: int, kinds: str, what: str):
     """``got`` as an (N, columns) array of dtype kind in ``kinds``, or a Mismatch."""
     arr, problem = as_numeric(got)
-    if problem:
-        return None, Mismatch(problem)
+    if arr is None:
+        return None, Mismatch(str(problem))
     if arr.dtype.kind not in kinds:
         want = kind_words(kinds)
         cast = ".astype(float)" if "f" in kinds else ".astype(np.int64)"

@@ -423,6 +423,18 @@ def _mean_swapped(image, size, border="reflect101"):
     return _mean(image, size, _SWAP.get(border, border))
 
 
+def _window_edge_cases(rng, img, copy_border):
+    """The awkward inputs of a window filter (``filters.mean``, ``filters.median``): a constant
+    image, a 1×N and a 2×3 image with 3×3 windows, and a 1×1 window (a copy)."""
+    return [
+        Case((img(_size(rng, 6, 10), _size(rng, 6, 10), "const"), 3), {"border": "zero"},
+             "constant image, zero border"),
+        Case((img(1, _size(rng, 8, 15)), 3), {"border": str(rng.choice(BORDERS))}, "single-row 1×N image"),
+        Case((img(2, 3, "normal"), 3), {"border": str(rng.choice(BORDERS[1:]))}, "tiny 2×3 image"),
+        Case((img(_size(rng, 5, 9), _size(rng, 5, 9)), 1), {"border": copy_border}, "size 1 (a copy)"),
+    ]
+
+
 def _mean_hidden(rng):
     def img(h, w, kind="unit", channels=None):
         return _image(rng, h, w, kind, channels)
@@ -437,11 +449,7 @@ def _mean_hidden(rng):
         Case((img(_size(rng, 9, 16), _size(rng, 9, 16), "uint8"), 5), {"border": "reflect101"},
              "uint8 image (not rescaled)"),
         Case((img(_size(rng, 25, 40), _size(rng, 25, 40), "big"), 5), {"border": "reflect"}, "±1e6 values"),
-        Case((img(_size(rng, 6, 10), _size(rng, 6, 10), "const"), 3), {"border": "zero"},
-             "constant image, zero border"),
-        Case((img(1, _size(rng, 8, 15)), 3), {"border": str(rng.choice(BORDERS))}, "single-row 1×N image"),
-        Case((img(2, 3, "normal"), 3), {"border": str(rng.choice(BORDERS[1:]))}, "tiny 2×3 image"),
-        Case((img(_size(rng, 5, 9), _size(rng, 5, 9)), 1), {"border": "replicate"}, "size 1 (a copy)"),
+        *_window_edge_cases(rng, img, "replicate"),
     ]
 
 
@@ -670,11 +678,7 @@ def _median_hidden(rng):
         Case((img(_size(rng, 9, 16), _size(rng, 9, 16), "uint8"), 3), {"border": "reflect101"},
              "uint8 image (not rescaled)"),
         Case((img(_size(rng, 10, 16), _size(rng, 10, 20), "big"), 5), {"border": "replicate"}, "±1e6 values"),
-        Case((img(_size(rng, 6, 10), _size(rng, 6, 10), "const"), 3), {"border": "zero"},
-             "constant image, zero border"),
-        Case((img(1, _size(rng, 8, 15)), 3), {"border": str(rng.choice(BORDERS))}, "single-row 1×N image"),
-        Case((img(2, 3, "normal"), 3), {"border": str(rng.choice(BORDERS[1:]))}, "tiny 2×3 image"),
-        Case((img(_size(rng, 5, 9), _size(rng, 5, 9)), 1), {"border": "reflect"}, "size 1 (a copy)"),
+        *_window_edge_cases(rng, img, "reflect"),
     ]
 
 

@@ -6,7 +6,8 @@ wrong implementations. The helpers they have in common live here:
 
 - drawing: :func:`size`, :func:`seed`, :func:`uniform`, :func:`sigma`, :func:`random_image`;
 - fixed inputs: :func:`distinct` (shuffled distinct integers: every flip, shift and swap
-  shows), :data:`BORDERS` and :data:`SWAPPED_REFLECT`;
+  shows), :func:`rounded` (values readable in reports), :data:`BORDERS` and
+  :data:`SWAPPED_REFLECT`;
 - reading a case: :func:`argument`;
 - mistakes: :func:`variant` (one named wrong version out of a parametrised one).
 
@@ -28,8 +29,8 @@ import numpy as np
 from .checks import Case
 
 __all__ = [
-    "BORDERS", "SWAPPED_REFLECT", "argument", "distinct", "random_image", "seed", "sigma", "size",
-    "uniform", "variant",
+    "BORDERS", "SWAPPED_REFLECT", "argument", "distinct", "random_image", "rounded", "seed", "sigma",
+    "size", "uniform", "variant",
 ]
 
 #: the border modes of the filters (``border=`` of ``filters.pad`` and its callers)
@@ -233,6 +234,15 @@ def distinct(shape: int | Sequence[int], *, seed: int = 7, scale: float = 1.0, d
         raise ValueError(f"distinct: shape must not have negative sides, got {shape}")
     values = np.random.default_rng(seed).permutation(math.prod(shape)).reshape(shape)
     return (values * scale).astype(dtype)
+
+
+def rounded(values: Any, decimals: int = 3) -> np.ndarray:
+    """``values`` as a float64 array rounded to ``decimals`` decimals (readable in reports).
+
+    >>> rounded([1.23456, 2], 2)
+    array([1.23, 2.  ])
+    """
+    return np.round(np.asarray(values, dtype=np.float64), _integer(decimals, "decimals", "rounded"))
 
 
 def argument(case: Case, index: int, name: str, default: Any = None) -> Any:

@@ -4,6 +4,12 @@ A :class:`Mismatch` message starts with plain words a student understands (how m
 differ and where, the first one with yours vs expected, the largest error; see
 :func:`cvkit.grading.diagnose.describe_difference`); the ``numpy.testing``-style lines with the
 tolerances go to ``Mismatch.details``, shown on demand.
+
+Comparators written elsewhere (the chapter checks) share the first steps through public
+helpers: :func:`as_numeric` and :func:`as_float_array` (the output as an array, or why it is
+not one), :func:`tuple_problem`, :func:`shape_mismatch` with :func:`shape_advice`,
+:func:`kind_words`; :class:`FloatArrayComparator` does those steps for one float array, and
+:meth:`Statistics.judge` compares named statistics within tolerances.
 """
 from __future__ import annotations
 
@@ -42,8 +48,8 @@ def _set_message(self, value) -> None:
     self.__dict__["_message"] = value
 
 
-Mismatch.message = property(_get_message, _set_message, doc="The message for the student (a str; a comparator "
-                            "may pass a function returning it, called the first time it is read).")
+setattr(Mismatch, "message", property(_get_message, _set_message, doc="The message for the student (a str; a "
+                                      "comparator may pass a function returning it, called the first time it is read)."))
 
 
 class Comparator:
@@ -193,6 +199,31 @@ def shape_mismatch(got: tuple, expected: tuple) -> str:
 
 def _index(flat: int, shape: tuple) -> tuple:
     return tuple(int(i) for i in np.unravel_index(flat, shape)) if shape else ()
+
+
+class FloatArrayComparator(Comparator):
+    """Base class of comparators that judge one float array of the expected shape.
+
+    ``comparator(got, expected, case)`` turns ``got`` into a float64 array of ``expected``'s
+    shape without NaN or inf, or says what is wrong (:func:`as_float_array` with the class's
+    :attr:`layout` and :attr:`nonfinite`), then returns :meth:`judge_array` of the two arrays.
+    """
+
+    #: words after the expected shape in a shape mismatch, e.g. ``" (one value per pixel)"``
+    layout: ClassVar[str] = ""
+    #: the message when the output holds NaN or inf (None: allowed)
+    nonfinite: ClassVar[str | None] = "your output contains NaN or inf"
+
+    def __call__(self, got: Any, expected: Any, case: Any = None) -> Mismatch | None:
+        exp = np.asarray(expected, dtype=np.float64)
+        arr, problem = as_float_array(got, shape=exp.shape, layout=self.layout, nonfinite=self.nonfinite)
+        if problem or arr is None:
+            return Mismatch(problem or "your output could not be read")
+        return self.judge_array(arr, exp, case)
+
+    def judge_array(self, got: np.ndarray, expected: np.ndarray, case: Any = None) -> Mismatch | None:
+        """The verdict on a well-formed output (float64, the expected shape): None when right."""
+        raise NotImplementedError  # pragma: no cover
 
 
 @dataclass
