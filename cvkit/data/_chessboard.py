@@ -68,14 +68,14 @@ class ChessboardViews(dict):
 # argument checks
 # --------------------------------------------------------------------------------------------
 def _camera(A: ArrayLike) -> np.ndarray:
-    from ..camera._common import as_intrinsics
+    from ..camera import as_intrinsics
 
     A = as_intrinsics(A, "A")
     return A / A[2, 2]
 
 
 def _pose(R: ArrayLike, t: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    from ..camera._common import as_rotation, as_translation
+    from ..camera import as_rotation, as_translation
 
     return as_rotation(R, "R"), as_translation(t, "t")
 
@@ -99,7 +99,7 @@ def _board(cols: int, rows: int, square_size: float, margin: float) -> tuple[int
 
 
 def _distortion(k: ArrayLike, p: ArrayLike) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    from ..camera._common import distortion_coefficients
+    from ..camera import distortion_coefficients
 
     kk, pp = distortion_coefficients(k, p)
     return tuple(float(v) for v in kk), tuple(float(v) for v in pp)
