@@ -13,7 +13,7 @@ Find one known object (the *model*) in a target image and estimate where it is:
   indexed by gradient direction (:func:`ght_build`) lets every edge pixel vote for the
   object's reference point, over scales and rotations (:func:`ght_detect`).
 
-Conventions (``CATALOG.md``): 2-D images indexed ``[row, col]``, points ``(x, y) = (col,
+Conventions (``docs/catalog.md``): 2-D images indexed ``[row, col]``, points ``(x, y) = (col,
 row)``, angles in radians with y pointing down the rows, gradients by ``edges.sobel`` with the
 ``reflect101`` border. Pipelines call their building blocks (``edges.sobel``,
 ``edges.canny``) through the registry, so ``with cvkit.use("student"):`` runs them on a

@@ -3,7 +3,7 @@
 First derivatives (finite differences, Prewitt, Sobel), the gradient magnitude in three norms
 and its direction; non-maximum suppression, hysteresis and the Canny detector; second
 derivatives (Laplacian, Laplacian of Gaussian, difference of Gaussians) and their zero
-crossings. Conventions (see ``CATALOG.md``): images are indexed ``[row, col]``, x runs along
+crossings. Conventions (see ``docs/catalog.md``): images are indexed ``[row, col]``, x runs along
 the columns and y *down* the rows, derivative kernels are correlated (not flipped), angles
 are radians, and pixels outside the image are read through ``border`` (default
 ``"reflect101"``). Pipelines (``canny``, ``log``, ``dog``, and the derivative filters'

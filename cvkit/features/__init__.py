@@ -4,7 +4,7 @@ Corner detectors (Moravec, the structure tensor and Harris' response, peaks of a
 scale space (scale-normalised LoG blobs, SIFT's Gaussian and DoG pyramids, DoG extrema over 26
 neighbours, their sub-pixel refinement and edge rejection); SIFT's canonical orientations,
 128-D descriptor and full pipeline; matching with Lowe's ratio test and a k-d tree with exact and
-Best-Bin-First search. Conventions (see ``CATALOG.md``): images are grayscale ``(H, W)`` arrays
+Best-Bin-First search. Conventions (see ``docs/catalog.md``): images are grayscale ``(H, W)`` arrays
 indexed ``[row, col]``, points are ``(x, y) = (col, row)``, angles are radians with y pointing
 down. Pipelines (``harris``, ``structure_tensor``, ``log_blobs``, ``gaussian_pyramid``,
 ``sift``) call their building blocks through the registry, so ``with cvkit.use("student"):`` runs
