@@ -74,12 +74,12 @@ def check_real(value, name: str, *, positive: bool = False, nonnegative: bool = 
     return value
 
 
-def as_rng(rng) -> np.random.Generator:
+def as_rng(rng: "np.random.Generator | int | None") -> np.random.Generator:
     """``rng`` (a Generator, an int seed or None) as a ``numpy.random.Generator``."""
     if isinstance(rng, (numbers.Integral, np.integer)) and not isinstance(rng, bool) and rng < 0:
         raise ValueError(f"rng as an int seed must be >= 0, got {rng}")
     if rng is None or isinstance(rng, (numbers.Integral, np.integer)) and not isinstance(rng, bool):
-        return np.random.default_rng(rng)
+        return np.random.default_rng(None if rng is None else int(rng))
     if isinstance(rng, np.random.Generator):
         return rng
     raise TypeError(f"rng must be a numpy.random.Generator, an int seed or None, got {type(rng).__name__}")

@@ -58,7 +58,7 @@ import sys
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator, Mapping
+from typing import Any, Callable, Iterator, Mapping, TypeVar
 
 __all__ = [
     "Algorithm",
@@ -341,7 +341,10 @@ def _registrant(function: Callable) -> tuple[str, CoursePackage | None]:
     return (CVKIT if top == CVKIT else f"module {module!r}"), None
 
 
-def algorithm(algorithm_id: str, *, section: str, check: Any = None) -> Callable:
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def algorithm(algorithm_id: str, *, section: str, check: Any = None) -> Callable[[_F], _F]:
     """Decorator registering a reference implementation under ``algorithm_id``.
 
     It records metadata only and returns the function unchanged. ``check`` is a
@@ -357,7 +360,7 @@ def algorithm(algorithm_id: str, *, section: str, check: Any = None) -> Callable
     if not isinstance(section, str) or not section:
         raise ValueError(f"section must be a non-empty string such as '3.9.1', got {section!r}")
 
-    def record(function: Callable) -> Callable:
+    def record(function: _F) -> _F:
         if not callable(function):
             raise TypeError(f"@algorithm({algorithm_id!r}) must decorate a callable")
         package, course = _registrant(function)

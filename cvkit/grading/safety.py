@@ -474,8 +474,8 @@ def sanitize_notebook(nb, resources: dict | None = None):
             if not (isinstance(count, int) and not isinstance(count, bool)):
                 cell["execution_count"] = None
             trusted_cell = _trusted_test_cell(cell, notebook_trusted)
-            outputs = cell.get("outputs") if isinstance(cell.get("outputs"), list) else []
-            outputs = [_clean_output(o, trusted_cell=trusted_cell) for o in outputs]
+            raw = cell.get("outputs")
+            outputs = [_clean_output(o, trusted_cell=trusted_cell) for o in (raw if isinstance(raw, list) else [])]
             cell["outputs"] = [o for o in outputs if o is not None]
         elif kind == "markdown":
             cell["source"] = _markdown_block(_text(cell.get("source", "")), cell.get("attachments"))
