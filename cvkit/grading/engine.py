@@ -6,12 +6,12 @@
 from __future__ import annotations
 
 import copy
-import warnings
 import hashlib
 import inspect
 import json
 import os
 import re
+import warnings
 from typing import Any, Callable
 
 import numpy as np
