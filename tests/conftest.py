@@ -16,10 +16,10 @@ def _install_bubblewrap() -> str:
     if shutil.which("bwrap") or not shutil.which("apt-get") or not hasattr(os, "geteuid") or os.geteuid() != 0:
         return ""
     env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-    command = ["apt-get", "install", "-y", "-q", "--no-install-recommends", "bubblewrap"]
+    command = ["apt-get", "-o", "DPkg::Lock::Timeout=900", "install", "-y", "-q", "--no-install-recommends", "bubblewrap"]
     done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=900)
     if done.returncode != 0:  # stale package lists: refresh them once
-        subprocess.run(["apt-get", "update", "-q"], capture_output=True, env=env, timeout=600)
+        subprocess.run(["apt-get", "-o", "DPkg::Lock::Timeout=900", "update", "-q"], capture_output=True, env=env, timeout=600)
         done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=900)
     return done.stdout[-1000:] + done.stderr[-1000:]
 

@@ -60,10 +60,10 @@ def chromium_path():
     path = _chromium()
     if path is None and shutil.which("apt-get") and os.geteuid() == 0:
         env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-        command = ["apt-get", "install", "-y", "-q", "--no-install-recommends", "chromium"]
+        command = ["apt-get", "-o", "DPkg::Lock::Timeout=900", "install", "-y", "-q", "--no-install-recommends", "chromium"]
         done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=900)
         if done.returncode != 0:  # stale package lists: refresh them once
-            subprocess.run(["apt-get", "update", "-q"], capture_output=True, env=env, timeout=600)
+            subprocess.run(["apt-get", "-o", "DPkg::Lock::Timeout=900", "update", "-q"], capture_output=True, env=env, timeout=600)
             done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=900)
         path = _chromium()
         assert path, f"apt-get could not install chromium:\n{done.stdout[-1500:]}\n{done.stderr[-1500:]}"

@@ -194,7 +194,7 @@ def _postgres_binaries():
         if os.path.exists(f"{folder}/initdb") and os.path.exists(f"{folder}/postgres"):
             return folder
     if shutil.which("apt-get") and os.geteuid() == 0:  # install the server on a fresh machine
-        subprocess.run(["apt-get", "install", "-y", "-q", "postgresql"], capture_output=True,
+        subprocess.run(["apt-get", "-o", "DPkg::Lock::Timeout=900", "install", "-y", "-q", "postgresql"], capture_output=True,
                        env={**os.environ, "DEBIAN_FRONTEND": "noninteractive"}, timeout=600)
         return _postgres_binaries_found()
     return None

@@ -137,7 +137,7 @@ ADDED_CELLS = {
 @pytest.fixture(scope="module")
 def bubblewrap():
     if shutil.which("bwrap") is None:
-        subprocess.run(["apt-get", "install", "-y", "-q", "bubblewrap"], check=False, capture_output=True)
+        subprocess.run(["apt-get", "-o", "DPkg::Lock::Timeout=900", "install", "-y", "-q", "bubblewrap"], check=False, capture_output=True)
     if isolation.probe(force=True):
         pytest.fail(f"the sandbox is needed for this suite: {isolation.probe()}")
 
