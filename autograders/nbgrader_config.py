@@ -10,6 +10,11 @@ Environment overrides (set by ``cvkit course ...``):
   CVKIT_SOURCE_DIR   source notebooks (default: ../lectures)
   CVKIT_DB_URL       any SQLAlchemy URL for the gradebook, e.g.
                      postgresql://grader:secret@localhost/cvkit (default: SQLite in the root)
+
+The plan (``plan.toml`` in the course folder, else next to this file) is the one source of
+truth for due dates and late penalties: every nbgrader command that loads this file makes the
+gradebook's due dates the plan's and applies the plan's ``[late]`` policy
+(:func:`cvkit.course.plan.configure_nbgrader`).
 """
 import os
 from pathlib import Path
@@ -47,12 +52,21 @@ from nbgrader.preprocessors import (  # noqa: E402
     AssignLatePenalties, CheckCellMetadata, GetGrades, IgnorePattern, LimitOutput, SaveAutoGrades,
 )
 
+from cvkit.course.plan import configure_nbgrader  # noqa: E402
 from cvkit.grading.nbgrader_plugins import (  # noqa: E402
     HideHiddenTests, SafeFeedbackExporter, SandboxedExecute, SanitizeStudentContent, TrustedChecks,
 )
 from cvkit.grading.safety import mathjax_post_convert_hook  # noqa: E402
 
-_salt_file = ROOT / ".grading_salt"  # made by `cvkit course grade`; kept for regrading
+# plan.toml → nbgrader: the gradebook's due dates (Assignment.duedate, what autograde and the
+# formgrader use for late submissions) and the late penalties (AssignLatePenalties.plugin_class)
+configure_nbgrader(c, ROOT, HERE.parent, c.CourseDirectory.source_directory, c.CourseDirectory.db_url,
+                   c.CourseDirectory.course_id)
+
+# made by `cvkit course grade` (readable by its owner only); kept for regrading. Without a
+# salt, TrustedChecks refuses to grade (hidden cases from the public practice seed would be
+# known to every student) and says how to make one
+_salt_file = ROOT / ".grading_salt"
 c.TrustedChecks.salt = os.environ.pop("CVKIT_GRADING_SALT", "") or (
     _salt_file.read_text().strip() if _salt_file.exists() else "")
 c.TrustedChecks.source_directory = c.CourseDirectory.source_directory

@@ -6,8 +6,10 @@
     cvkit new exercise ID           scaffold an exercise of an instructor's course package
     cvkit course build              nbgrader generate_assignment for the chapters
     cvkit course grade              autograde all submissions in parallel, feedback, CSV, table
+    cvkit course grade --regrade CHAPTER    ... and regrade a chapter (after a due date or check changed)
     cvkit course table              the grade table of what has been graded
-    cvkit demo                      the whole pipeline on three sample submissions
+    cvkit demo                      the whole pipeline on three sample submissions of a few chapters
+    cvkit demo --all                ... of every chapter
 """
 from __future__ import annotations
 
@@ -128,15 +130,51 @@ def _cmd_build(args) -> int:
     return 0
 
 
-def _print_results(course, results, assignments) -> int:
+def _summary(course, jobs) -> list[str]:
+    """What the instructor must know besides the tables, for the submissions ``jobs``: chapters
+    left out of the plan, submissions graded under an older due date or older checks, similar
+    answers."""
+    from .course.exports import similarity_summary
+
+    lines = []
+    outside: dict[str, int] = {}
+    for reason in course.outside_plan(jobs).values():
+        outside[reason] = outside.get(reason, 0) + 1
+    for reason, count in sorted(outside.items()):
+        lines.append(f"not graded: {reason}: {count} submission{'s' * (count != 1)} "
+                     f"(add the chapter to {course.plan_path} to grade them)")
+    outdated: dict[str, dict[str, int]] = {}
+    for (_, assignment), what in course.outdated(jobs).items():
+        counts = outdated.setdefault(assignment, {})
+        for item in what:
+            counts[item] = counts.get(item, 0) + 1
+    if outdated:
+        lines.append("graded under an older due date or older checks (grades may change when regraded):")
+        for assignment, counts in sorted(outdated.items()):
+            told = ", ".join(f"{n} under an older {what}" for what, n in sorted(counts.items()))
+            lines.append(f"  {assignment}: {told} → cvkit course grade --regrade {assignment}")
+    return lines + similarity_summary(course)
+
+
+def _print_results(course, results, jobs) -> int:
     failed = [r for r in results if not r.ok]
     for r in failed:
         print(f"!! autograding {r.student}/{r.assignment} failed after {r.attempts} attempts:\n{r.log[-1500:]}")
-    for a in assignments:
+    for a in sorted({a for _, a in jobs}):
         print(f"\n== {a} ==")
         print(course.table(a))
+    print()
+    for line in _summary(course, jobs):
+        print(line)
     print(f"\nfeedback: {course.root / 'feedback'}   grades: {course.root / 'exports' / 'grades.csv'}")
     return 1 if failed else 0
+
+
+def _regrade_option(values) -> bool | list[str]:
+    """``--regrade`` as :meth:`Course.grade` takes it: True for ``all``, else the chapters."""
+    if not values:
+        return False
+    return True if "all" in values else list(values)
 
 
 def _cmd_grade(args) -> int:
@@ -147,15 +185,22 @@ def _cmd_grade(args) -> int:
         return 1
     from .grading.isolation import SandboxUnavailable
 
+    regrade = _regrade_option(args.regrade)
+    if isinstance(regrade, list):
+        unknown = sorted(set(regrade) - {a for _, a in jobs})
+        if unknown:
+            raise ValueError(f"--regrade {', '.join(unknown)}: no submissions of this chapter "
+                             f"(chapters with submissions: {', '.join(sorted({a for _, a in jobs}))}; or --regrade all)")
     start = time.perf_counter()
     try:
         results = course.grade(args.assignment or None, workers=args.workers, scheduler=args.scheduler,
-                               progress=True, sandbox=not args.no_sandbox)
+                               progress=True, regrade=regrade, sandbox=not args.no_sandbox)
     except SandboxUnavailable as error:
         print(f"cvkit course grade: cannot grade safely: {error}", file=sys.stderr)
         return 2
-    print(f"autograded {len(results)} submissions in {time.perf_counter() - start:.0f} s")
-    return _print_results(course, results, sorted({a for _, a in jobs}))
+    graded = [r for r in results if not r.not_graded]
+    print(f"autograded {len(graded)} submission{'s' * (len(graded) != 1)} in {time.perf_counter() - start:.0f} s")
+    return _print_results(course, results, jobs)
 
 
 def _cmd_table(args) -> int:
@@ -166,23 +211,41 @@ def _cmd_table(args) -> int:
     return 0
 
 
+#: the chapters of the quick demo (`cvkit demo`; `--all` grades every chapter): short notebooks
+#: that show autograded exercises with a typical mistake named (the kernel-flip family of
+#: Chapter 3 among them) and written questions waiting for the instructor
+DEMO_CHAPTERS = ("ch03_filtering", "ch04_edges", "ch07_camera_model")
+
+
+def _demo_chapters(args, course) -> list[str]:
+    planned = course.assignments()
+    if args.assignment:
+        return list(args.assignment)
+    if args.all:
+        return planned
+    return [c for c in DEMO_CHAPTERS if c in planned] or planned[:2]
+
+
 def _cmd_demo(args) -> int:
     import shutil
 
-    from .course import SAMPLE_STUDENTS, Course, format_table
+    from .course import SAMPLE_STUDENTS, Course
+    from .course.progress import progress
 
     root = Path(args.dir).resolve()
     if root.exists() and not args.keep:
         shutil.rmtree(root)
     course = Course(root, db_url=args.db_url)
-    assignments = args.assignment or course.assignments()
+    assignments = _demo_chapters(args, course)
     start = time.perf_counter()
-    print(f"[1/4] building the course in {root}")
+    others = "" if args.all or args.assignment else " (--all: every chapter)"
+    print(f"[1/4] building {len(assignments)} chapter{'s' * (len(assignments) != 1)} in {root}{others}", flush=True)
     course.build(assignments, progress=True)
-    print("[2/4] creating sample submissions: " + ", ".join(SAMPLE_STUDENTS))
-    for a in assignments:
+    print("[2/4] creating sample submissions: " + ", ".join(SAMPLE_STUDENTS), flush=True)
+    for a in progress(assignments, "samples", True, unit="chapter"):
         course.make_samples(a)
-    print(f"[3/4] autograding with nbgrader ({args.workers} workers)")
+    print(f"[3/4] autograding with nbgrader ({args.workers} workers), feedback pages, exports, similarity report",
+          flush=True)
     from .grading.isolation import SandboxUnavailable
 
     try:
@@ -190,8 +253,8 @@ def _cmd_demo(args) -> int:
     except SandboxUnavailable as error:
         print(f"cvkit demo: cannot grade safely: {error}", file=sys.stderr)
         return 2
-    print("[4/4] feedback and grades exported")
-    status = _print_results(course, results, assignments)
+    print("[4/4] the grade tables", flush=True)
+    status = _print_results(course, results, course.submissions(assignments))
     # the three samples must land where they should: complete full marks (of the autograded
     # points: written answers wait for the instructor), blank zero
     for a in assignments:
@@ -244,6 +307,9 @@ def build_parser() -> argparse.ArgumentParser:
     course_options(p)
     p.add_argument("--workers", type=int, default=2, help="parallel autograde processes (default 2)")
     p.add_argument("--scheduler", help="Dask distributed scheduler address (workers must share the course folder)")
+    p.add_argument("--regrade", action="append", metavar="CHAPTER",
+                   help="grade this chapter's submissions again, e.g. after its due date or a check changed "
+                        "(repeatable; 'all' for every chapter); new and changed submissions are always graded")
     p.add_argument("--no-sandbox", action="store_true",
                    help="DANGEROUS: grade without the bubblewrap sandbox (one trusted machine only); "
                         "every grade is marked in the table, the exports and the feedback")
@@ -256,6 +322,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dir", default="cvkit-demo", help="where the demo course is made (default ./cvkit-demo)")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--db-url", help="gradebook SQLAlchemy URL (default SQLite in --dir)")
+    p.add_argument("--all", action="store_true",
+                   help="every chapter of the plan (default: " + ", ".join(DEMO_CHAPTERS) + ")")
     p.add_argument("--assignment", action="append", help="only this assignment (repeatable)")
     p.add_argument("--keep", action="store_true", help="do not wipe --dir first")
     p.add_argument("--no-sandbox", action="store_true",

@@ -460,7 +460,8 @@ def _graded_notebook(path, reports):
 
 
 def test_instructor_summary_lists_each_student_and_exercise_once_in_plain_words(tmp_path):
-    from cvkit.course import ExerciseScore, _reported_mistakes, format_table
+    from cvkit.course import ExerciseScore, format_table
+    from cvkit.course.results import reported_findings
 
     old = ("Not equal to tolerance rtol=1e-07, atol=1.78e-08\nMismatched elements: 60 / 90 (66.7%)\n"
            "Max absolute difference: 24 at [2, 0]")
@@ -473,19 +474,19 @@ def test_instructor_summary_lists_each_student_and_exercise_once_in_plain_words(
         ("median_hidden", hidden),
         ("bilinear_visible", evaluate("warp.bilinear_sample", bilinear_xy_swapped).to_dict()),
     ])
-    found = _reported_mistakes(tmp_path)
-    assert found["pad_visible"] == ["problem:60 of 90 values differ"]
-    assert found["median_visible"] == ["problem:your output is shifted by 1 row down and 1 column right"]
-    assert found["bilinear_visible"] == ["mistake:x and y swapped (image[x, y])"]
+    found = reported_findings(tmp_path)
+    assert found["pad_visible"] == [("problem", "60 of 90 values differ")]
+    assert found["median_visible"] == [("problem", "your output is shifted by 1 row down and 1 column right")]
+    assert found["bilinear_visible"] == [("mistake", "x and y swapped (image[x, y])")]
     scores = {"ann": []}
     for name in ("pad", "median", "bilinear"):
         entry = ExerciseScore(name, 0.5, 2.0)
         for grade, items in found.items():
             if grade.rsplit("_", 1)[0] == name:
-                for item in items:
-                    bucket = entry.mistakes if item.startswith("mistake:") else entry.problems
-                    if item.split(":", 1)[1] not in bucket:
-                        bucket.append(item.split(":", 1)[1])
+                for kind, text in items:
+                    bucket = entry.mistakes if kind == "mistake" else entry.problems
+                    if text not in bucket:
+                        bucket.append(text)
         scores["ann"].append(entry)
     table = format_table(scores)
     notes = table.split("What the checks found:")[1].strip().splitlines()

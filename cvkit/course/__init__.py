@@ -32,7 +32,7 @@ skip_unused_schema_grammars()  # 1.4 s of CPU per grading process (see cvkit.gra
 from .course import PACKAGE_DIR, Course, project_root  # noqa: E402
 from .exports import format_table  # noqa: E402
 from .jobs import ExecutedSubmission, execute_submission, feedback_submissions, grade_submission  # noqa: E402
-from .results import ExerciseScore, _reported_mistakes  # noqa: E402,F401  (tests/test_feedback_words.py)
+from .results import ExerciseScore  # noqa: E402
 from .samples import SAMPLE_STUDENTS, SOLUTION_BEGIN, SOLUTION_END, solution_sources, typical_mistakes  # noqa: E402
 from .writer import JobResult  # noqa: E402
 

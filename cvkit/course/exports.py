@@ -1,10 +1,12 @@
-"""What a graded course shows: the grade table (terminal) and the CSV exports."""
+"""What a graded course shows: the grade table (terminal), the CSV exports and the similarity
+report (``exports/similarity.csv`` and ``.html``, :func:`export_similarity`)."""
 from __future__ import annotations
 
 import csv
 from pathlib import Path
 from typing import TYPE_CHECKING, Iterable
 
+from .progress import Phase
 from .results import ExerciseScore, unsandboxed
 
 if TYPE_CHECKING:
@@ -104,12 +106,15 @@ def table(course: Course, assignment: str) -> str:
     return format_table(course.scores(assignment), not_graded=not_graded, unsandboxed=graded_unsandboxed)
 
 
-def export(course: Course) -> Path:
+def export(course: Course, progress: bool = False) -> Path:
     """See :meth:`Course.export`."""
     target = course.root / "exports" / "grades.csv"
     target.parent.mkdir(exist_ok=True)
-    _export_grades(course, target)
-    _export_exercises(course, course.root / "exports" / "exercises.csv")
+    assignments = sorted({a for _, a in course.submissions()})
+    with Phase("exports", 1 + len(assignments), progress, unit="file") as bar:
+        _export_grades(course, target)
+        bar.update()
+        _export_exercises(course, course.root / "exports" / "exercises.csv", assignments, bar)
     return target
 
 
@@ -146,8 +151,9 @@ def _export_grades(course: Course, target: Path) -> None:
         csv.writer(handle).writerows(out)
 
 
-def _export_exercises(course: Course, target: Path) -> None:
-    """cvkit's exercises.csv: one row per student × exercise, and one per submission not graded."""
+def _export_exercises(course: Course, target: Path, assignments: list[str], bar: Phase) -> None:
+    """cvkit's exercises.csv: one row per student × exercise, and one per submission not graded
+    (``bar`` counts the assignments written)."""
     from ..grading.safety import csv_safe
 
     not_graded = course.not_graded()
@@ -155,7 +161,8 @@ def _export_exercises(course: Course, target: Path) -> None:
         writer = csv.writer(handle)
         writer.writerow(["assignment", "student", "exercise", "score", "max_score", "mistakes", "problems", "flags",
                          "status"])
-        for assignment in sorted({a for _, a in course.submissions()}):
+        for assignment in assignments:
+            bar.update()
             for student, exercises in course.scores(assignment).items():
                 for e in exercises:
                     writer.writerow([csv_safe(x) for x in (
@@ -167,3 +174,47 @@ def _export_exercises(course: Course, target: Path) -> None:
                 if a == assignment:
                     writer.writerow([csv_safe(x) for x in (assignment, student, "(submission)", "", "", "",
                                                             f"not graded: {reason}", "not graded", "not graded")])
+
+
+def export_similarity(course: Course, assignments: Iterable[str] | None = None, progress: bool = False) -> Path:
+    """See :meth:`Course.similarity`."""
+    from ..grading import similarity
+
+    planned = set(course.plan().ids())
+    chosen = sorted(set(assignments) if assignments is not None
+                    else {a for _, a in course.submissions() if a in planned})
+    pairs = []
+    with Phase("similarity", len(chosen), progress, unit="assignment") as bar:
+        for assignment in chosen:
+            bar.describe(f"similarity {assignment}")
+            pairs += similarity.report(course.root, course.source_dir, assignment)
+            bar.update()
+    folder = course.root / "exports"
+    similarity.write_html(pairs, folder / "similarity.html")
+    return similarity.write_csv(pairs, folder / "similarity.csv")
+
+
+def similar_pairs(course: Course) -> list[dict[str, str]]:
+    """The pairs of the last similarity report (``exports/similarity.csv``), most similar first:
+    dicts with ``assignment``, ``exercise``, ``student_a``, ``student_b``, ``similarity``."""
+    path = course.root / "exports" / "similarity.csv"
+    if not path.is_file():
+        return []
+    with path.open(newline="", encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))
+
+
+def similarity_summary(course: Course, top: int = 5) -> list[str]:
+    """A few lines for ``cvkit course grade``'s summary: how many similar pairs, the ``top`` ones."""
+    pairs = similar_pairs(course)
+    path = course.root / "exports" / "similarity.html"
+    if not pairs:
+        return [f"similar answers: none above the threshold ({path})"]
+    lines = [f"similar answers: {len(pairs)} pair{'s' * (len(pairs) != 1)} (a signal for the instructor, "
+             f"never a score change): {path}"]
+    for pair in pairs[:top]:
+        lines.append(f"  {float(pair['similarity']):.0%}  {pair['assignment']} · {pair['exercise']}: "
+                     f"{pair['student_a']} ↔ {pair['student_b']}")
+    if len(pairs) > top:
+        lines.append(f"  ... and {len(pairs) - top} more in {path.name}")
+    return lines

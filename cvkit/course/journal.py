@@ -1,7 +1,9 @@
 """The course's own bookkeeping next to nbgrader's gradebook, in ``<course>/.cvkit/``.
 
-- ``journal.json``: ``"student/assignment"`` → hash of the submission's files when it was last
-  graded, so that an interrupted run resumes after it and a changed submission is regraded;
+- ``journal.json``: ``"student/assignment"`` → the hash of the submission's files when it was
+  last graded (so that an interrupted run resumes after it and a changed submission is
+  regraded), with the due date and the fingerprint of the checks it was graded under
+  (:mod:`.stamps`: a later change offers a regrade);
 - ``not_graded.json``: ``"student/assignment"`` → why it could not be graded (never a zero);
 - flags for the instructor, added to the autograded notebooks' metadata (``metadata.cvkit.flags``).
 """
@@ -10,8 +12,12 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
+from typing import Any, Mapping
 
 from ..grading.isolation import collect_files
+
+#: what a journal entry records besides the files' hash (see :mod:`.stamps`)
+STAMPS = ("due", "checks")
 
 
 class Journal:
@@ -37,12 +43,20 @@ class Journal:
         return self.root / ".cvkit" / "not_graded.json"
 
     # ------------------------------------------------------------------ graded submissions
-    def graded(self) -> dict[str, str]:
-        """``"student/assignment"`` → hash of the files it was graded from."""
+    def entries(self) -> dict[str, dict[str, Any]]:
+        """``"student/assignment"`` → ``{"files": hash, "due": ..., "checks": ...}`` of every graded
+        submission (an entry written before due dates and checks were recorded has ``files`` only)."""
         try:
-            return json.loads(self.path.read_text()) if self.path.exists() else {}
+            data = json.loads(self.path.read_text()) if self.path.exists() else {}
         except ValueError:
             return {}
+        if not isinstance(data, dict):
+            return {}
+        return {str(key): value if isinstance(value, dict) else {"files": value} for key, value in data.items()}
+
+    def graded(self) -> dict[str, str]:
+        """``"student/assignment"`` → hash of the files it was graded from."""
+        return {key: str(entry.get("files")) for key, entry in self.entries().items()}
 
     def submission_hash(self, student: str, assignment: str) -> str:
         """Hash of a submission's regular files (and of the notes on the files refused)."""
@@ -59,13 +73,54 @@ class Journal:
         """Graded before from the very files submitted now."""
         return self.graded().get(f"{student}/{assignment}") == self.submission_hash(student, assignment)
 
-    def mark_graded(self, pairs: list[tuple[str, str]]) -> None:
-        """Remember that these (student, assignment) submissions are graded, as they are now."""
-        journal = self.graded()
+    def mark_graded(self, pairs: list[tuple[str, str]],
+                    stamps: Mapping[str, Mapping[str, Any]] | None = None) -> None:
+        """Remember that these (student, assignment) submissions are graded, as they are now.
+
+        Parameters
+        ----------
+        pairs : list of (student, assignment)
+            The submissions just graded.
+        stamps : mapping, optional
+            assignment → ``{"due": ..., "checks": ...}``: what they were graded under.
+        """
+        journal = self.entries()
         for student, assignment in pairs:
-            journal[f"{student}/{assignment}"] = self.submission_hash(student, assignment)
+            entry: dict[str, Any] = {"files": self.submission_hash(student, assignment)}
+            entry.update({k: v for k, v in (stamps or {}).get(assignment, {}).items() if k in STAMPS})
+            journal[f"{student}/{assignment}"] = entry
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.path.write_text(json.dumps(journal, indent=1))
+
+    def changed(self, pairs: list[tuple[str, str]],
+                stamps: Mapping[str, Mapping[str, Any]]) -> dict[tuple[str, str], list[str]]:
+        """The graded submissions among ``pairs`` whose due date or checks have changed since.
+
+        Parameters
+        ----------
+        pairs : list of (student, assignment)
+            Submissions to look at (those never graded are skipped).
+        stamps : mapping
+            assignment → ``{"due": ..., "checks": ...}`` now.
+
+        Returns
+        -------
+        dict
+            (student, assignment) → what changed (``"due date"``, ``"checks"``). What an entry
+            does not record (written by an older cvkit) is not reported as changed.
+        """
+        entries = self.entries()
+        changed: dict[tuple[str, str], list[str]] = {}
+        for student, assignment in pairs:
+            entry = entries.get(f"{student}/{assignment}")
+            now = stamps.get(assignment, {})
+            if entry is None:
+                continue
+            what = [label for key, label in (("due", "due date"), ("checks", "checks"))
+                    if key in entry and key in now and entry[key] != now[key]]
+            if what:
+                changed[(student, assignment)] = what
+        return changed
 
     # ------------------------------------------------------------------ not graded
     def not_graded(self) -> dict[str, str]:

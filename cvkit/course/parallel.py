@@ -1,6 +1,8 @@
 """The parallel phase of :meth:`Course.grade`: the jobs (:mod:`.jobs`) on local worker
 processes or a Dask cluster, their results recorded batch by batch by the single writer, the
-feedback pages written by idle workers; then the final audit and the exports.
+feedback pages written by idle workers; then the final audit, the exports and the similarity
+report. Each phase shows its count and the time left (:class:`.progress.Phase`): grading and
+recording per submission, feedback per page, exports per file, similarity per assignment.
 
 Local workers are processes started with ``spawn``: a script that calls :meth:`Course.grade`
 needs the usual ``if __name__ == "__main__":`` guard.
@@ -14,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable
 
 from .jobs import ExecutedSubmission, feedback_submissions, grade_submission
-from .progress import progress
+from .progress import Phase, progress
 from .writer import JobResult
 
 if TYPE_CHECKING:
@@ -34,13 +36,31 @@ class _Batches:
     """Results of the parallel phase, recorded once a batch is full or nothing else is coming;
     with a local pool, each recorded batch's feedback pages are queued for its workers."""
 
-    def __init__(self, course: Course, size: int, workers: int, bar: Any) -> None:
-        self.course, self.size, self.workers, self.bar = course, size, workers, bar
+    def __init__(self, course: Course, size: int, workers: int, bars: dict[str, Phase]) -> None:
+        self.course, self.size, self.workers, self.bars = course, size, workers, bars
         self.finished: list[ExecutedSubmission] = []
         self.owners: dict[Any, tuple[str, str]] = {}   # future -> (student, assignment)
         self.results: list[JobResult] = []
         self.pool: concurrent.futures.Executor | None = None
-        self.feedback_steps: list[Future[None]] = []
+        self.feedback_steps: dict[Future[None], int] = {}  # feedback job -> its number of pages
+
+    def feedback_done(self, wait: bool = False) -> None:
+        """Count the feedback pages the workers have written (``wait``: until all are)."""
+        steps = self.feedback_steps
+        while steps:
+            done = [step for step in steps if step.done()]
+            if not done and wait:
+                done = list(concurrent.futures.wait(steps, return_when=concurrent.futures.FIRST_COMPLETED).done)
+            if not done:
+                return
+            for step in done:
+                pages = steps.pop(step)
+                try:
+                    step.result()
+                except Exception:  # a lost worker or a busy gradebook: this process writes them later
+                    self.bars["feedback"].grow(-pages)
+                else:
+                    self.bars["feedback"].update(pages)
 
     def outcome(self, future: Any) -> ExecutedSubmission:
         try:
@@ -51,7 +71,9 @@ class _Batches:
 
     def drain(self, done_futures: Iterable[Any], pending_count: int) -> None:
         """Record what has finished, once a batch is full or nothing else is coming."""
-        self.finished.extend(self.outcome(f) for f in done_futures)
+        arrived = [self.outcome(f) for f in done_futures]
+        self.finished.extend(arrived)
+        self.bars["grade"].update(len(arrived))
         if not self.finished or (len(self.finished) < self.size and pending_count > 0):
             return
         written = list(self.finished)
@@ -59,14 +81,15 @@ class _Batches:
         recorded = self.course.record_many(written)
         self.results.extend(recorded)
         pairs = [(r.student, r.assignment) for r in recorded if r.ok]
+        self.bars["record"].update(len(written))
         if self.pool is not None:  # feedback pages of this batch by the workers, between grading jobs
             course = self.course
             step = max(1, -(-len(pairs) // max(1, self.workers)))
             for chunk in (pairs[i:i + step] for i in range(0, len(pairs), step)):
-                self.feedback_steps.append(self.pool.submit(
-                    feedback_submissions, str(course.root), course.db_url, str(course.project), chunk))
-        if self.bar is not None:
-            self.bar.update(len(written))
+                self.bars["feedback"].grow(len(chunk))
+                self.feedback_steps[self.pool.submit(
+                    feedback_submissions, str(course.root), course.db_url, str(course.project), chunk)] = len(chunk)
+        self.feedback_done()
 
 
 def _on_dask(batches: _Batches, payloads: list[tuple[Any, ...]], scheduler: str) -> None:
@@ -107,15 +130,21 @@ def _on_local_pool(batches: _Batches, payloads: list[tuple[Any, ...]], workers: 
             batches.drain(done, len(pending) + len(waiting))
         # feedback pages (nbconvert, CPU-heavy) were queued batch by batch behind the
         # grading jobs, so a worker with no submission left writes them meanwhile
-        for step in batches.feedback_steps:
-            try:
-                step.result()
-            except Exception:  # a lost worker or a busy gradebook: this process writes them (below)
-                pass
+        batches.feedback_done(wait=True)
+
+
+def _regrading(course: Course, jobs: list[tuple[str, str]], regrade: bool | Iterable[str]) -> list[tuple[str, str]]:
+    """The submissions of ``jobs`` to grade now: new or changed ones, and those ``regrade`` names
+    (True: all; else the assignments to regrade)."""
+    if isinstance(regrade, (bool, type(None))):
+        again: set[str] = {a for _, a in jobs} if regrade else set()
+    else:
+        again = {regrade} if isinstance(regrade, str) else set(regrade)
+    return [(s, a) for s, a in jobs if a in again or not course.is_graded(s, a)]
 
 
 def grade(course: Course, assignments: Iterable[str] | None = None, workers: int = 2, scheduler: str | None = None,
-          progress_bar: bool = False, regrade: bool = False, batch: int | None = None,
+          progress_bar: bool = False, regrade: bool | Iterable[str] = False, batch: int | None = None,
           sandbox: bool = True) -> list[JobResult]:
     """See :meth:`Course.grade`."""
     from ..grading import isolation
@@ -125,36 +154,52 @@ def grade(course: Course, assignments: Iterable[str] | None = None, workers: int
         os.environ.pop("CVKIT_NO_SANDBOX", None)
     else:
         os.environ["CVKIT_NO_SANDBOX"] = "1"  # inherited by the grading workers
-    jobs = course.submissions(assignments)
-    todo = [(s, a) for s, a in jobs if regrade or not course.is_graded(s, a)]
+    found = course.submissions(assignments)
+    outside = course.outside_plan(found)  # chapters not in the plan: listed as not graded, never a zero
+    jobs = [(s, a) for s, a in found if f"{s}/{a}" not in outside]
+    todo = _regrading(course, jobs, regrade)
     payloads = [payload(course, s, a) for s, a in todo]
     size = max(1, batch if batch is not None else max(2, workers))
     if payloads:
         course.nbgrader_api()  # load nbgrader and the configuration while the workers start
-    bar = progress(None, "autograde", progress_bar, total=len(payloads))
-    batches = _Batches(course, size, workers, bar)
+        course.sync_due_dates()
+    bars = {"grade": Phase("grade", len(payloads), progress_bar and bool(payloads), unit="submission", position=0),
+            "record": Phase("record", len(payloads), progress_bar and bool(payloads), unit="submission", position=1),
+            "feedback": Phase("feedback", 0, progress_bar and bool(payloads), unit="page", position=2)}
+    batches = _Batches(course, size, workers, bars)
     if scheduler and payloads:
         _on_dask(batches, payloads, scheduler)
     elif payloads:
         _on_local_pool(batches, payloads, workers)
-    if bar is not None:
-        bar.close()
+    bars["grade"].close()
+    bars["record"].close()
     results = batches.results
     missing = missing_before = course.audit(jobs)
-    for student, assignment in missing:  # never lose a grade: one more, plain attempt
+    for student, assignment in progress(missing, "regrade (no grade recorded)", progress_bar and bool(missing),
+                                        unit="submission"):
+        # never lose a grade: one more, plain attempt
         results = [r for r in results if (r.student, r.assignment) != (student, assignment)]
         results.append(course.autograde_one(student, assignment))
     missing = course.audit(jobs)
     results += [JobResult(s, a, 1, 0, "no grade recorded after autograding") for s, a in missing]
+    results += [JobResult(s, a, 0, 1, f"not graded: {outside[f'{s}/{a}']}", executed=False,
+                          not_graded=outside[f"{s}/{a}"]) for s, a in found if f"{s}/{a}" in outside]
     retried = [(r.student, r.assignment) for r in results if r.ok and (r.student, r.assignment) in missing_before]
     not_graded = course.not_graded()
-    course.feedback([pair for pair in retried + [(s, a) for s, a in jobs if not (course.root / "feedback" / s / a).is_dir()]
-                     if f"{pair[0]}/{pair[1]}" not in not_graded])
-    course.export()
+    pages = sorted({pair for pair in retried + [(s, a) for s, a in jobs if not (course.root / "feedback" / s / a).is_dir()]
+                    if f"{pair[0]}/{pair[1]}" not in not_graded})
+    feedback = bars["feedback"]
+    if pages and not feedback.enabled:
+        feedback = Phase("feedback", 0, progress_bar, unit="page")
+    feedback.grow(len(pages))
+    course.feedback(pages, feedback)
+    feedback.close()
+    course.export(progress_bar)
+    course.similarity(progress=progress_bar)
     return sorted(results, key=lambda r: (r.assignment, r.student))
 
 
-def write_feedback(course: Course, submissions: Iterable[tuple[str, str]]) -> None:
+def write_feedback(course: Course, submissions: Iterable[tuple[str, str]], bar: Phase | None = None) -> None:
     """See :meth:`Course.feedback`."""
     pairs = sorted(set(submissions))
     if not pairs:
@@ -168,6 +213,8 @@ def write_feedback(course: Course, submissions: Iterable[tuple[str, str]]) -> No
             outcome = {"success": False, "error": repr(error)}
         if not outcome.get("success"):
             failed.append(f"{student}/{assignment}: {outcome.get('error', '')[-500:]}")
+        if bar is not None:
+            bar.update()
     if failed:
         log = course.root / ".cvkit" / "feedback_errors.log"
         log.parent.mkdir(parents=True, exist_ok=True)

@@ -1,33 +1,134 @@
-"""Progress bars of the course's long steps (build, autograde), on stderr."""
+"""Progress of the course's long steps: one :class:`Phase` per phase (build, grade, record,
+feedback, exports, similarity), each with a count and an estimate of the time left.
+
+On a terminal, a phase is a tqdm bar on standard output (never standard error, where a log
+reader would take it for an error). Elsewhere (a log file, a pipe, CI), each phase prints one
+line when it ends: what it did, how many, in how long.
+"""
 from __future__ import annotations
 
 import sys
-from typing import Any, Iterable
+import time
+from typing import IO, Any, Iterable, Iterator
+
+__all__ = ["Phase", "progress"]
 
 
-def progress(iterable: Iterable[Any] | None, desc: str, enabled: bool, total: int | None = None) -> Any:
-    """A tqdm progress bar over ``iterable`` (a manual bar when ``iterable`` is None).
+class Phase:
+    """One phase of a long command, counted in ``unit``\\ s.
 
     Parameters
     ----------
-    iterable : iterable or None
-        What to iterate over; None for a bar advanced by hand (``bar.update(n)``).
-    desc : str
-        The bar's label.
+    name : str
+        What the phase does (``"grade"``, ``"feedback"``); its bar's label.
+    total : int
+        How many steps it has (may grow, :meth:`grow`).
     enabled : bool
-        False: ``iterable`` itself is returned (None for a manual bar).
-    total : int, optional
-        Number of steps of a manual bar.
+        False: silent (every method does nothing).
+    unit : str
+        What a step is (``"submission"``, ``"page"``).
+    stream : file, optional
+        Where to write (default standard output).
+    position : int, optional
+        The bar's line among bars shown at once (terminal only).
 
-    Returns
-    -------
-    tqdm or iterable or None
-        The bar, or ``iterable`` when bars are off or tqdm is not installed.
+    Examples
+    --------
+    >>> import io
+    >>> out = io.StringIO()
+    >>> with Phase("export", 2, unit="file", stream=out) as phase:
+    ...     phase.update(2)
+    >>> out.getvalue().startswith("export: 2/2 files in ")
+    True
     """
-    if not enabled:
-        return iterable
+
+    def __init__(self, name: str, total: int, enabled: bool = True, *, unit: str = "job",
+                 stream: IO[str] | None = None, position: int | None = None) -> None:
+        self.name, self.total, self.enabled, self.unit = name, int(total), bool(enabled), unit
+        self.done = 0
+        self.start = time.perf_counter()
+        self.stream = stream if stream is not None else sys.stdout
+        self._bar: Any = None
+        self._closed = False
+        if self.enabled and _is_terminal(self.stream):
+            try:
+                from tqdm import tqdm
+            except ImportError:  # pragma: no cover - tqdm comes with cvkit[course]
+                tqdm = None
+            if tqdm is not None:
+                self._bar = tqdm(desc=name, total=self.total, unit=unit, file=self.stream, position=position,
+                                 dynamic_ncols=True, leave=True, mininterval=0.5)
+
+    def __enter__(self) -> Phase:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def update(self, n: int = 1) -> None:
+        """``n`` more steps done."""
+        self.done += n
+        if self._bar is not None:
+            self._bar.update(n)
+
+    def grow(self, n: int) -> None:
+        """``n`` more steps to do (known only as the phase goes)."""
+        self.total += n
+        if self._bar is not None:
+            self._bar.total = self.total
+            self._bar.refresh()
+
+    def describe(self, text: str) -> None:
+        """Say what the phase is doing now (terminal only, e.g. the chapter being built)."""
+        if self._bar is not None:
+            self._bar.set_description_str(text)
+
+    def close(self) -> None:
+        """End the phase: the bar stays at its final count; elsewhere, one line says what was done."""
+        if self._closed or not self.enabled:
+            return
+        self._closed = True
+        if self._bar is not None:
+            self._bar.set_description_str(self.name)
+            self._bar.close()
+            return
+        plural = "" if self.total == 1 else "s"
+        self.stream.write(f"{self.name}: {self.done}/{self.total} {self.unit}{plural} "
+                          f"in {time.perf_counter() - self.start:.0f} s\n")
+        self.stream.flush()
+
+
+def _is_terminal(stream: IO[str]) -> bool:
     try:
-        from tqdm import tqdm
-    except ImportError:  # pragma: no cover
-        return iterable
-    return tqdm(iterable, desc=desc, total=total, unit="job", file=sys.stderr)
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
+
+
+def progress(iterable: Iterable[Any], desc: str, enabled: bool, total: int | None = None,
+             unit: str = "job") -> Iterator[Any]:
+    """Iterate over ``iterable`` as one :class:`Phase` named ``desc``.
+
+    Parameters
+    ----------
+    iterable : iterable
+        What to iterate over.
+    desc : str
+        The phase's name.
+    enabled : bool
+        False: no progress shown.
+    total : int, optional
+        Number of items (default ``len(iterable)``).
+    unit : str
+        What an item is.
+
+    Yields
+    ------
+    object
+        The items of ``iterable``.
+    """
+    items = list(iterable)
+    with Phase(desc, len(items) if total is None else total, enabled, unit=unit) as phase:
+        for item in items:
+            yield item
+            phase.update()

@@ -84,14 +84,32 @@ def _grade_order(course: Course, assignment: str) -> dict[str, int]:
 
 def _flags(folder: Path) -> list[str]:
     """Tampering flags the trusted grader left in the autograded notebooks' metadata."""
-    flags = []
-    for path in sorted(folder.glob("*.ipynb")):
+    return [flag for path in sorted(folder.glob("*.ipynb")) for flag in notebook_flags(path)]
+
+
+def notebook_flags(path: Path) -> list[str]:
+    """The flags for the instructor in one autograded notebook's metadata (``metadata.cvkit``):
+    the static scan's and the writer's, grading without the sandbox, a worker's problem.
+
+    Parameters
+    ----------
+    path : Path
+        An autograded notebook.
+
+    Returns
+    -------
+    list of str
+        ``"<grade id or (notebook)>: <what>"``; empty for a clean or unreadable notebook.
+    """
+    try:
         meta = json.loads(path.read_text()).get("metadata", {}).get("cvkit", {})
-        flags += [str(f) for f in meta.get("flags", [])]
-        if meta.get("sandboxed") is False:
-            flags.append("(notebook): GRADED WITHOUT THE SANDBOX (--no-sandbox)")
-        if meta.get("worker_problem"):
-            flags.append(f"(notebook): {meta['worker_problem']}")
+    except (OSError, ValueError, AttributeError):
+        return []
+    flags = [str(f) for f in meta.get("flags", [])]
+    if meta.get("sandboxed") is False:
+        flags.append("(notebook): GRADED WITHOUT THE SANDBOX (--no-sandbox)")
+    if meta.get("worker_problem"):
+        flags.append(f"(notebook): {meta['worker_problem']}")
     return flags
 
 
@@ -148,13 +166,6 @@ def _output_findings(cell: dict[str, Any]) -> list[tuple[str, str]]:
     were stored as data)."""
     reports = [output.get("data", {}).get(MIME_TYPE) for output in cell.get("outputs", [])]
     return [item for item in (finding(r) for r in reports if r and isinstance(r, dict)) if item is not None]
-
-
-def _reported_mistakes(folder: Path) -> dict[str, list[str]]:
-    """:func:`reported_findings` as ``"mistake:<name>"`` / ``"problem:<words>"`` strings
-    (kept for tests/test_feedback_words.py)."""
-    return {cell_id: [f"{kind}:{text}" for kind, text in items]
-            for cell_id, items in reported_findings(folder).items()}
 
 
 def audit(course: Course, jobs: Iterable[tuple[str, str]]) -> list[tuple[str, str]]:

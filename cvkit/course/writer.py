@@ -151,8 +151,32 @@ class Writer:
                 log += "\ngraded from a repaired copy: the submission's graded cells had been tampered with"
                 self.journal.add_flag(executed.student, assignment, REPAIRED_FLAG)
             results.append(JobResult(executed.student, assignment, done.returncode, 1, log, executed=executed.ok))
-        self.journal.mark_graded([(executed.student, assignment) for executed in group])
+        pairs = [(executed.student, assignment) for executed in group]
+        self.flag_in_gradebook(pairs)
+        self.journal.mark_graded(pairs, self.course.grading_stamps([assignment]))
         return results
+
+    def flag_in_gradebook(self, pairs: list[tuple[str, str]]) -> None:
+        """Mark the notebooks that carry cvkit flags (:func:`~.results.notebook_flags`) as flagged
+        in nbgrader's gradebook (``SubmittedNotebook.flagged``: the formgrader's "Flagged?"
+        column). cvkit only ever sets the flag, never clears it: the instructor clears it in the
+        formgrader once they have looked."""
+        from nbgrader.api import Gradebook, MissingEntry
+
+        from .results import notebook_flags
+
+        flagged = [(student, assignment, path.stem) for student, assignment in pairs
+                   for path in sorted((self.course.root / "autograded" / student / assignment).glob("*.ipynb"))
+                   if notebook_flags(path)]
+        if not flagged:
+            return
+        with Gradebook(self.course.db_url) as gradebook:
+            for student, assignment, notebook in flagged:
+                try:
+                    gradebook.find_submission_notebook(notebook, assignment, student).flagged = True
+                except MissingEntry:
+                    continue
+            gradebook.db.commit()
 
     def record_not_graded(self, student: str, assignment: str, reason: str) -> JobResult:
         """Keep a submission that cannot be graded visible as such: its reason in the journal
@@ -162,7 +186,7 @@ class Writer:
         if refused:
             reason += " (refused files: " + "; ".join(refused)[:300] + ")"
         self.journal.set_not_graded(student, assignment, reason)
-        self.journal.mark_graded([(student, assignment)])
+        self.journal.mark_graded([(student, assignment)], self.course.grading_stamps([assignment]))
         try:
             from nbgrader.api import Gradebook, MissingEntry
 

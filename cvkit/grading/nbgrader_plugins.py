@@ -6,6 +6,8 @@
   nbgrader then records. The verdicts also travel as data in each test cell's metadata
   (``metadata.cvkit.report``, :func:`cell_report`) for the grade table and exports; flags from
   the static scan go into the notebook's metadata (``metadata.cvkit.flags``).
+- :class:`LatePenalty` — nbgrader's late-submission plugin with the policies of ``plan.toml``
+  (``[late]``: none, zero, points per started hour).
 - :class:`HideHiddenTests` — a feedback preprocessor: students see the results of the hidden
   tests, never their source.
 - :class:`SanitizeStudentContent` and :class:`SafeFeedbackExporter` (from
@@ -21,43 +23,23 @@ from typing import Any
 
 from nbformat import NotebookNode
 from nbformat.v4 import new_output
+from nbgrader.plugins import LateSubmissionPlugin
 from nbgrader.preprocessors import NbGraderPreprocessor
-from nbgrader.utils import is_grade, is_solution
-from traitlets import Bool, Int, Unicode
+from traitlets import Bool, Enum, Float, Int, Unicode
 
 from .report import MIME_TYPE, Report
+from .runtime import cells
 from .safety import SafeFeedbackExporter, SanitizeStudentContent  # noqa: F401  (re-exported for the config)
 from .trusted import CheckCall, grade_notebook, hide_hidden_tests
 
 TRUSTED_VARIABLE = "CVKIT_TRUSTED_GRADING"
 
 
-def _cell_node(cell: Any) -> NotebookNode:
-    """nbgrader's cell tests read ``cell.metadata``: a cell's JSON dict is wrapped, not copied."""
-    return cell if isinstance(cell, NotebookNode) else NotebookNode(metadata=cell.get("metadata") or {})
-
-
-def is_test_cell(cell: Any) -> bool:
-    """True for a test cell: graded by nbgrader and not an answer, by nbgrader's own rule
-    (:func:`nbgrader.utils.is_grade` and not :func:`nbgrader.utils.is_solution`).
-
-    Parameters
-    ----------
-    cell : NotebookNode or dict
-        A notebook cell, as nbformat reads it or as its JSON dict.
-
-    Returns
-    -------
-    bool
-    """
-    node = _cell_node(cell)
-    return bool(is_grade(node) and not is_solution(node))
-
-
-def is_answer_cell(cell: Any) -> bool:
-    """True for an answer cell (nbgrader's ``solution`` cells: code or written answers), by
-    :func:`nbgrader.utils.is_solution`; ``cell`` is a NotebookNode or a cell's JSON dict."""
-    return bool(is_solution(_cell_node(cell)))
+#: nbgrader's test-cell rule (``is_grade`` and not ``is_solution``), without importing nbgrader:
+#: :mod:`cvkit.grading.runtime.cells`, tested equal to :mod:`nbgrader.utils`
+is_test_cell = cells.is_test_cell
+#: an answer cell (nbgrader's ``solution`` cells: code or written answers), :func:`nbgrader.utils.is_solution`
+is_answer_cell = cells.is_solution
 
 
 def _bundle(report: Report) -> dict[str, Any]:
@@ -69,8 +51,23 @@ def _bundle(report: Report) -> dict[str, Any]:
     return bundle
 
 
+MISSING_SALT = (
+    "cvkit refuses to grade without a grading salt: the hidden cases would be drawn from the public practice "
+    "seed, which every student can reproduce. `cvkit course grade` makes one (<course folder>/.grading_salt, "
+    "readable by its owner only); or write a secret of your own there, e.g. "
+    "`python3 -c \"import secrets; print(secrets.token_hex(16))\" > .grading_salt && chmod 600 .grading_salt`, "
+    "and keep it for regrading (nbgrader_config.py reads it into TrustedChecks.salt)")
+
+
+class MissingSalt(RuntimeError):
+    """Raised by :class:`TrustedChecks` when the course has no grading salt."""
+
+
 class TrustedChecks(NbGraderPreprocessor):
-    """Replace the outputs of test cells by verdicts computed outside the student's kernel."""
+    """Replace the outputs of test cells by verdicts computed outside the student's kernel.
+
+    Refuses (:class:`MissingSalt`) to grade without ``salt``: hidden cases drawn from the
+    public practice seed would be known to every student."""
 
     enabled = Bool(True).tag(config=True)
     salt = Unicode("", help="grading salt of the hidden cases (keep it for regrading)").tag(config=True)
@@ -85,7 +82,9 @@ class TrustedChecks(NbGraderPreprocessor):
             path = Path(self.source_directory) / info["assignment"] / f"{info['notebook']}.ipynb"
             if path.exists():
                 source_nb = json.loads(path.read_text())
-        flags = apply_trusted_checks(nb, student=student, salt=self.salt or "practice", source_notebook=source_nb,
+        if not self.salt.strip():
+            raise MissingSalt(MISSING_SALT)
+        flags = apply_trusted_checks(nb, student=student, salt=self.salt, source_notebook=source_nb,
                                      memory_mb=self.memory_mb)
         for flag in flags:
             self.log.warning("cvkit flag for %s: %s", student, flag)
@@ -93,6 +92,37 @@ class TrustedChecks(NbGraderPreprocessor):
 
     def preprocess_cell(self, cell, resources, index):  # pragma: no cover - whole-notebook preprocessor
         return cell, resources
+
+
+class LatePenalty(LateSubmissionPlugin):
+    """nbgrader's late-submission plugin, with the policies of ``plan.toml``'s ``[late]`` table
+    (:class:`cvkit.course.plan.LatePolicy`; set by :func:`cvkit.course.plan.configure_nbgrader`
+    as ``AssignLatePenalties.plugin_class``).
+
+    nbgrader calls it for each notebook of a submission whose timestamp (``timestamp.txt``) is
+    after the assignment's due date, and keeps the penalty between 0 and the notebook's score.
+    """
+
+    policy = Enum(("none", "zero", "per_hour"), default_value="none",
+                  help="none: no penalty; zero: a late notebook scores 0; "
+                       "per_hour: points_per_hour for every started hour late").tag(config=True)
+    points_per_hour = Float(1.0, help="points taken per started hour late (policy per_hour)").tag(config=True)
+
+    def late_submission_penalty(self, student_id: str, score: float, total_seconds_late: float) -> float | None:
+        """The penalty of a notebook ``total_seconds_late`` seconds late that scored ``score``.
+
+        Returns
+        -------
+        float or None
+            None for no penalty; ``score`` for ``zero``; for ``per_hour``,
+            ``points_per_hour × ⌈hours late⌉``, at most ``score``.
+        """
+        if total_seconds_late <= 0 or self.policy == "none":
+            return None
+        if self.policy == "zero":
+            return score
+        hours = -(-float(total_seconds_late) // 3600.0)
+        return min(float(score), hours * float(self.points_per_hour))
 
 
 class SandboxedExecute(NbGraderPreprocessor):
@@ -184,6 +214,10 @@ def apply_trusted_checks(nb: NotebookNode, *, student: str, salt: str, source_no
     ``metadata.cvkit.reports_in_cells``. Returns the flags of the static scan, which also go
     into ``nb.metadata.cvkit``. Used by :class:`TrustedChecks` and by the parallel phase of
     :meth:`cvkit.course.Course.grade`."""
+    # only the trusted grader writes cvkit metadata: whatever the submission brought along
+    # (a forged report, flags, an "unsandboxed_note" that would hide the banner) is dropped
+    nb.metadata.pop("cvkit", None)
+    nb.cells = [cell for cell in nb.cells if not _is_banner(cell)]
     grade = grade_notebook(nb, student=student, salt=salt, source_notebook=source_notebook, memory_mb=memory_mb)
     for cell in nb.cells:
         cell.metadata.pop("cvkit", None)  # only the trusted grader writes there
@@ -204,18 +238,27 @@ def apply_trusted_checks(nb: NotebookNode, *, student: str, salt: str, source_no
                                       traceback=[f"AssertionError: {message}"]))
         cell.outputs = outputs
         cell.metadata["cvkit"] = {"report": cell_report(grade_id, entries, points, credit, grade.flags)}
-    if not grade.sandboxed and not nb.metadata.get("cvkit", {}).get("unsandboxed_note"):
+    if not grade.sandboxed:
         from nbformat.v4 import new_markdown_cell
 
-        nb.cells.insert(0, new_markdown_cell(
-            "**⚠ Graded without the sandbox** (`cvkit course grade --no-sandbox`): your code ran with the "
-            "grader's rights on the grading machine. Ask your instructor if this is unexpected."))
-    cvkit_meta = dict(nb.metadata.get("cvkit", {}))
-    cvkit_meta.update(trusted=True, flags=grade.flags, worker_problem=grade.worker_problem,
-                      cell_errors=grade.cell_errors[:20], sandboxed=grade.sandboxed,
-                      unsandboxed_note=not grade.sandboxed, reports_in_cells=True)
-    nb.metadata["cvkit"] = cvkit_meta
+        nb.cells.insert(0, new_markdown_cell(UNSANDBOXED_BANNER))
+    nb.metadata["cvkit"] = dict(trusted=True, flags=grade.flags, worker_problem=grade.worker_problem,
+                                cell_errors=grade.cell_errors[:20], sandboxed=grade.sandboxed,
+                                unsandboxed_note=not grade.sandboxed, reports_in_cells=True)
     return list(grade.flags)
+
+
+#: the first cell of a notebook graded with ``--no-sandbox`` (put there by :func:`apply_trusted_checks`)
+UNSANDBOXED_BANNER = (
+    "**⚠ Graded without the sandbox** (`cvkit course grade --no-sandbox`): your code ran with the "
+    "grader's rights on the grading machine. Ask your instructor if this is unexpected.")
+
+
+def _is_banner(cell: Any) -> bool:
+    """The banner of an earlier grading (or the student's copy of it): replaced by a fresh one."""
+    source = cell.get("source", "")
+    text = source if isinstance(source, str) else "".join(source)
+    return cell.get("cell_type") == "markdown" and text.strip() == UNSANDBOXED_BANNER
 
 
 def trusted_grading_active() -> bool:
