@@ -152,6 +152,7 @@ def test_borders_and_their_swaps():
     assert set(casekit.BORDERS) == {"zero", "replicate", "reflect", "reflect101"}
     for border, other in casekit.SWAPPED_REFLECT.items():
         assert casekit.SWAPPED_REFLECT[other] == border
+    assert [casekit.swap_reflect(b) for b in casekit.BORDERS] == ["zero", "replicate", "reflect101", "reflect"]
 
 
 # --------------------------------------------------------------------------------------------

@@ -33,10 +33,10 @@ from ..filters import correlate as _correlate
 from ..filters import gaussian as _gaussian
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
 from ..grading.casekit import BORDERS, random_image, variant
-from ..grading.casekit import SWAPPED_REFLECT as _SWAP
 from ..grading.casekit import distinct as _distinct
 from ..grading.casekit import sigma as _sigma
 from ..grading.casekit import size as _size
+from ..grading.casekit import swap_reflect as _swap_reflect
 from ..grading.casekit import uniform as _u
 from ..grading.compare import as_numeric, shape_mismatch
 from ._canny import _components
@@ -271,7 +271,7 @@ def _grad_zero(image, scheme="central", border="reflect101"):
 
 
 def _grad_swap_reflect(image, scheme="central", border="reflect101"):
-    return _gradient(image, scheme, _SWAP.get(border, border))
+    return _gradient(image, scheme, _swap_reflect(border))
 
 
 def _gradient_hidden(rng):
@@ -508,7 +508,7 @@ def _derivative_mistakes(reference, other, other_name: str, scale: int, what: st
         return reference(image, "zero")
 
     def swap_reflect(image, border="reflect101"):
-        return reference(image, _SWAP.get(border, border))
+        return reference(image, _swap_reflect(border))
 
     centre = "1" if other_name == "Prewitt" else "2"
     return [
@@ -600,7 +600,7 @@ def _lap_zero(image, border="reflect101"):
 
 
 def _lap_swap_reflect(image, border="reflect101"):
-    return _laplacian(image, _SWAP.get(border, border))
+    return _laplacian(image, _swap_reflect(border))
 
 
 laplacian = Check(
@@ -709,7 +709,7 @@ def _log_scaled(image, sigma, border="reflect101"):
 
 
 def _log_swap_reflect(image, sigma, border="reflect101"):
-    return _log(image, sigma, _SWAP.get(border, border))
+    return _log(image, sigma, _swap_reflect(border))
 
 
 def _log_hidden(rng):
@@ -785,7 +785,7 @@ def _dog_zero(image, sigma, k=1.6, border="reflect101"):
 
 
 def _dog_swap_reflect(image, sigma, k=1.6, border="reflect101"):
-    return _dog(image, sigma, k, _SWAP.get(border, border))
+    return _dog(image, sigma, k, _swap_reflect(border))
 
 
 def _k(rng, lo=1.2, hi=2.0):

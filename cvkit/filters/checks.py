@@ -25,10 +25,10 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ..grading import Case, Check, Mistake, close
 from ..grading.casekit import BORDERS, random_image, variant
-from ..grading.casekit import SWAPPED_REFLECT as _SWAP
 from ..grading.casekit import distinct as _distinct
 from ..grading.casekit import sigma as _sigma
 from ..grading.casekit import size as _size
+from ..grading.casekit import swap_reflect as _swap_reflect
 from ..grading.casekit import uniform as _u
 from ._linear import convolve as _convolve
 from ._linear import correlate as _correlate
@@ -119,7 +119,7 @@ def _channels_last(img: np.ndarray) -> np.ndarray:
 # filters.pad (§3.7)
 # --------------------------------------------------------------------------------------------
 def _pad_swapped(image, radius, border="reflect101"):
-    return _pad(image, radius, _SWAP.get(border, border))
+    return _pad(image, radius, _swap_reflect(border))
 
 
 def _pad_radius_swapped(image, radius, border="reflect101"):
@@ -220,7 +220,7 @@ def _corr_transposed(image, kernel, border="reflect101", output="same"):
 
 
 def _corr_swapped(image, kernel, border="reflect101", output="same"):
-    return _correlate(image, kernel, _SWAP.get(border, border), output)
+    return _correlate(image, kernel, _swap_reflect(border), output)
 
 
 def _linear_hidden(rng, even_sizes):
@@ -317,7 +317,7 @@ def _conv_zero(image, kernel, border="reflect101", output="same"):
 
 
 def _conv_swapped(image, kernel, border="reflect101", output="same"):
-    return _convolve(image, kernel, _SWAP.get(border, border), output)
+    return _convolve(image, kernel, _swap_reflect(border), output)
 
 
 convolve = Check(
@@ -420,7 +420,7 @@ def _mean_zero(image, size, border="reflect101"):
 
 
 def _mean_swapped(image, size, border="reflect101"):
-    return _mean(image, size, _SWAP.get(border, border))
+    return _mean(image, size, _swap_reflect(border))
 
 
 def _window_edge_cases(rng, img, copy_border):
@@ -585,7 +585,7 @@ def _g_zero(image, sigma, border="reflect101"):
 
 
 def _g_swapped(image, sigma, border="reflect101"):
-    return _gaussian(image, sigma, _SWAP.get(border, border))
+    return _gaussian(image, sigma, _swap_reflect(border))
 
 
 def _gaussian_hidden(rng):
@@ -699,7 +699,7 @@ median = Check(
                 lambda image, size, border="reflect101": _median(image, 2 * size + 1, border),
                 "`size` is the side of the window; its radius is size // 2"),
         Mistake("reflect and reflect101 swapped",
-                lambda image, size, border="reflect101": _median(image, size, _SWAP.get(border, border)),
+                lambda image, size, border="reflect101": _median(image, size, _swap_reflect(border)),
                 "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
         Mistake("median computed separably (rows, then columns)", _median_separable,
                 "The median is not separable: take the median of all size² values of the window at once"),

@@ -6,8 +6,8 @@ wrong implementations. The helpers they have in common live here:
 
 - drawing: :func:`size`, :func:`seed`, :func:`uniform`, :func:`sigma`, :func:`random_image`;
 - fixed inputs: :func:`distinct` (shuffled distinct integers: every flip, shift and swap
-  shows), :func:`rounded` (values readable in reports), :data:`BORDERS` and
-  :data:`SWAPPED_REFLECT`;
+  shows), :func:`rounded` (values readable in reports), :data:`BORDERS`,
+  :data:`SWAPPED_REFLECT` and :func:`swap_reflect`;
 - reading a case: :func:`argument`;
 - mistakes: :func:`variant` (one named wrong version out of a parametrised one).
 
@@ -30,13 +30,23 @@ from .checks import Case
 
 __all__ = [
     "BORDERS", "SWAPPED_REFLECT", "argument", "distinct", "random_image", "rounded", "seed", "sigma",
-    "size", "uniform", "variant",
+    "size", "swap_reflect", "uniform", "variant",
 ]
 
 #: the border modes of the filters (``border=`` of ``filters.pad`` and its callers)
 BORDERS = ("zero", "replicate", "reflect", "reflect101")
 #: each reflecting border mode and the one it is confused with (the edge pixel repeated or not)
 SWAPPED_REFLECT = {"reflect": "reflect101", "reflect101": "reflect"}
+
+def swap_reflect(border: Any) -> Any:
+    """The border mode a "reflect and reflect101 swapped" mistake uses instead of ``border``
+    (:data:`SWAPPED_REFLECT`; any other mode unchanged).
+
+    >>> swap_reflect("reflect"), swap_reflect("zero")
+    ('reflect101', 'zero')
+    """
+    return SWAPPED_REFLECT.get(border, border)
+
 
 #: what :func:`random_image` can draw
 IMAGE_KINDS = ("unit", "uint8", "big", "normal", "const")
