@@ -238,8 +238,10 @@ def _cmd_demo(args) -> int:
     course = Course(root, db_url=args.db_url)
     assignments = _demo_chapters(args, course)
     start = time.perf_counter()
-    others = "" if args.all or args.assignment else " (--all: every chapter)"
-    print(f"[1/4] building {len(assignments)} chapter{'s' * (len(assignments) != 1)} in {root}{others}", flush=True)
+    planned = len(course.assignments())
+    which = (f"{len(assignments)} of the {planned} chapters (--all for every one)" if len(assignments) < planned
+             else f"{len(assignments)} chapter{'s' * (len(assignments) != 1)}")
+    print(f"[1/4] building {which} in {root}", flush=True)
     course.build(assignments, progress=True)
     print("[2/4] creating sample submissions: " + ", ".join(SAMPLE_STUDENTS), flush=True)
     for a in progress(assignments, "samples", True, unit="chapter"):

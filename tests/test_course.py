@@ -6,8 +6,11 @@ The full pipeline runs on a representative subset of chapters (``DEMO_CHAPTERS``
 well inside its time budget; every chapter's "typical mistakes" sample is graded in-process by
 the same engine (``test_every_chapters_mistakes_sample``), and every chapter's solutions pass
 all their tests in ``tests/test_notebooks.py``."""
+import contextlib
 import csv
+import io
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -23,6 +26,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 DEMO_CHAPTERS = ["ch01_introduction", "ch03_filtering"]
 CHAPTERS = sorted(p.name for p in (ROOT / "lectures").glob("ch*_*") if p.is_dir())
+OUTPUT: dict = {}  # what the demo printed (stdout, stderr)
 
 
 @pytest.fixture(scope="module")
@@ -32,8 +36,11 @@ def demo(tmp_path_factory):
     args = ["demo", "--dir", str(folder), "--workers", "2"]
     for chapter in chosen:
         args += ["--assignment", chapter]
-    status = main(args)
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = main(args)
     course = Course(folder)
+    OUTPUT.update(out=out.getvalue(), err=err.getvalue())
     return status, course
 
 
@@ -74,6 +81,23 @@ def test_demo_succeeds(demo, capsys):
     assert course.audit(course.submissions()) == []
     chosen = [c for c in DEMO_CHAPTERS if c in CHAPTERS]
     assert sorted(s for s, _ in course.submissions()) == sorted(SAMPLE_STUDENTS * len(chosen))
+
+
+def test_every_phase_says_how_far_it_got_and_nothing_looks_like_an_error(demo):
+    """Where nobody watches a terminal, each phase prints one line with its count and time."""
+    status, course = demo
+    out, err = OUTPUT["out"], OUTPUT["err"]
+    chosen = len([c for c in DEMO_CHAPTERS if c in CHAPTERS])
+    subs = 3 * chosen
+    for phase in (f"build: {chosen}/{chosen} chapters", f"samples: {chosen}/{chosen} chapters",
+                  f"grade: {subs}/{subs} submissions", f"record: {subs}/{subs} submissions",
+                  f"feedback: {subs}/{subs} pages", f"exports: {chosen + 1}/{chosen + 1} files",
+                  f"similarity: {chosen}/{chosen} assignments"):
+        assert re.search(rf"^{re.escape(phase)} in \d+ s$", out, re.MULTILINE), phase
+    assert "similar answers:" in out and "never a score change" in out
+    assert (course.root / "exports" / "similarity.csv").is_file()
+    assert (course.root / "exports" / "similarity.html").is_file()
+    assert err == ""
 
 
 def test_release_has_stubs_and_no_solutions_or_hidden_tests(demo):

@@ -210,10 +210,17 @@ def similarity_summary(course: Course, top: int = 5) -> list[str]:
     path = course.root / "exports" / "similarity.html"
     if not pairs:
         return [f"similar answers: none above the threshold ({path})"]
-    lines = [f"similar answers: {len(pairs)} pair{'s' * (len(pairs) != 1)} (a signal for the instructor, "
-             f"never a score change): {path}"]
+    from ..grading.similarity import SOLUTION
+
+    references = sum(p["student_b"].startswith("(reference") for p in pairs)
+    solutions = sum(p["student_b"] == SOLUTION for p in pairs)
+    kinds = [f"{len(pairs) - references - solutions} between students"]
+    kinds += [f"{references} with the reference"] if references else []
+    kinds += [f"{solutions} with the instructor's solution"] if solutions else []
+    lines = [f"similar answers: {len(pairs)} pair{'s' * (len(pairs) != 1)} ({', '.join(kinds)}; a signal for the "
+             f"instructor, never a score change): {path}"]
     for pair in pairs[:top]:
-        lines.append(f"  {float(pair['similarity']):.0%}  {pair['assignment']} · {pair['exercise']}: "
+        lines.append(f"  {float(pair['similarity']):>4.0%}  {pair['assignment']} · {pair['exercise']}: "
                      f"{pair['student_a']} ↔ {pair['student_b']}")
     if len(pairs) > top:
         lines.append(f"  ... and {len(pairs) - top} more in {path.name}")

@@ -58,9 +58,8 @@ class _Batches:
                 try:
                     step.result()
                 except Exception:  # a lost worker or a busy gradebook: this process writes them later
-                    self.bars["feedback"].grow(-pages)
-                else:
-                    self.bars["feedback"].update(pages)
+                    continue
+                self.bars["feedback"].update(pages)
 
     def outcome(self, future: Any) -> ExecutedSubmission:
         try:
@@ -86,7 +85,6 @@ class _Batches:
             course = self.course
             step = max(1, -(-len(pairs) // max(1, self.workers)))
             for chunk in (pairs[i:i + step] for i in range(0, len(pairs), step)):
-                self.bars["feedback"].grow(len(chunk))
                 self.feedback_steps[self.pool.submit(
                     feedback_submissions, str(course.root), course.db_url, str(course.project), chunk)] = len(chunk)
         self.feedback_done()
@@ -165,7 +163,7 @@ def grade(course: Course, assignments: Iterable[str] | None = None, workers: int
         course.sync_due_dates()
     bars = {"grade": Phase("grade", len(payloads), progress_bar and bool(payloads), unit="submission", position=0),
             "record": Phase("record", len(payloads), progress_bar and bool(payloads), unit="submission", position=1),
-            "feedback": Phase("feedback", 0, progress_bar and bool(payloads), unit="page", position=2)}
+            "feedback": Phase("feedback", len(payloads), progress_bar and bool(payloads), unit="page", position=2)}
     batches = _Batches(course, size, workers, bars)
     if scheduler and payloads:
         _on_dask(batches, payloads, scheduler)
@@ -191,7 +189,7 @@ def grade(course: Course, assignments: Iterable[str] | None = None, workers: int
     feedback = bars["feedback"]
     if pages and not feedback.enabled:
         feedback = Phase("feedback", 0, progress_bar, unit="page")
-    feedback.grow(len(pages))
+    feedback.set_total(feedback.done + len(pages))  # the estimate (a page per submission) made exact
     course.feedback(pages, feedback)
     feedback.close()
     course.export(progress_bar)

@@ -22,7 +22,7 @@ class Phase:
     name : str
         What the phase does (``"grade"``, ``"feedback"``); its bar's label.
     total : int
-        How many steps it has (may grow, :meth:`grow`).
+        How many steps it has (an estimate may be corrected, :meth:`set_total`).
     enabled : bool
         False: silent (every method does nothing).
     unit : str
@@ -71,9 +71,9 @@ class Phase:
         if self._bar is not None:
             self._bar.update(n)
 
-    def grow(self, n: int) -> None:
-        """``n`` more steps to do (known only as the phase goes)."""
-        self.total += n
+    def set_total(self, total: int) -> None:
+        """The number of steps, once better known than at the start."""
+        self.total = int(total)
         if self._bar is not None:
             self._bar.total = self.total
             self._bar.refresh()
