@@ -52,8 +52,7 @@ def test_every_catalog_id_of_the_chapter_is_registered_with_a_check():
 def test_check_is_complete(algorithm_id):
     spec = _check(algorithm_id)
     harness.assert_check_is_complete(spec, SEEDS, public=(1, 6), hidden=(8, 14), min_mistakes=4)
-    assert spec.seeded == (algorithm_id in ARRAY_RANDOM or
-                           (algorithm_id in RANDOM and train_checks._STRUCTURED_SEEDED))
+    assert spec.seeded == (algorithm_id in ARRAY_RANDOM or algorithm_id in RANDOM)
 
 
 @pytest.mark.parametrize("algorithm_id", CH12)
@@ -179,8 +178,6 @@ def test_drawing_from_np_random_fails_the_seeded_check(algorithm_id):
     assert any("same rng seed" in c.message for c in report.cases)
 
 
-@pytest.mark.skipif(not train_checks._STRUCTURED_SEEDED,
-                    reason="the engine's seeded re-run cannot compare tuples/lists yet (see checks._engine_compares_structures)")
 @pytest.mark.parametrize("algorithm_id", ["train.mixup", "train.cutmix", "train.random_search"])
 def test_drawing_from_np_random_fails_the_structured_seeded_checks(algorithm_id):
     reference = _reference(algorithm_id)

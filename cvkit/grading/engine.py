@@ -12,12 +12,12 @@ import json
 import os
 import re
 import warnings
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
 from .. import registry
-from .checks import Check, Mistake, bind_call
+from .checks import Case, Check, Mistake, bind_call
 from .compare import Mismatch, Statistics
 from .diagnose import CONVENTION, diagnose, explain_exception, image_variants
 from .runtime.guard import Outcome, run_guarded
@@ -66,8 +66,6 @@ def arg_names(function: Callable, check: Check) -> tuple:
         return ()
 
 
-#: the former private name, still imported by :mod:`cvkit.grading.trusted`
-_arg_names = arg_names
 
 
 def _reference_output(function: Callable, case, call: Callable | None = None) -> Any:
@@ -285,12 +283,13 @@ def _explain_crash(spec: Check, reference: Callable, case, outcome: Outcome, exp
 
 def evaluate(
     algorithm_id: str,
-    candidate: Callable,
+    candidate: Callable | None = None,
     *,
     hidden: bool = False,
     seed: int | None = None,
     check: Check | None = None,
     runner: Callable | None = None,
+    cases: Sequence[Case] | None = None,
 ) -> Report:
     """Grade ``candidate`` on the public (or hidden) cases of ``algorithm_id``.
 
@@ -300,6 +299,7 @@ def evaluate(
         A catalog id such as ``"filters.gaussian"``.
     candidate : callable
         The implementation to grade (a student's function, a mistake, the reference...).
+        Not needed when a ``runner`` gives the outcomes.
     hidden : bool
         Grade on the hidden cases drawn from ``seed`` instead of the public ones.
     seed : int, optional
@@ -310,6 +310,10 @@ def evaluate(
         ``runner(index, case, attempt) -> Outcome`` producing the candidate's outcome for a
         case (attempt 1 is the seeded re-run) — e.g. outcomes computed in an isolated worker
         (:mod:`cvkit.grading.trusted`). Default: call ``candidate`` here, under the guard.
+    cases : sequence of Case, optional
+        Grade on these cases, already drawn by the caller (the trusted path draws a notebook's
+        cases once and sends them to the sandbox), instead of drawing them here; ``hidden`` and
+        ``seed`` then only label the report.
 
     Returns
     -------
@@ -359,14 +363,17 @@ def evaluate(
     spec = check if check is not None else record.check
     if spec is None:
         raise ValueError(f"algorithm {algorithm_id!r} has no check")
-    if hidden:
+    if cases is not None:
+        cases = list(cases)
+        seed = int(seed) if hidden and seed is not None else None
+    elif hidden:
         seed = hidden_seed(algorithm_id) if seed is None else int(seed)
         cases = spec.hidden_cases(np.random.default_rng(seed))
     else:
         cases = spec.public_cases()
         seed = None
     report = Report(algorithm_id, record.section, hidden, seed, [])
-    if not callable(candidate):
+    if runner is None and not callable(candidate):
         report.problem = f"expected a function to grade, got {type(candidate).__name__}"
         return report
 
@@ -376,6 +383,7 @@ def evaluate(
     runs_here = runner is None  # the candidate is called in this process (it can run other cases)
     run_here = None
     if runner is None:
+        assert candidate is not None  # checked above: no runner needs a candidate
         graded = bind_call(spec.call, candidate)
 
         def runner(index, case, attempt):
@@ -498,7 +506,8 @@ def _dropped_entry(index: int, label: str, error: BaseException, limit: int = 30
     return f"case {index + 1} ({label}): reference raised {type(error).__name__}" + (f": {message}" if message else "")
 
 
-def _nothing_counted(report: Report, algorithm_id: str, candidate: Callable, spec: Check, runs_here: bool) -> Report:
+def _nothing_counted(report: Report, algorithm_id: str, candidate: Callable | None, spec: Check,
+                     runs_here: bool) -> Report:
     """The reference raised on every case (see :func:`evaluate`, Notes): grade on the visible
     cases instead when possible, else mark the report as not graded."""
     n = len(report.dropped)

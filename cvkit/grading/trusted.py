@@ -293,18 +293,10 @@ class _Plan:
         def runner(index: int, case: Case, attempt: int) -> Outcome | None:
             return found.get((index, attempt))
 
-        # engine.evaluate takes its cases from a check: one that yields the cases drawn for this
-        # plan (a copy: nothing done to them there reaches the requests a cascade sends again)
-        drawn = copy.deepcopy(self.cases)
-        drawn_check = dataclasses.replace(self.spec, public=drawn, hidden=lambda rng: drawn)
-        return evaluate(self.call.algorithm_id, _run_in_the_sandbox, hidden=self.call.hidden, seed=self.seed,
-                        check=drawn_check, runner=runner)
-
-
-def _run_in_the_sandbox(*args: Any, **kwargs: Any) -> Any:
-    """The candidate :meth:`_Plan.report` hands to ``evaluate``: it lives in the sandbox, its
-    outcomes come from the plan's runner, and it is never called here."""
-    raise RuntimeError("trusted grading evaluates outcomes computed by the worker")
+        # the cases drawn for this plan (a copy: nothing done to them there reaches the
+        # requests a cascade sends again); the candidate lives in the sandbox
+        return evaluate(self.call.algorithm_id, hidden=self.call.hidden, seed=self.seed, check=self.spec,
+                        runner=runner, cases=copy.deepcopy(self.cases))
 
 
 def _draw_cases(spec: Check, hidden: bool, seed: int | None) -> list[Case]:

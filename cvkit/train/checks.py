@@ -53,12 +53,6 @@ __all__ = [
 _SQRT2 = math.sqrt(2.0)
 
 
-#: mixup, cutmix and random search return tuples, lists and dicts: the engine's seeded re-run
-#: compares those element by element (:func:`cvkit.grading.engine.identical`), so their checks
-#: require reproducibility like the others
-_STRUCTURED_SEEDED = True
-
-
 # --------------------------------------------------------------------------------------------
 # comparators
 # --------------------------------------------------------------------------------------------
@@ -1359,7 +1353,7 @@ mixup = Check(
         Mistake("returns 1 − λ instead of λ", _mx_complement,
                 "Return the λ that multiplies x (and y), the weight of the sample itself"),
     ],
-    seeded=_STRUCTURED_SEEDED,
+    seeded=True,  # tuples, lists and dicts: the seeded re-run compares them element by element
 )
 
 
@@ -1488,7 +1482,7 @@ cutmix = Check(
         Mistake("a different box for every sample", _cm_per_sample,
                 "Draw one box for the whole batch (one λ): every sample gets the same box from its partner"),
     ],
-    seeded=_STRUCTURED_SEEDED,
+    seeded=True,  # tuples, lists and dicts: the seeded re-run compares them element by element
 )
 
 
@@ -1655,7 +1649,7 @@ random_search = Check(
         Mistake("uniform range sampled log-uniformly", _rs_uniform_log,
                 "Without 'log' (or with 'log': False) the value is uniform on [low, high]: rng.uniform(low, high)"),
     ],
-    seeded=_STRUCTURED_SEEDED,
+    seeded=True,  # tuples, lists and dicts: the seeded re-run compares them element by element
 )
 
 
