@@ -1,4 +1,5 @@
-"""Argument checks shared by every cvkit module.
+"""Argument checks (and :class:`AttributeDict`, the type of results with many parts) shared by
+every cvkit module.
 
 Each helper raises ``TypeError`` (wrong kind of object) or ``ValueError`` (right kind, wrong
 value) with a message that names the argument and says what was expected.
@@ -6,6 +7,7 @@ value) with a message that names the argument and says what was expected.
 from __future__ import annotations
 
 import numbers
+from typing import Any
 
 import numpy as np
 
@@ -140,6 +142,24 @@ def check_padded(shape: tuple[int, ...], radius: int, name: str) -> tuple[int, .
     ``ValueError`` naming ``name`` if that padded image would exceed :data:`MAX_ARRAY_BYTES`."""
     grown = (shape[0] + 2 * radius, shape[1] + 2 * radius) + tuple(shape[2:])
     return check_allocation(grown, name, what="a padded image")
+
+
+class AttributeDict(dict):
+    """A dict whose keys are also attributes (``result.rms`` is ``result["rms"]``): the base of
+    results with many named parts, such as :class:`cvkit.calibration.CalibrationResult`.
+
+    >>> AttributeDict(rms=0.5).rms
+    0.5
+    """
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return self[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def __dir__(self) -> list[str]:
+        return list(super().__dir__()) + list(self.keys())
 
 
 from typing import Literal  # noqa: E402  (type aliases for the annotations of the topics)

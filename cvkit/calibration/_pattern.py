@@ -381,7 +381,6 @@ def corner_candidates(image: ArrayLike, count: int, sigma: float = 1.5) -> tuple
     Examples
     --------
     >>> import numpy as np
-    >>> import numpy as np
     >>> from cvkit.data import render_chessboard
     >>> A = np.array([[200.0, 0, 64], [0, 200, 48], [0, 0, 1]])
     >>> img = render_chessboard(A, np.eye(3), [-15.0, -10.0, 200.0], cols=4, rows=3, square_size=10.0,
@@ -631,7 +630,6 @@ def refine_corners(image: ArrayLike, corners: ArrayLike, sigma: float) -> np.nda
 
     Examples
     --------
-    >>> import numpy as np
     >>> import numpy as np
     >>> from cvkit.data import render_chessboard
     >>> A = np.array([[200.0, 0, 64], [0, 200, 48], [0, 0, 1]])

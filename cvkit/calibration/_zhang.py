@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, check_allocation
+from .._validation import AttributeDict, as_float_array, check_allocation
 from ..camera import as_intrinsics, as_matrix, as_points, as_rotation, as_translation
 from ..registry import algorithm, implementation
 
@@ -24,7 +24,7 @@ __all__ = [
 ]
 
 
-class CalibrationResult(dict):
+class CalibrationResult(AttributeDict):
     """The result of :func:`calibrate`: a dict whose keys are also attributes.
 
     Keys: ``A`` (3×3, skew 0), ``k`` (k1, k2), ``rotations`` (V, 3, 3), ``translations``
@@ -33,15 +33,6 @@ class CalibrationResult(dict):
     closed-form estimates before the global refinement: ``A`` with its skew, ``k``,
     ``rotations``, ``translations``, ``rms``) and ``info`` (of the final Levenberg–Marquardt).
     """
-
-    def __getattr__(self, name: str) -> Any:
-        try:
-            return self[name]
-        except KeyError:
-            raise AttributeError(name) from None
-
-    def __dir__(self) -> list[str]:
-        return list(super().__dir__()) + list(self.keys())
 
 
 # --------------------------------------------------------------------------------------------

@@ -33,6 +33,7 @@ C = −Rᵀt); the image plane is in front of the optical centre (no minus signs
 >>> camera.project(camera.projection_matrix(A, R, t), [[0.0, 0.0, 0.0]])
 array([[320., 240.]])
 """
+from . import _projection
 from ._homogeneous import from_homogeneous, to_homogeneous
 from ._projection import (
     decompose_projection,
@@ -57,12 +58,7 @@ from ._common import (
 __all__ = [
     "to_homogeneous",
     "from_homogeneous",
-    "intrinsic_matrix",
-    "rotation_matrix",
-    "extrinsic_matrix",
-    "projection_matrix",
-    "project",
-    "decompose_projection",
+    *_projection.__all__,
     "distort",
     "undistort_points",
     "project_full",

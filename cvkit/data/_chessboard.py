@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_rng, check_allocation, check_int, check_real, check_size
+from .._validation import AttributeDict, as_rng, check_allocation, check_int, check_real, check_size
 
 __all__ = ["ChessboardViews", "render_chessboard", "random_board_poses", "chessboard_views"]
 
@@ -44,7 +44,7 @@ MAX_SUPERSAMPLE = 64
 MAX_TRIES = 100_000
 
 
-class ChessboardViews(dict):
+class ChessboardViews(AttributeDict):
     """The rendered views and their ground truth: a dict whose keys are also attributes.
 
     Keys: ``images`` (list of images, or None when not rendered), ``world_points``
@@ -53,15 +53,6 @@ class ChessboardViews(dict):
     (p1, p2), ``rotations`` ``(n_views, 3, 3)``, ``translations`` ``(n_views, 3)``, ``cols``,
     ``rows``, ``square_size``, ``image_size`` (rows, cols) and ``noise``.
     """
-
-    def __getattr__(self, name: str) -> Any:
-        try:
-            return self[name]
-        except KeyError:
-            raise AttributeError(name) from None
-
-    def __dir__(self) -> list[str]:
-        return list(super().__dir__()) + list(self.keys())
 
 
 # --------------------------------------------------------------------------------------------
