@@ -32,11 +32,10 @@ from ..data import disk_image, oriented_step_image, square_image
 from ..filters import correlate as _correlate
 from ..filters import gaussian as _gaussian
 from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
-from ..grading.casekit import BORDERS, random_image, variant
+from ..grading.casekit import BORDERS, border_mistakes, border_zero, random_image, reflect_swapped, variant
 from ..grading.casekit import distinct as _distinct
 from ..grading.casekit import sigma as _sigma
 from ..grading.casekit import size as _size
-from ..grading.casekit import swap_reflect as _swap_reflect
 from ..grading.casekit import uniform as _u
 from ..grading.compare import as_numeric, shape_mismatch
 from ._canny import _components
@@ -266,14 +265,6 @@ def _grad_numpy(image, scheme="central", border="reflect101"):
     return ix, iy
 
 
-def _grad_zero(image, scheme="central", border="reflect101"):
-    return _gradient(image, scheme, "zero")
-
-
-def _grad_swap_reflect(image, scheme="central", border="reflect101"):
-    return _gradient(image, scheme, _swap_reflect(border))
-
-
 def _gradient_hidden(rng):
     def img(h, w, kind="unit"):
         return random_image(rng, (h, w), kind)
@@ -325,10 +316,7 @@ gradient = Check(
         Mistake("one-sided differences at the border (numpy.gradient)", _grad_numpy,
                 "Use the same formula at every pixel and read the missing neighbour through `border` "
                 "(pad the image); numpy.gradient switches to one-sided differences at the border"),
-        Mistake("border ignored (always zero)", _grad_zero,
-                "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
-        Mistake("reflect and reflect101 swapped", _grad_swap_reflect,
-                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+        *border_mistakes(_gradient, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
     ],
     allowed=("filters.pad",),
 )
@@ -504,12 +492,6 @@ def _derivative_mistakes(reference, other, other_name: str, scale: int, what: st
         gx, gy = reference(image, border)
         return gx / scale, gy / scale
 
-    def zero(image, border="reflect101"):
-        return reference(image, "zero")
-
-    def swap_reflect(image, border="reflect101"):
-        return reference(image, _swap_reflect(border))
-
     centre = "1" if other_name == "Prewitt" else "2"
     return [
         Mistake("signs flipped (kernels convolved, not correlated)", signs,
@@ -524,10 +506,7 @@ def _derivative_mistakes(reference, other, other_name: str, scale: int, what: st
                 + ("[1, 2, 1]" if other_name == "Prewitt" else "[1, 1, 1]")),
         Mistake(f"normalised by 1/{scale}", normalised,
                 f"Do not normalise: the kernels have integer weights (a unit step gives {scale // 2})"),
-        Mistake("border ignored (always zero)", zero,
-                "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
-        Mistake("reflect and reflect101 swapped", swap_reflect,
-                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+        *border_mistakes(reference, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
     ]
 
 
@@ -595,14 +574,6 @@ def _lap_x_only(image, border="reflect101"):
     return _correlate(image, np.array([[1.0, -2.0, 1.0]]), border)
 
 
-def _lap_zero(image, border="reflect101"):
-    return _laplacian(image, "zero")
-
-
-def _lap_swap_reflect(image, border="reflect101"):
-    return _laplacian(image, _swap_reflect(border))
-
-
 laplacian = Check(
     public=[
         Case((_distinct((5, 6)),), {}, "5×6 image, default border (reflect101)"),
@@ -617,10 +588,7 @@ laplacian = Check(
         Mistake("sign flipped", _lap_sign, "Ixx + Iyy = (sum of the 4 neighbours) − 4·I(p), not 4·I(p) − (...)"),
         Mistake("only Ixx (no Iyy)", _lap_x_only,
                 "The Laplacian adds both second derivatives: Ixx + Iyy, i.e. all four neighbours"),
-        Mistake("border ignored (always zero)", _lap_zero,
-                "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
-        Mistake("reflect and reflect101 swapped", _lap_swap_reflect,
-                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+        *border_mistakes(_laplacian, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
     ],
     allowed=("filters.pad",),
 )
@@ -700,16 +668,8 @@ def _log_two_steps(image, sigma, border="reflect101"):
     return _laplacian(_gaussian(image, sigma, border), border)
 
 
-def _log_zero(image, sigma, border="reflect101"):
-    return _log(image, sigma, "zero")
-
-
 def _log_scaled(image, sigma, border="reflect101"):
     return sigma * sigma * _log(image, sigma, border)
-
-
-def _log_swap_reflect(image, sigma, border="reflect101"):
-    return _log(image, sigma, _swap_reflect(border))
 
 
 def _log_hidden(rng):
@@ -751,11 +711,9 @@ log = Check(
                 "Correlate with ∇²G = (x²+y²−2σ²)/(2πσ⁶)·exp(−(x²+y²)/2σ²), negative at the centre"),
         Mistake("Gaussian then 4-neighbour Laplacian (not the LoG kernel)", _log_two_steps,
                 "Correlate once with the sampled LoG kernel log_kernel(σ), not smoothing then a 3×3 Laplacian"),
-        Mistake("border ignored (always zero)", _log_zero,
-                "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
+        border_zero(_log, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
         Mistake("scale-normalised (multiplied by σ²)", _log_scaled, "Return the LoG response itself, without a σ² factor"),
-        Mistake("reflect and reflect101 swapped", _log_swap_reflect,
-                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+        reflect_swapped(_log),
     ],
     allowed=("filters.pad", "filters.correlate", "filters.convolve", "edges.log_kernel"),
 )
@@ -778,14 +736,6 @@ def _dog_k_ignored(image, sigma, k=1.6, border="reflect101"):
 
 def _dog_k_squared(image, sigma, k=1.6, border="reflect101"):
     return _dog(image, sigma, k * k, border)
-
-
-def _dog_zero(image, sigma, k=1.6, border="reflect101"):
-    return _dog(image, sigma, k, "zero")
-
-
-def _dog_swap_reflect(image, sigma, k=1.6, border="reflect101"):
-    return _dog(image, sigma, k, _swap_reflect(border))
 
 
 def _k(rng, lo=1.2, hi=2.0):
@@ -838,10 +788,7 @@ dog = Check(
         Mistake("second σ is σ + k instead of k·σ", _dog_plus_k, "The wider Gaussian has standard deviation k·σ"),
         Mistake("k ignored (always 1.6)", _dog_k_ignored, "Use the `k` argument: the second σ is k·σ"),
         Mistake("k squared (k²·σ)", _dog_k_squared, "The wider Gaussian has standard deviation k·σ, not k²·σ"),
-        Mistake("border ignored (always zero)", _dog_zero,
-                "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
-        Mistake("reflect and reflect101 swapped", _dog_swap_reflect,
-                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+        *border_mistakes(_dog, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
     ],
     allowed=("filters.pad", "filters.gaussian_kernel", "filters.gaussian"),
 )

@@ -24,11 +24,10 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from ..grading import Case, Check, Mistake, close
-from ..grading.casekit import BORDERS, random_image, variant
+from ..grading.casekit import BORDERS, border_mistakes, border_zero, random_image, reflect_swapped, variant
 from ..grading.casekit import distinct as _distinct
 from ..grading.casekit import sigma as _sigma
 from ..grading.casekit import size as _size
-from ..grading.casekit import swap_reflect as _swap_reflect
 from ..grading.casekit import uniform as _u
 from ._linear import convolve as _convolve
 from ._linear import correlate as _correlate
@@ -118,10 +117,6 @@ def _channels_last(img: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 # filters.pad (§3.7)
 # --------------------------------------------------------------------------------------------
-def _pad_swapped(image, radius, border="reflect101"):
-    return _pad(image, radius, _swap_reflect(border))
-
-
 def _pad_radius_swapped(image, radius, border="reflect101"):
     if isinstance(radius, (tuple, list, np.ndarray)):
         radius = (radius[1], radius[0])
@@ -135,10 +130,6 @@ def _pad_channels_too(image, radius, border="reflect101"):
         out = out[:, :, np.maximum(idx, 0)]
         out[:, :, idx < 0] = 0.0
     return out
-
-
-def _pad_always_zero(image, radius, border="reflect101"):
-    return _pad(image, radius, "zero")
 
 
 def _pad_hidden(rng):
@@ -182,14 +173,12 @@ pad = Check(
     hidden=_pad_hidden,
     compare=_EXACT,
     mistakes=[
-        Mistake("reflect and reflect101 swapped", _pad_swapped,
-                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+        reflect_swapped(_pad),
         Mistake("(ry, rx) swapped", _pad_radius_swapped,
                 "`radius=(ry, rx)` adds ry rows above and below and rx columns left and right"),
         Mistake("channel axis padded too", _pad_channels_too,
                 "Pad only the two image axes of an (H, W, 3) image, never the channel axis"),
-        Mistake("border ignored (always zero)", _pad_always_zero,
-                "Use the `border` argument: zero, replicate, reflect or reflect101 (§3.7)"),
+        border_zero(_pad, "Use the `border` argument: zero, replicate, reflect or reflect101 (§3.7)"),
     ],
     forbidden=("numpy.pad",),
 )
@@ -211,16 +200,8 @@ def _corr_even_anchor(image, kernel, border="reflect101", output="same"):
     return _correlate_at(image, kernel, ((kh - 1) // 2, (kw - 1) // 2), border, output)
 
 
-def _corr_zero(image, kernel, border="reflect101", output="same"):
-    return _correlate(image, kernel, "zero", output)
-
-
 def _corr_transposed(image, kernel, border="reflect101", output="same"):
     return _correlate(image, np.asarray(kernel).T, border, output)
-
-
-def _corr_swapped(image, kernel, border="reflect101", output="same"):
-    return _correlate(image, kernel, _swap_reflect(border), output)
 
 
 def _linear_hidden(rng, even_sizes):
@@ -277,12 +258,10 @@ correlate = Check(
                 "Centre the kernel on the output pixel: its tap (kh//2, kw//2) lies on (i, j)"),
         Mistake("even kernel anchored at (k−1)//2", _corr_even_anchor,
                 "The anchor of an even kernel is (kh//2, kw//2): pad kh//2 rows above and kh−1−kh//2 below"),
-        Mistake("border ignored (always zero)", _corr_zero,
-                "Read outside the image through `border` (pad with filters.pad), not with zeros"),
+        border_zero(_correlate, "Read outside the image through `border` (pad with filters.pad), not with zeros"),
         Mistake("kernel transposed", _corr_transposed,
                 "In kernel[m, n], m runs down the rows (y) and n along the columns (x): do not transpose it"),
-        Mistake("reflect and reflect101 swapped", _corr_swapped,
-                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+        reflect_swapped(_correlate),
     ],
     allowed=("filters.pad",),
 )
@@ -312,14 +291,6 @@ def _conv_top_left(image, kernel, border="reflect101", output="same"):
     return _correlate_at(image, np.asarray(kernel)[::-1, ::-1], (kh - 1, kw - 1), border, output)
 
 
-def _conv_zero(image, kernel, border="reflect101", output="same"):
-    return _convolve(image, kernel, "zero", output)
-
-
-def _conv_swapped(image, kernel, border="reflect101", output="same"):
-    return _convolve(image, kernel, _swap_reflect(border), output)
-
-
 convolve = Check(
     public=[
         Case((_distinct((5, 6)), np.array([[1.0, 2.0, 0.0], [0.0, 1.0, -1.0], [3.0, 0.0, 1.0]])), {},
@@ -345,10 +316,7 @@ convolve = Check(
                 "O(i,j) = Σ K(m,n)·I(i−m+kh//2, j−n+kw//2)"),
         Mistake("kernel origin at its top-left (output shifted)", _conv_top_left,
                 "The kernel's origin is its centre (kh//2, kw//2): O(i,j) = Σ K(m,n)·I(i−(m−kh//2), j−(n−kw//2))"),
-        Mistake("border ignored (always zero)", _conv_zero,
-                "Read outside the image through `border` (pad with filters.pad), not with zeros"),
-        Mistake("reflect and reflect101 swapped", _conv_swapped,
-                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+        *border_mistakes(_convolve, "Read outside the image through `border` (pad with filters.pad), not with zeros"),
     ],
     allowed=("filters.pad",),
 )
@@ -415,14 +383,6 @@ def _mean_size_as_radius(image, size, border="reflect101"):
     return _mean(image, 2 * size + 1, border)
 
 
-def _mean_zero(image, size, border="reflect101"):
-    return _mean(image, size, "zero")
-
-
-def _mean_swapped(image, size, border="reflect101"):
-    return _mean(image, size, _swap_reflect(border))
-
-
 def _window_edge_cases(rng, img, copy_border):
     """The awkward inputs of a window filter (``filters.mean``, ``filters.median``): a constant
     image, a 1×N and a 2×3 image with 3×3 windows, and a 1×1 window (a copy)."""
@@ -468,10 +428,7 @@ mean = Check(
                 "The window has size² pixels: O(p) = (1/size²)·Σ I(q)"),
         Mistake("size used as radius (window 2·size+1)", _mean_size_as_radius,
                 "`size` is the side of the window; its radius is size // 2"),
-        Mistake("border ignored (always zero)", _mean_zero,
-                "Read outside the image through `border` (pad with filters.pad), not with zeros"),
-        Mistake("reflect and reflect101 swapped", _mean_swapped,
-                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+        *border_mistakes(_mean, "Read outside the image through `border` (pad with filters.pad), not with zeros"),
     ],
     allowed=("filters.pad", "filters.mean_kernel"),
 )
@@ -580,14 +537,6 @@ def _g_floor(image, sigma, border="reflect101"):
     return _gauss_with(image, _gk(sigma, rule="floor"), border)
 
 
-def _g_zero(image, sigma, border="reflect101"):
-    return _gaussian(image, sigma, "zero")
-
-
-def _g_swapped(image, sigma, border="reflect101"):
-    return _gaussian(image, sigma, _swap_reflect(border))
-
-
 def _gaussian_hidden(rng):
     def img(h, w, kind="unit", channels=None):
         return _image(rng, h, w, kind, channels)
@@ -641,10 +590,7 @@ gaussian = Check(
                 "The sampled, truncated kernel must sum to exactly 1: divide by its sum"),
         Mistake("radius floor(3σ) instead of ceil", _g_floor,
                 "The kernel radius rounds 3σ up: r = ceil(3σ)"),
-        Mistake("border ignored (always zero)", _g_zero,
-                "Read outside the image through `border` (filters.pad), not with zeros"),
-        Mistake("reflect and reflect101 swapped", _g_swapped,
-                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+        *border_mistakes(_gaussian, "Read outside the image through `border` (filters.pad), not with zeros"),
     ],
     allowed=("filters.gaussian_kernel", "filters.pad"),
 )
@@ -693,14 +639,11 @@ median = Check(
     mistakes=[
         Mistake("mean instead of median", lambda image, size, border="reflect101": _mean(image, size, border),
                 "Sort the size² values of the window and take the middle one (np.median), not their mean"),
-        Mistake("border ignored (always zero)", lambda image, size, border="reflect101": _median(image, size, "zero"),
-                "Read outside the image through `border` (filters.pad), not with zeros"),
+        border_zero(_median, "Read outside the image through `border` (filters.pad), not with zeros"),
         Mistake("size used as radius (window 2·size+1)",
                 lambda image, size, border="reflect101": _median(image, 2 * size + 1, border),
                 "`size` is the side of the window; its radius is size // 2"),
-        Mistake("reflect and reflect101 swapped",
-                lambda image, size, border="reflect101": _median(image, size, _swap_reflect(border)),
-                "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"),
+        reflect_swapped(_median),
         Mistake("median computed separably (rows, then columns)", _median_separable,
                 "The median is not separable: take the median of all size² values of the window at once"),
     ],
@@ -801,10 +744,7 @@ bilateral = Check(
                 "σs goes with the pixel distance ‖p−q‖², σr with the intensity difference"),
         Mistake("colour channels filtered independently", _bil(per_channel=True),
                 "For colour, one weight per neighbour from the RGB distance ‖I(q)−I(p)‖² summed over the channels"),
-        Mistake("border ignored (always zero)",
-                lambda image, sigma_space, sigma_range, radius=None, border="reflect101":
-                    _bilateral(image, sigma_space, sigma_range, radius, "zero"),
-                "Read outside the image through `border` (filters.pad), not with zeros"),
+        border_zero(_bilateral, "Read outside the image through `border` (filters.pad), not with zeros"),
     ],
     allowed=("filters.pad",),
 )
@@ -903,10 +843,7 @@ nl_means = Check(
                 "Divide by the sum of the weights: O(p) = Σ w(p,q) I(q) / Σ w(p,q)"),
         Mistake("colour channels weighted independently", _nlm(per_channel=True),
                 "For colour, one weight per q from the patch distance averaged over all three channels"),
-        Mistake("border ignored (always zero)",
-                lambda image, h, patch_size=7, search_size=21, border="reflect101":
-                    _nl_means(image, h, patch_size, search_size, "zero"),
-                "Read outside the image through `border` (filters.pad), not with zeros"),
+        border_zero(_nl_means, "Read outside the image through `border` (filters.pad), not with zeros"),
     ],
     allowed=("filters.pad",),
 )

@@ -9,7 +9,9 @@ wrong implementations. The helpers they have in common live here:
   shows), :func:`rounded` (values readable in reports), :data:`BORDERS`,
   :data:`SWAPPED_REFLECT` and :func:`swap_reflect`;
 - reading a case: :func:`argument`;
-- mistakes: :func:`variant` (one named wrong version out of a parametrised one).
+- mistakes: :func:`variant` (one named wrong version out of a parametrised one),
+  :func:`with_border` and the border mistakes of the filters :func:`border_zero`,
+  :func:`reflect_swapped` and :func:`border_mistakes`.
 
 **Reproducibility.** Hidden cases must be the same for the same seed forever (a regrade must
 not change a grade), so each helper draws from the generator with exactly the calls written in
@@ -26,11 +28,12 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .checks import Case
+from .checks import Case, Mistake
 
 __all__ = [
     "BORDERS", "SWAPPED_REFLECT", "argument", "distinct", "random_image", "rounded", "seed", "sigma",
-    "size", "swap_reflect", "uniform", "variant",
+    "size", "swap_reflect", "uniform", "variant", "with_border", "border_zero", "reflect_swapped",
+    "border_mistakes", "SWAPPED_REFLECT_HINT",
 ]
 
 #: the border modes of the filters (``border=`` of ``filters.pad`` and its callers)
@@ -46,6 +49,10 @@ def swap_reflect(border: Any) -> Any:
     ('reflect101', 'zero')
     """
     return SWAPPED_REFLECT.get(border, border)
+
+
+#: the hint of the "reflect and reflect101 swapped" mistake (:func:`reflect_swapped`)
+SWAPPED_REFLECT_HINT = "`reflect` repeats the edge pixel (dcb|abcd|cba); `reflect101` does not (dc|abcd|cb)"
 
 
 #: what :func:`random_image` can draw
@@ -343,3 +350,68 @@ def variant(function: Callable, /, **knobs: Any) -> Callable:
         setattr(wrong, "__signature__", signature.replace(
             parameters=[p for p in signature.parameters.values() if p.name not in knobs]))
     return wrong
+
+
+def with_border(function: Callable, border: str | Callable[[Any], Any]) -> Callable:
+    """``function`` run with another ``border`` than the case asks for: a wrong border rule.
+
+    The result takes ``function``'s arguments (positional or keyword, ``border`` with its
+    default when the case leaves it out) and calls ``function`` with ``border`` replaced by
+    ``border`` itself (a mode such as ``"zero"``) or, when ``border`` is callable, by
+    ``border(the case's border)`` (:func:`swap_reflect`).
+
+    Parameters
+    ----------
+    function : callable
+        A correct filter with a parameter named ``border``.
+    border : str or callable
+        The mode used instead, or how it follows from the case's mode.
+
+    Returns
+    -------
+    callable
+
+    Examples
+    --------
+    >>> def pad_name(image, border="reflect101"):
+    ...     return border
+    >>> with_border(pad_name, swap_reflect)(None), with_border(pad_name, "zero")(None, "reflect")
+    ('reflect', 'zero')
+    """
+    if not callable(function):
+        raise TypeError(f"with_border: function must be callable, got {type(function).__name__}")
+    signature = inspect.signature(function)
+    if "border" not in signature.parameters:
+        raise TypeError(f"with_border: {getattr(function, '__name__', function)!r} has no argument 'border'")
+
+    def wrong(*args: Any, **kwargs: Any) -> Any:
+        bound = signature.bind(*args, **kwargs)
+        bound.apply_defaults()
+        given = bound.arguments["border"]
+        bound.arguments["border"] = border(given) if callable(border) else border
+        return function(*bound.args, **bound.kwargs)
+
+    label = getattr(border, "__name__", repr(border))
+    wrong.__name__ = f"{getattr(function, '__name__', 'filter')}[border={label}]"
+    wrong.__qualname__ = wrong.__name__
+    wrong.__module__ = getattr(function, "__module__", __name__)
+    setattr(wrong, "__signature__", signature)
+    return wrong
+
+
+def border_zero(function: Callable, hint: str) -> Mistake:
+    """The mistake "border ignored (always zero)": ``function`` with ``border="zero"``
+    whatever the case asks (:func:`with_border`); ``hint`` says how to read outside the image."""
+    return Mistake("border ignored (always zero)", with_border(function, "zero"), hint)
+
+
+def reflect_swapped(function: Callable) -> Mistake:
+    """The mistake "reflect and reflect101 swapped": ``function`` with the case's border
+    through :func:`swap_reflect` (:func:`with_border`), hint :data:`SWAPPED_REFLECT_HINT`."""
+    return Mistake("reflect and reflect101 swapped", with_border(function, swap_reflect), SWAPPED_REFLECT_HINT)
+
+
+def border_mistakes(function: Callable, zero_hint: str) -> list[Mistake]:
+    """The two border mistakes of a filter, in this order: :func:`border_zero` (with
+    ``zero_hint``) and :func:`reflect_swapped`."""
+    return [border_zero(function, zero_hint), reflect_swapped(function)]
