@@ -13,14 +13,18 @@ One job per module:
 
 - :mod:`.course` — :class:`Course`: the folder and its plan, salt, environment, nbgrader's
   configuration and API, build, submit; the one object the command line uses;
+- :mod:`.plan` — ``plan.toml``, the one source of truth for cvkit and plain nbgrader: due dates
+  (into nbgrader's gradebook), the late-submission policy, which chapters are graded;
 - :mod:`.samples` — sample submissions (solutions, typical mistakes, blank);
 - :mod:`.jobs` and :mod:`.parallel` — the parallel phase: its picklable jobs
   (:func:`execute_submission`, :func:`grade_submission`, :func:`feedback_submissions`) and
   their driving on local processes or Dask;
-- :mod:`.writer` and :mod:`.journal` — the single writer of the gradebook (repairs, not-graded
-  submissions) and its bookkeeping (journal, not-graded list, flags);
+- :mod:`.writer`, :mod:`.journal` and :mod:`.stamps` — the single writer of the gradebook
+  (repairs, not-graded submissions, flags for the formgrader) and its bookkeeping (journal with
+  the due date and checks each grade was decided under, not-graded list, flags);
 - :mod:`.results` and :mod:`.exports` — scores, mistakes and flags per exercise, the audit,
-  the grade table and the CSV exports.
+  the grade table, the CSV exports and the similarity report;
+- :mod:`.progress` — each phase's count and time left.
 
 Local parallel grading uses worker processes started with ``spawn``: a script that calls
 :meth:`Course.grade` needs the usual ``if __name__ == "__main__":`` guard.

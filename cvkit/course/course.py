@@ -276,7 +276,8 @@ class Course:
         with Phase("build", len(chosen), progress, unit="chapter") as bar:
             for assignment in chosen:
                 bar.describe(f"build {assignment}")
-                outcome = api.generate_assignment(assignment, force=True, create=True)
+                with warnings.catch_warnings(record=True):  # nbformat's advice to nbgrader (cell ids), not ours
+                    outcome = api.generate_assignment(assignment, force=True, create=True)
                 if not outcome.get("success"):
                     raise RuntimeError(f"nbgrader generate_assignment {assignment} failed:\n"
                                        f"{(outcome.get('error') or outcome.get('log') or '')[-3000:]}")

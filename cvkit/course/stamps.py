@@ -8,7 +8,6 @@ upgraded — ``cvkit course grade`` lists the submissions graded under the older
 """
 from __future__ import annotations
 
-import ast
 import datetime as _dt
 import hashlib
 import json
@@ -16,26 +15,12 @@ import sys
 from pathlib import Path
 from typing import Any, Iterable
 
-__all__ = ["checks_fingerprint", "due_stamp", "check_ids"]
+__all__ = ["checks_fingerprint", "due_stamp"]
 
 
 def due_stamp(due: _dt.datetime | None) -> str | None:
     """How the journal writes a due date (ISO 8601, naive UTC; None for no due date)."""
     return due.isoformat(sep=" ") if due is not None else None
-
-
-def check_ids(source: str) -> list[str]:
-    """The algorithm ids of the ``check("<id>", ...)`` calls in a test cell's ``source``."""
-    try:
-        tree = ast.parse(source)
-    except SyntaxError:
-        return []
-    found = []
-    for node in ast.walk(tree):
-        if (isinstance(node, ast.Call) and getattr(node.func, "id", None) == "check" and node.args
-                and isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str)):
-            found.append(node.args[0].value)
-    return found
 
 
 def _modules_of(algorithm_id: str) -> set[str]:
@@ -84,6 +69,7 @@ def checks_fingerprint(notebooks: Iterable[Path]) -> str:
     import cvkit
 
     from ..grading.runtime.cells import is_test_cell, nbgrader_metadata
+    from ..grading.trusted import check_calls
 
     digest = hashlib.sha256(f"cvkit {getattr(cvkit, '__version__', '?')}\n".encode())
     ids: set[str] = set()
@@ -98,7 +84,7 @@ def checks_fingerprint(notebooks: Iterable[Path]) -> str:
             source = cell.get("source", "")
             source = source if isinstance(source, str) else "".join(source)
             digest.update(json.dumps([path.name, nbgrader_metadata(cell).get("points"), source]).encode())
-            ids.update(check_ids(source))
+            ids.update(call.algorithm_id for call in check_calls(source, ""))
     modules: set[str] = set()
     for algorithm_id in sorted(ids):
         digest.update(f"\n{algorithm_id}".encode())
