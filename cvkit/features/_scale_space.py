@@ -539,10 +539,15 @@ def is_edge_like(dog_slice: ArrayLike, row: int, col: int, r: float = 10.0) -> b
     i = _position(row, "row", d.shape[0])
     j = _position(col, "col", d.shape[1])
     ratio = check_real(r, "r", positive=True)
-    v = d[i, j]
-    dxx = d[i, j + 1] + d[i, j - 1] - 2.0 * v
-    dyy = d[i + 1, j] + d[i - 1, j] - 2.0 * v
-    dxy = 0.25 * (d[i + 1, j + 1] - d[i + 1, j - 1] - d[i - 1, j + 1] + d[i - 1, j - 1])
-    trace = dxx + dyy
-    det = dxx * dyy - dxy * dxy
+    trace, det = _hessian_trace_det(d, i, j)
     return bool(det <= 0 or trace * trace * ratio >= (ratio + 1.0) ** 2 * det)
+
+
+def _hessian_trace_det(d: np.ndarray, r: "int | np.ndarray", c: "int | np.ndarray") -> tuple:
+    """Trace and determinant of the 2×2 Hessian of ``d`` at ``(r, c)`` by central differences
+    (scalars, or arrays for index arrays ``r``, ``c``; no check: the neighbours must exist)."""
+    v = d[r, c]
+    dxx = d[r, c + 1] + d[r, c - 1] - 2.0 * v
+    dyy = d[r + 1, c] + d[r - 1, c] - 2.0 * v
+    dxy = 0.25 * (d[r + 1, c + 1] - d[r + 1, c - 1] - d[r - 1, c + 1] + d[r - 1, c - 1])
+    return dxx + dyy, dxx * dyy - dxy * dxy

@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike
 from .._validation import as_float_array, check_allocation, check_size, check_work
 from ..registry import algorithm, get, implementation
 from ._common import check_int, check_real, gray
-from ._scale_space import derivatives_3d, pyramid_arguments
+from ._scale_space import _hessian_trace_det, derivatives_3d, pyramid_arguments
 
 __all__ = ["orientations", "sift_descriptor", "sift", "DESCRIPTOR_RADIUS_FACTOR", "OFFSET_LIMIT", "MAX_BINS",
            "MAX_COORDINATE", "MAX_STEPS", "orientation_histograms", "histogram_peaks", "descriptors_batch"]
@@ -441,12 +441,7 @@ def _refine_all(dog, candidates, scales, border, max_steps, refine):
 
 
 def _edge_like_batch(d: np.ndarray, r: np.ndarray, c: np.ndarray, ratio: float) -> np.ndarray:
-    v = d[r, c]
-    dxx = d[r, c + 1] + d[r, c - 1] - 2.0 * v
-    dyy = d[r + 1, c] + d[r - 1, c] - 2.0 * v
-    dxy = 0.25 * (d[r + 1, c + 1] - d[r + 1, c - 1] - d[r - 1, c + 1] + d[r - 1, c - 1])
-    trace = dxx + dyy
-    det = dxx * dyy - dxy * dxy
+    trace, det = _hessian_trace_det(d, r, c)
     return (det <= 0) | (trace * trace * ratio >= (ratio + 1.0) ** 2 * det)
 
 
