@@ -169,6 +169,22 @@ class HomographyClose(Comparator):
             max_abs=float(distance[worst]), worst=(worst,), mismatched=bad, total=len(points))
 
 
+def _distances_mismatch(d, pts, exp, mean, maximum, words, counted):
+    """None when the distances ``d`` between ``pts`` and ``exp`` are within ``mean`` on average
+    and ``maximum`` each, else the mismatch at the farthest point; ``words`` = (what differs,
+    what one is called, significant digits of the coordinates); ``mismatched`` counts the
+    distances above ``counted``."""
+    if d.mean() <= mean and d.max() <= maximum:
+        return None
+    what, one, digits = words
+    worst = int(np.argmax(d))
+    return Mismatch(
+        f"{what} differ: mean distance {d.mean():.4g} px (at most {mean:g}), max {d.max():.4g} px "
+        f"(at most {maximum:g}) at {one} {worst}: yours ({pts[worst, 0]:.{digits}g}, {pts[worst, 1]:.{digits}g}), "
+        f"expected ({exp[worst, 0]:.{digits}g}, {exp[worst, 1]:.{digits}g})",
+        max_abs=float(d.max()), worst=(worst,), mismatched=int(np.count_nonzero(d > counted)), total=len(d))
+
+
 @dataclass
 class CornersClose(FloatArrayComparator):
     """Chessboard corners in the catalog's order (or its 180° rotation, ``expected[::-1]``)
@@ -200,14 +216,7 @@ class CornersClose(FloatArrayComparator):
             if best is None or d.mean() < best[0].mean():
                 best = (d, order, name)
         d, order, name = best
-        if d.mean() <= self.mean and d.max() <= self.maximum:
-            return None
-        worst = int(np.argmax(d))
-        return Mismatch(
-            f"Corners differ: mean distance {d.mean():.4g} px (at most {self.mean:g}), max {d.max():.4g} px "
-            f"(at most {self.maximum:g}) at corner {worst}: yours ({pts[worst, 0]:.4g}, {pts[worst, 1]:.4g}), "
-            f"expected ({order[worst, 0]:.4g}, {order[worst, 1]:.4g})",
-            max_abs=float(d.max()), worst=(worst,), mismatched=int(np.count_nonzero(d > self.mean)), total=len(d))
+        return _distances_mismatch(d, pts, order, self.mean, self.maximum, ("Corners", "corner", 4), self.mean)
 
 
 @dataclass
@@ -708,14 +717,7 @@ class PointsClose(FloatArrayComparator):
         if len(exp) == 0:
             return None
         d = np.hypot(*(pts - exp).T)
-        if d.mean() <= self.mean and d.max() <= self.maximum:
-            return None
-        worst = int(np.argmax(d))
-        return Mismatch(
-            f"Points differ: mean distance {d.mean():.4g} px (at most {self.mean:g}), max {d.max():.4g} px "
-            f"(at most {self.maximum:g}) at point {worst}: yours ({pts[worst, 0]:.5g}, {pts[worst, 1]:.5g}), "
-            f"expected ({exp[worst, 0]:.5g}, {exp[worst, 1]:.5g})",
-            max_abs=float(d.max()), worst=(worst,), mismatched=int(np.count_nonzero(d > self.maximum)), total=len(d))
+        return _distances_mismatch(d, pts, exp, self.mean, self.maximum, ("Points", "point", 5), self.maximum)
 
 
 # calibration.chessboard_response -------------------------------------------------------------

@@ -204,6 +204,21 @@ def _corr_transposed(image, kernel, border="reflect101", output="same"):
     return _correlate(image, np.asarray(kernel).T, border, output)
 
 
+def _linear_public(even_anchor):
+    """Public cases shared by correlate and convolve; ``even_anchor`` where the even kernel's
+    label says its anchor is."""
+    return [
+        Case((_distinct((5, 6)), np.array([[1.0, 2.0, 0.0], [0.0, 1.0, -1.0], [3.0, 0.0, 1.0]])), {},
+             "5×6 image, asymmetric 3×3 kernel, default border (reflect101)"),
+        Case((_distinct((6, 7)), np.array([[1.0, 2.0, 3.0, 4.0], [0.0, -1.0, 0.0, 2.0]])), {"border": "reflect"},
+             f"even 2×4 kernel ({even_anchor}), reflect"),
+        Case((_distinct((4, 5, 3)), np.array([[1.0, 0.0], [2.0, -1.0], [0.0, 3.0]])), {"border": "zero"},
+             "colour image, 3×2 kernel, zero border"),
+        Case((_distinct((5, 6)), np.array([[0.0, 1.0, 2.0], [1.0, 0.0, 0.0]])), {"output": "valid"},
+             "output='valid' (shape 4×4)"),
+    ]
+
+
 def _linear_hidden(rng, even_sizes):
     """Cases shared by correlate and convolve; ``even_sizes`` the even kernel shapes to use."""
     def img(h, w, kind="unit", channels=None):
@@ -239,16 +254,7 @@ def _linear_hidden(rng, even_sizes):
 
 
 correlate = Check(
-    public=[
-        Case((_distinct((5, 6)), np.array([[1.0, 2.0, 0.0], [0.0, 1.0, -1.0], [3.0, 0.0, 1.0]])), {},
-             "5×6 image, asymmetric 3×3 kernel, default border (reflect101)"),
-        Case((_distinct((6, 7)), np.array([[1.0, 2.0, 3.0, 4.0], [0.0, -1.0, 0.0, 2.0]])), {"border": "reflect"},
-             "even 2×4 kernel (anchor (1, 2)), reflect"),
-        Case((_distinct((4, 5, 3)), np.array([[1.0, 0.0], [2.0, -1.0], [0.0, 3.0]])), {"border": "zero"},
-             "colour image, 3×2 kernel, zero border"),
-        Case((_distinct((5, 6)), np.array([[0.0, 1.0, 2.0], [1.0, 0.0, 0.0]])), {"output": "valid"},
-             "output='valid' (shape 4×4)"),
-    ],
+    public=_linear_public("anchor (1, 2)"),
     hidden=lambda rng: _linear_hidden(rng, ((4, 4), (2, 4))),
     compare=_LINEAR,
     mistakes=[
@@ -292,16 +298,7 @@ def _conv_top_left(image, kernel, border="reflect101", output="same"):
 
 
 convolve = Check(
-    public=[
-        Case((_distinct((5, 6)), np.array([[1.0, 2.0, 0.0], [0.0, 1.0, -1.0], [3.0, 0.0, 1.0]])), {},
-             "5×6 image, asymmetric 3×3 kernel, default border (reflect101)"),
-        Case((_distinct((6, 7)), np.array([[1.0, 2.0, 3.0, 4.0], [0.0, -1.0, 0.0, 2.0]])), {"border": "reflect"},
-             "even 2×4 kernel (as scipy.ndimage.convolve), reflect"),
-        Case((_distinct((4, 5, 3)), np.array([[1.0, 0.0], [2.0, -1.0], [0.0, 3.0]])), {"border": "zero"},
-             "colour image, 3×2 kernel, zero border"),
-        Case((_distinct((5, 6)), np.array([[0.0, 1.0, 2.0], [1.0, 0.0, 0.0]])), {"output": "valid"},
-             "output='valid' (shape 4×4)"),
-    ],
+    public=_linear_public("as scipy.ndimage.convolve"),
     hidden=lambda rng: _linear_hidden(rng, ((4, 4), (2, 4))),
     compare=_LINEAR,
     mistakes=[
