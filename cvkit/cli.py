@@ -132,8 +132,8 @@ def _cmd_build(args) -> int:
 
 def _summary(course, jobs) -> list[str]:
     """What the instructor must know besides the tables, for the submissions ``jobs``: chapters
-    left out of the plan, submissions graded under an older due date or older checks, similar
-    answers."""
+    left out of the plan, submissions graded under an older due date, late policy or checks,
+    similar answers."""
     from .course.exports import similarity_summary
 
     lines = []
@@ -143,16 +143,17 @@ def _summary(course, jobs) -> list[str]:
     for reason, count in sorted(outside.items()):
         lines.append(f"not graded: {reason}: {count} submission{'s' * (count != 1)} "
                      f"(add the chapter to {course.plan_path} to grade them)")
-    outdated: dict[str, dict[str, int]] = {}
-    for (_, assignment), what in course.outdated(jobs).items():
-        counts = outdated.setdefault(assignment, {})
+    outdated: dict[str, dict[str, list[str]]] = {}
+    for (student, assignment), what in sorted(course.outdated(jobs).items()):
         for item in what:
-            counts[item] = counts.get(item, 0) + 1
+            outdated.setdefault(assignment, {}).setdefault(item, []).append(student)
     if outdated:
-        lines.append("graded under an older due date or older checks (grades may change when regraded):")
-        for assignment, counts in sorted(outdated.items()):
-            told = ", ".join(f"{n} under an older {what}" for what, n in sorted(counts.items()))
-            lines.append(f"  {assignment}: {told} → cvkit course grade --regrade {assignment}")
+        lines.append("graded under an older due date, late policy or checks (grades may change when regraded):")
+        for assignment, changed in sorted(outdated.items()):
+            for what, students in sorted(changed.items()):
+                shown = ", ".join(students[:6]) + (f" and {len(students) - 6} more" if len(students) > 6 else "")
+                lines.append(f"  {assignment}: {len(students)} under an older {what} ({shown})")
+            lines.append(f"    → cvkit course grade --regrade {assignment}")
     return lines + similarity_summary(course)
 
 

@@ -4,7 +4,7 @@ tiny throwaway course graded through the real pipeline (``cvkit course grade``):
 - its due dates are nbgrader's (the gradebook's ``Assignment.duedate``, as plain ``nbgrader``
   commands see them), its ``[late]`` policy gives nbgrader's late penalties;
 - a chapter that is not in the plan is not graded, and says so;
-- a changed due date or check offers a regrade, which ``--regrade CHAPTER`` does;
+- a changed due date, late policy or check offers a regrade, which ``--regrade CHAPTER`` does;
 - grading without a salt is refused; cvkit's flags reach the formgrader's "Flagged?" column;
 - the course folder keeps its permissions (only the salt is private), and git ignores what
   the course generates;
@@ -350,3 +350,6 @@ def test_a_changed_due_date_offers_a_regrade_and_regrade_applies_it(graded):
     assert _submission(course, "bob")["grades"] == before
     status, out = _run("course", "grade", "--course-dir", str(course.root), "--regrade", "ch00_nothing")
     assert status == 2
+    (course.root / "plan.toml").write_text(PLAN.replace('"per_hour"', '"zero"'))
+    changed = Course(course.root, project=course.project).outdated()
+    assert changed == {(s, ASSIGNMENT): ["due date", "late policy"] for s in ("ada", "bob", "cyd")}

@@ -34,7 +34,7 @@ from . import exports, jobs, parallel, results, samples
 from .journal import Journal
 from .plan import Plan, not_in_plan, plan_path, read_plan, sync_due_dates
 from .progress import Phase
-from .stamps import checks_fingerprint, due_stamp
+from .stamps import checks_fingerprint, due_stamp, late_stamp
 from .writer import JobResult, Writer
 
 if TYPE_CHECKING:
@@ -163,17 +163,20 @@ class Course:
 
     def grading_stamps(self, assignments: Iterable[str]) -> dict[str, dict[str, str | None]]:
         """assignment → what its grades depend on now besides the submission: the plan's due date
-        and the fingerprint of its checks (:mod:`~cvkit.course.stamps`), as the journal records them."""
+        and late policy, and the fingerprint of its checks (:mod:`~cvkit.course.stamps`), as the
+        journal records them."""
         plan = self.plan()
-        stamps = {}
+        late = late_stamp(plan.late.policy, plan.late.points_per_hour)
+        stamps: dict[str, dict[str, str | None]] = {}
         for assignment in sorted(set(assignments)):
             if assignment not in self._fingerprints:
                 self._fingerprints[assignment] = checks_fingerprint((self.source_dir / assignment).glob("*.ipynb"))
-            stamps[assignment] = {"due": due_stamp(plan.due(assignment)), "checks": self._fingerprints[assignment]}
+            stamps[assignment] = {"due": due_stamp(plan.due(assignment)), "late": late,
+                                  "checks": self._fingerprints[assignment]}
         return stamps
 
     def outdated(self, jobs: Iterable[tuple[str, str]] | None = None) -> dict[tuple[str, str], list[str]]:
-        """Graded submissions whose due date or checks have changed since they were graded.
+        """Graded submissions whose due date, late policy or checks have changed since they were graded.
 
         Parameters
         ----------
@@ -183,8 +186,8 @@ class Course:
         Returns
         -------
         dict
-            (student, assignment) → what changed (``"due date"``, ``"checks"``); regrade them
-            with ``cvkit course grade --regrade <assignment>``.
+            (student, assignment) → what changed (``"due date"``, ``"late policy"``,
+            ``"checks"``); regrade them with ``cvkit course grade --regrade <assignment>``.
         """
         pairs = list(self.submissions() if jobs is None else jobs)
         return self._journal.changed(pairs, self.grading_stamps({a for _, a in pairs}))

@@ -2,8 +2,8 @@
 
 - ``journal.json``: ``"student/assignment"`` → the hash of the submission's files when it was
   last graded (so that an interrupted run resumes after it and a changed submission is
-  regraded), with the due date and the fingerprint of the checks it was graded under
-  (:mod:`.stamps`: a later change offers a regrade);
+  regraded), with the due date, the late policy and the fingerprint of the checks it was graded
+  under (:mod:`.stamps`: a later change offers a regrade);
 - ``not_graded.json``: ``"student/assignment"`` → why it could not be graded (never a zero);
 - flags for the instructor, added to the autograded notebooks' metadata (``metadata.cvkit.flags``).
 """
@@ -17,7 +17,7 @@ from typing import Any, Mapping
 from ..grading.isolation import collect_files
 
 #: what a journal entry records besides the files' hash (see :mod:`.stamps`)
-STAMPS = ("due", "checks")
+STAMPS = ("due", "late", "checks")
 
 
 class Journal:
@@ -82,7 +82,7 @@ class Journal:
         pairs : list of (student, assignment)
             The submissions just graded.
         stamps : mapping, optional
-            assignment → ``{"due": ..., "checks": ...}``: what they were graded under.
+            assignment → ``{"due": ..., "late": ..., "checks": ...}``: what they were graded under.
         """
         journal = self.entries()
         for student, assignment in pairs:
@@ -101,13 +101,14 @@ class Journal:
         pairs : list of (student, assignment)
             Submissions to look at (those never graded are skipped).
         stamps : mapping
-            assignment → ``{"due": ..., "checks": ...}`` now.
+            assignment → ``{"due": ..., "late": ..., "checks": ...}`` now.
 
         Returns
         -------
         dict
-            (student, assignment) → what changed (``"due date"``, ``"checks"``). What an entry
-            does not record (written by an older cvkit) is not reported as changed.
+            (student, assignment) → what changed (``"due date"``, ``"late policy"``,
+            ``"checks"``). What an entry does not record (written by an older cvkit) is not
+            reported as changed.
         """
         entries = self.entries()
         changed: dict[tuple[str, str], list[str]] = {}
@@ -116,7 +117,7 @@ class Journal:
             now = stamps.get(assignment, {})
             if entry is None:
                 continue
-            what = [label for key, label in (("due", "due date"), ("checks", "checks"))
+            what = [label for key, label in (("due", "due date"), ("late", "late policy"), ("checks", "checks"))
                     if key in entry and key in now and entry[key] != now[key]]
             if what:
                 changed[(student, assignment)] = what

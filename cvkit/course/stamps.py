@@ -1,8 +1,9 @@
-"""What a grade depends on besides the submission: the due date and the checks.
+"""What a grade depends on besides the submission: the due date, the late policy, the checks.
 
-The journal (:mod:`.journal`) keeps, for every graded submission, the due date it was graded
-under and a fingerprint of the checks that graded it (:func:`checks_fingerprint`). When either
-changes — a due date moved in ``plan.toml``, a check or the notebook's tests edited, cvkit
+The journal (:mod:`.journal`) keeps, for every graded submission, the due date and the late
+policy it was graded under (:func:`due_stamp`, :func:`late_stamp`) and a fingerprint of the
+checks that graded it (:func:`checks_fingerprint`). When one changes — a due date or the
+``[late]`` policy changed in ``plan.toml``, a check or the notebook's tests edited, cvkit
 upgraded — ``cvkit course grade`` lists the submissions graded under the older one and offers
 ``cvkit course grade --regrade CHAPTER``.
 """
@@ -15,12 +16,17 @@ import sys
 from pathlib import Path
 from typing import Any, Iterable
 
-__all__ = ["checks_fingerprint", "due_stamp"]
+__all__ = ["checks_fingerprint", "due_stamp", "late_stamp"]
 
 
 def due_stamp(due: _dt.datetime | None) -> str | None:
     """How the journal writes a due date (ISO 8601, naive UTC; None for no due date)."""
     return due.isoformat(sep=" ") if due is not None else None
+
+
+def late_stamp(policy: str, points_per_hour: float) -> str:
+    """How the journal writes a late policy (``"none"``, ``"zero"``, ``"per_hour 0.5"``)."""
+    return f"per_hour {points_per_hour:g}" if policy == "per_hour" else policy
 
 
 def _modules_of(algorithm_id: str) -> set[str]:
