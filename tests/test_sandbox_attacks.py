@@ -172,17 +172,10 @@ def graded(bubblewrap, project, tmp_path_factory):
             os.remove(f"{leftover}/{MARKER}")
     victim = course.root / "submitted" / "ada" / ASSIGNMENT / name
     before = {"victim": victim.read_bytes(), "salt": (course.root / ".grading_salt").read_text()}
-    env = {"CVKIT_CELL_TIMEOUT": "30", "CVKIT_ANSWER_CELL_TIMEOUT": "20"}
-    saved = {k: os.environ.get(k) for k in env}
-    os.environ.update(env)
-    try:
+    with pytest.MonkeyPatch.context() as patch:  # short limits for this run only
+        patch.setenv("CVKIT_CELL_TIMEOUT", "30")
+        patch.setenv("CVKIT_ANSWER_CELL_TIMEOUT", "20")
         results = course.grade(workers=2)
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
     return course, results, before
 
 
