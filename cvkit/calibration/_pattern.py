@@ -7,11 +7,22 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._docstrings import filler
 from .._validation import as_float_array, as_image, check_allocation, check_int, check_real, check_work
 from ..registry import algorithm, implementation
 
 __all__ = ["chessboard_points", "chessboard_response", "corner_candidates", "grow_grid", "order_grid_corners",
            "refine_corners", "find_chessboard_corners"]
+
+# the start of the doctests: a camera A that sees a 4 × 3 board face on, rendered at 96 × 128
+_BOARD_CAMERA = (">>> import numpy as np\n"
+                 "    >>> from cvkit.data import render_chessboard\n"
+                 "    >>> A = np.array([[200.0, 0, 64], [0, 200, 48], [0, 0, 1]])")
+_docs = filler({
+    "board_camera": _BOARD_CAMERA,
+    "board": _BOARD_CAMERA + ("\n    >>> img = render_chessboard(A, np.eye(3), [-15.0, -10.0, 200.0], cols=4, rows=3, "
+                              "square_size=10.0,\n    ...                         image_size=(96, 128))"),
+})
 
 _LUMA = np.array([0.299, 0.587, 0.114])
 
@@ -337,6 +348,7 @@ def chessboard_response(image: ArrayLike, sigma: float = 1.5) -> np.ndarray:
 
 @algorithm("calibration.corner_candidates", section="8.3",
            check="cvkit.calibration.checks:corner_candidates")
+@_docs
 def corner_candidates(image: ArrayLike, count: int, sigma: float = 1.5) -> tuple[np.ndarray, np.ndarray]:
     """Candidate X-junctions of an image (integer pixels), with their two edge directions.
 
@@ -380,11 +392,7 @@ def corner_candidates(image: ArrayLike, count: int, sigma: float = 1.5) -> tuple
 
     Examples
     --------
-    >>> import numpy as np
-    >>> from cvkit.data import render_chessboard
-    >>> A = np.array([[200.0, 0, 64], [0, 200, 48], [0, 0, 1]])
-    >>> img = render_chessboard(A, np.eye(3), [-15.0, -10.0, 200.0], cols=4, rows=3, square_size=10.0,
-    ...                         image_size=(96, 128))
+    %(board)s
     >>> points, directions = corner_candidates(img, 12)
     >>> len(points), points[0]                       # the 12 inner corners, on whole pixels here
     (12, array([59., 38.]))
@@ -593,6 +601,7 @@ def order_grid_corners(points: ArrayLike, directions: ArrayLike, cols: int, rows
 
 @algorithm("calibration.refine_corners", section="8.3",
            check="cvkit.calibration.checks:refine_corners")
+@_docs
 def refine_corners(image: ArrayLike, corners: ArrayLike, sigma: float) -> np.ndarray:
     """Move each corner to the saddle point of the smoothed image next to it (sub-pixel).
 
@@ -630,9 +639,7 @@ def refine_corners(image: ArrayLike, corners: ArrayLike, sigma: float) -> np.nda
 
     Examples
     --------
-    >>> import numpy as np
-    >>> from cvkit.data import render_chessboard
-    >>> A = np.array([[200.0, 0, 64], [0, 200, 48], [0, 0, 1]])
+    %(board_camera)s
     >>> img = render_chessboard(A, np.eye(3), [-14.5, -9.7, 200.0], cols=4, rows=3, square_size=10.0,
     ...                         image_size=(96, 128))  # corners at (49.5 + 10 c, 38.3 + 10 r)
     >>> np.round(refine_corners(img, [[49.0, 38.0], [60.0, 38.0]], 1.25), 1)
@@ -661,6 +668,7 @@ def refine_corners(image: ArrayLike, corners: ArrayLike, sigma: float) -> np.nda
 
 @algorithm("calibration.find_chessboard_corners", section="8.3",
            check="cvkit.calibration.checks:find_chessboard_corners")
+@_docs
 def find_chessboard_corners(image: ArrayLike, cols: int, rows: int) -> np.ndarray | None:
     """Find the inner corners of a chessboard in an image, to sub-pixel accuracy.
 
@@ -726,11 +734,7 @@ def find_chessboard_corners(image: ArrayLike, cols: int, rows: int) -> np.ndarra
 
     Examples
     --------
-    >>> import numpy as np
-    >>> from cvkit.data import render_chessboard
-    >>> A = np.array([[200.0, 0, 64], [0, 200, 48], [0, 0, 1]])
-    >>> img = render_chessboard(A, np.eye(3), [-15.0, -10.0, 200.0], cols=4, rows=3, square_size=10.0,
-    ...                         image_size=(96, 128))
+    %(board)s
     >>> corners = find_chessboard_corners(img, 4, 3)
     >>> np.round(corners[:2], 2)                     # (0, 0, 0) at 64 − 200·15/200 = 49
     array([[49., 38.],

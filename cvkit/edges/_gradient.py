@@ -16,10 +16,13 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._docstrings import IMAGE_BORDER, filler
 from .._validation import Border, as_float_array, as_image, check_border
 from ..registry import algorithm, implementation
 
 __all__ = ["gradient", "magnitude", "direction", "prewitt", "sobel"]
+
+_docs = filler(IMAGE_BORDER)
 
 SCHEMES = ("central", "forward", "backward")
 NORMS = ("l2", "l1", "max")
@@ -51,14 +54,14 @@ def _hypot(gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
 # §4.5 finite differences
 # --------------------------------------------------------------------------------------------
 @algorithm("edges.gradient", section="4.5", check="cvkit.edges.checks:gradient")
+@_docs
 def gradient(image: ArrayLike, scheme: Literal["central", "forward", "backward"] = "central",
              border: Border = "reflect101") -> tuple[np.ndarray, np.ndarray]:
     """Image gradient ``(Ix, Iy)`` by finite differences.
 
     Parameters
     ----------
-    image : (H, W) or (H, W, 3) array_like
-        Grayscale or colour image, any real dtype, finite values (colour: per channel).
+    %(image)s
     scheme : {"central", "forward", "backward"}
         ``central``: ``Ix(x) = (I(x+1) − I(x−1)) / 2``, the correlation with ``[-1, 0, 1] / 2``;
         ``forward``: ``Ix(x) = I(x+1) − I(x)``; ``backward``: ``Ix(x) = I(x) − I(x−1)``
@@ -212,15 +215,14 @@ def _smoothed_differences(image: np.ndarray, border: str, centre_weight: float) 
 
 
 @algorithm("edges.prewitt", section="4.7", check="cvkit.edges.checks:prewitt")
+@_docs
 def prewitt(image: ArrayLike, border: Border = "reflect101") -> tuple[np.ndarray, np.ndarray]:
     """Prewitt derivatives ``(gx, gy)``: central differences smoothed by a box across them.
 
     Parameters
     ----------
-    image : (H, W) or (H, W, 3) array_like
-        Grayscale or colour image, any real dtype, finite values (colour: per channel).
-    border : {"reflect101", "reflect", "replicate", "zero"}
-        How pixels outside the image are made up (§3.7).
+    %(image)s
+    %(border)s
 
     Returns
     -------
@@ -255,15 +257,14 @@ def prewitt(image: ArrayLike, border: Border = "reflect101") -> tuple[np.ndarray
 
 
 @algorithm("edges.sobel", section="4.7", check="cvkit.edges.checks:sobel")
+@_docs
 def sobel(image: ArrayLike, border: Border = "reflect101") -> tuple[np.ndarray, np.ndarray]:
     """Sobel derivatives ``(gx, gy)`` with OpenCV's signs and scale.
 
     Parameters
     ----------
-    image : (H, W) or (H, W, 3) array_like
-        Grayscale or colour image, any real dtype, finite values (colour: per channel).
-    border : {"reflect101", "reflect", "replicate", "zero"}
-        How pixels outside the image are made up (§3.7).
+    %(image)s
+    %(border)s
 
     Returns
     -------

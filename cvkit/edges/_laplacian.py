@@ -12,6 +12,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._docstrings import IMAGE_BORDER, filler
 from .._validation import (
     Border,
     as_float_array,
@@ -26,17 +27,18 @@ from ..registry import algorithm, implementation
 
 __all__ = ["laplacian", "log_kernel", "log", "zero_crossings", "dog"]
 
+_docs = filler(IMAGE_BORDER)
+
 
 @algorithm("edges.laplacian", section="4.12", check="cvkit.edges.checks:laplacian")
+@_docs
 def laplacian(image: ArrayLike, border: Border = "reflect101") -> np.ndarray:
     """The 4-neighbour discrete Laplacian ``Ixx + Iyy``.
 
     Parameters
     ----------
-    image : (H, W) or (H, W, 3) array_like
-        Grayscale or colour image, any real dtype, finite values (colour: per channel).
-    border : {"reflect101", "reflect", "replicate", "zero"}
-        How pixels outside the image are made up (§3.7).
+    %(image)s
+    %(border)s
 
     Returns
     -------
@@ -136,19 +138,18 @@ def log_kernel(sigma: float, radius: int | None = None) -> np.ndarray:
 
 
 @algorithm("edges.log", section="4.12", check="cvkit.edges.checks:log")
+@_docs
 def log(image: ArrayLike, sigma: float, border: Border = "reflect101") -> np.ndarray:
     """Laplacian of Gaussian response: the image correlated with :func:`log_kernel`.
 
     Parameters
     ----------
-    image : (H, W) or (H, W, 3) array_like
-        Grayscale or colour image, any real dtype, finite values (colour: per channel).
+    %(image)s
     sigma : float
         Standard deviation of the Gaussian, > 0; the kernel radius is ceil(3σ). The kernel and
         the image padded by the radius may each take at most 2 GiB (``ValueError`` naming
         ``sigma`` otherwise), which also bounds the time (at most one FFT of that size).
-    border : {"reflect101", "reflect", "replicate", "zero"}
-        How pixels outside the image are made up (§3.7).
+    %(border)s
 
     Returns
     -------
@@ -233,13 +234,13 @@ def zero_crossings(response: ArrayLike, threshold: float = 0.0) -> np.ndarray:
 
 
 @algorithm("edges.dog", section="4.12", check="cvkit.edges.checks:dog")
+@_docs
 def dog(image: ArrayLike, sigma: float, k: float = 1.6, border: Border = "reflect101") -> np.ndarray:
     """Difference of Gaussians ``G_{kσ} ∗ I − G_σ ∗ I``, an approximation of the LoG.
 
     Parameters
     ----------
-    image : (H, W) or (H, W, 3) array_like
-        Grayscale or colour image, any real dtype, finite values (colour: per channel).
+    %(image)s
     sigma : float
         The smaller standard deviation, > 0.
     k : float
@@ -247,8 +248,7 @@ def dog(image: ArrayLike, sigma: float, k: float = 1.6, border: Border = "reflec
         SIFT's scale space). Both σ and kσ must be finite and > 0 in float64, and each
         smoothing is bounded as :func:`cvkit.filters.gaussian` (``ValueError`` naming
         ``sigma`` and ``k`` otherwise).
-    border : {"reflect101", "reflect", "replicate", "zero"}
-        How pixels outside the image are made up (§3.7).
+    %(border)s
 
     Returns
     -------

@@ -12,11 +12,14 @@ from typing import cast
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._docstrings import IMAGE_BORDER, filler
 from .._validation import Border, as_float_array, check_border, check_padded, check_work
 from ..registry import algorithm, implementation
 from ._common import box_sum, check_int, check_real, gray, window_max
 
 __all__ = ["moravec", "structure_tensor", "harris", "peaks"]
+
+_docs = filler(IMAGE_BORDER)
 
 #: the eight unit shifts (dy, dx) of Moravec's detector
 SHIFTS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
@@ -26,6 +29,7 @@ SHIFTS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
 # §5.6 Moravec
 # --------------------------------------------------------------------------------------------
 @algorithm("features.moravec", section="5.6", check="cvkit.features.checks:moravec")
+@_docs
 def moravec(image: ArrayLike, window: int = 7, border: Border = "reflect101") -> np.ndarray:
     """Moravec's cornerness: the smallest SSD between the window at p and its 8 shifted copies.
 
@@ -38,8 +42,7 @@ def moravec(image: ArrayLike, window: int = 7, border: Border = "reflect101") ->
         causes: the image padded by ``window // 2 + 1`` may take at most 2 GiB and the 8
         shifted window sums, about ``8·(2·window + 3)`` operations per padded pixel, at most
         ``cvkit._validation.MAX_WORK`` (``ValueError`` naming ``window`` otherwise).
-    border : {"reflect101", "reflect", "replicate", "zero"}
-        How pixels outside the image are made up (§3.7).
+    %(border)s
 
     Returns
     -------

@@ -13,6 +13,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._docstrings import IMAGE_BORDER, filler
 from .._validation import (
     Border,
     as_float_array,
@@ -27,6 +28,14 @@ from .._validation import (
 from ..registry import algorithm, implementation
 
 __all__ = ["temporal_mean", "correlate", "convolve", "mean_kernel", "mean", "gaussian_kernel", "gaussian"]
+
+_docs = filler({
+    **IMAGE_BORDER,
+    "image_per_kernel": ("image : (H, W) or (H, W, 3) array_like\n"
+                         "        Grayscale or colour image, any real dtype, finite values. Colour images are filtered\n"
+                         "        channel by channel with the same kernel."),
+    "filtered": "float64 ndarray\n        The filtered image (colour stays colour).",
+})
 
 _OUTPUTS = ("same", "valid")
 # Rows per block in the tap loops: a block of the image and its scratch buffer stay in cache.
@@ -201,15 +210,14 @@ def temporal_mean(frames: ArrayLike) -> np.ndarray:
 # §3.6–3.7 correlation and convolution
 # --------------------------------------------------------------------------------------------
 @algorithm("filters.correlate", section="3.6", check="cvkit.filters.checks:correlate")
+@_docs
 def correlate(image: ArrayLike, kernel: ArrayLike, border: Border = "reflect101",
               output: Literal["same", "valid"] = "same") -> np.ndarray:
     """Correlate an image with a 2-D kernel (the kernel is *not* flipped).
 
     Parameters
     ----------
-    image : (H, W) or (H, W, 3) array_like
-        Grayscale or colour image, any real dtype, finite values. Colour images are filtered
-        channel by channel with the same kernel.
+    %(image_per_kernel)s
     kernel : (kh, kw) array_like
         Finite real kernel of any size, odd or even. Its anchor (the tap placed on the
         output pixel) is ``(kh // 2, kw // 2)``. With ``output="same"`` the image padded by
@@ -224,8 +232,7 @@ def correlate(image: ArrayLike, kernel: ArrayLike, border: Border = "reflect101"
 
     Returns
     -------
-    float64 ndarray
-        The filtered image (colour stays colour).
+    %(filtered)s
 
     Raises
     ------
@@ -268,15 +275,14 @@ def correlate(image: ArrayLike, kernel: ArrayLike, border: Border = "reflect101"
 
 
 @algorithm("filters.convolve", section="3.7", check="cvkit.filters.checks:convolve")
+@_docs
 def convolve(image: ArrayLike, kernel: ArrayLike, border: Border = "reflect101",
              output: Literal["same", "valid"] = "same") -> np.ndarray:
     """Convolve an image with a 2-D kernel (correlation with the kernel flipped).
 
     Parameters
     ----------
-    image : (H, W) or (H, W, 3) array_like
-        Grayscale or colour image, any real dtype, finite values. Colour images are filtered
-        channel by channel with the same kernel.
+    %(image_per_kernel)s
     kernel : (kh, kw) array_like
         Finite real kernel of any size, odd or even; its centre is ``(kh // 2, kw // 2)``.
         Bounded as for :func:`correlate`.
@@ -288,8 +294,7 @@ def convolve(image: ArrayLike, kernel: ArrayLike, border: Border = "reflect101",
 
     Returns
     -------
-    float64 ndarray
-        The filtered image (colour stays colour).
+    %(filtered)s
 
     Raises
     ------
@@ -358,6 +363,7 @@ def mean_kernel(size: int) -> np.ndarray:
 
 
 @algorithm("filters.mean", section="3.8", check="cvkit.filters.checks:mean")
+@_docs
 def mean(image: ArrayLike, size: int, border: Border = "reflect101") -> np.ndarray:
     """Box (mean) filter: each pixel becomes the average of its ``size`` x ``size`` window.
 
@@ -368,8 +374,7 @@ def mean(image: ArrayLike, size: int, border: Border = "reflect101") -> np.ndarr
     size : int
         Odd window side, >= 1. The kernel and the image padded by ``size // 2`` may each take
         at most 2 GiB (``ValueError`` naming ``size`` otherwise).
-    border : {"reflect101", "reflect", "replicate", "zero"}
-        How pixels outside the image are made up (§3.7).
+    %(border)s
 
     Returns
     -------
@@ -470,20 +475,19 @@ def _check_separable(shape: tuple[int, ...], radius: int, name: str) -> None:
 
 
 @algorithm("filters.gaussian", section="3.9.1", check="cvkit.filters.checks:gaussian")
+@_docs
 def gaussian(image: ArrayLike, sigma: float, border: Border = "reflect101") -> np.ndarray:
     """Gaussian smoothing, computed separably (rows, then columns).
 
     Parameters
     ----------
-    image : (H, W) or (H, W, 3) array_like
-        Grayscale or colour image, any real dtype, finite values (colour: per channel).
+    %(image)s
     sigma : float
         Standard deviation in pixels, > 0. The kernel radius is that of
         :func:`gaussian_kernel`, ``ceil(3σ − 1e-9)``. Bounded: the image padded by r may
         take at most 2 GiB and the two passes, about ``3(r + 1)(2H + 2r)·W·C`` operations,
         at most 2**36 (about a minute); otherwise ``ValueError`` naming ``sigma``.
-    border : {"reflect101", "reflect", "replicate", "zero"}
-        How pixels outside the image are made up (§3.7).
+    %(border)s
 
     Returns
     -------

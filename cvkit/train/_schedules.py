@@ -13,10 +13,13 @@ import numbers
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._docstrings import filler
 from .._validation import check_int, check_real
 from ..registry import algorithm
 
 __all__ = ["step_decay", "cosine_decay", "warmup", "one_cycle"]
+
+_docs = filler({"rates": "float or float64 ndarray\n        The learning rate(s) (a ``float`` for a scalar ``step``)."})
 
 
 def _times(value: ArrayLike, name: str) -> tuple[np.ndarray, bool]:
@@ -139,6 +142,7 @@ def cosine_decay(epoch: ArrayLike, epochs: int, lr0: float, lr_final: float = 0.
 # §12.2.5 warm-up
 # --------------------------------------------------------------------------------------------
 @algorithm("train.warmup", section="12.2.5", check="cvkit.train.checks:warmup")
+@_docs
 def warmup(step: ArrayLike, warmup_steps: int, lr_target: float, lr_start: float = 0.0) -> float | np.ndarray:
     r"""Linear warm-up from ``lr_start`` at step 0 to ``lr_target`` at step ``warmup_steps``.
 
@@ -159,8 +163,7 @@ def warmup(step: ArrayLike, warmup_steps: int, lr_target: float, lr_start: float
 
     Returns
     -------
-    float or float64 ndarray
-        The learning rate(s) (a ``float`` for a scalar ``step``).
+    %(rates)s
 
     Notes
     -----
@@ -194,6 +197,7 @@ def _anneal_cos(start: float, end: float, pct: np.ndarray) -> np.ndarray:
 
 
 @algorithm("train.one_cycle", section="12.2.6", check="cvkit.train.checks:one_cycle")
+@_docs
 def one_cycle(step: ArrayLike, total_steps: int, lr_max: float, pct_start: float = 0.3, div: float = 25.0,
               final_div: float = 1e4) -> float | np.ndarray:
     r"""The two-phase one-cycle schedule, exactly as PyTorch's ``OneCycleLR``.
@@ -231,8 +235,7 @@ def one_cycle(step: ArrayLike, total_steps: int, lr_max: float, pct_start: float
 
     Returns
     -------
-    float or float64 ndarray
-        The learning rate(s) (a ``float`` for a scalar ``step``).
+    %(rates)s
 
     Notes
     -----
