@@ -1627,32 +1627,27 @@ def _rh_unrefined(H, src, dst):
     return H / H[2, 2]
 
 
-def _rh_no_division(H, src, dst):
+def _rh_refit(H, src, dst, residual):
+    """A wrong refinement: Levenberg–Marquardt from H (scaled to H[2, 2] = 1) over its first 8
+    entries, minimising ``residual(Hm, src, dst)`` instead of the transfer error."""
     s = np.asarray(src, dtype=np.float64)
     d = np.asarray(dst, dtype=np.float64)
     H0 = np.asarray(H, dtype=np.float64)
     H0 = H0 / H0[2, 2]
 
     def residuals(h):
-        Hm = np.append(h, 1.0).reshape(3, 3)
-        return (s @ Hm[:2, :2].T + Hm[:2, 2] - d).ravel()
+        return residual(np.append(h, 1.0).reshape(3, 3), s, d).ravel()
 
     h, _ = _levenberg_marquardt(residuals, H0.ravel()[:8])
     return np.append(h, 1.0).reshape(3, 3)
+
+
+def _rh_no_division(H, src, dst):
+    return _rh_refit(H, src, dst, lambda Hm, s, d: s @ Hm[:2, :2].T + Hm[:2, 2] - d)
 
 
 def _rh_source_side(H, src, dst):
-    s = np.asarray(src, dtype=np.float64)
-    d = np.asarray(dst, dtype=np.float64)
-    H0 = np.asarray(H, dtype=np.float64)
-    H0 = H0 / H0[2, 2]
-
-    def residuals(h):
-        Hm = np.append(h, 1.0).reshape(3, 3)
-        return (_map(np.linalg.inv(Hm), d) - s).ravel()
-
-    h, _ = _levenberg_marquardt(residuals, H0.ravel()[:8])
-    return np.append(h, 1.0).reshape(3, 3)
+    return _rh_refit(H, src, dst, lambda Hm, s, d: _map(np.linalg.inv(Hm), d) - s)
 
 
 def _rh_unit_norm(H, src, dst):

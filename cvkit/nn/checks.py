@@ -239,6 +239,18 @@ def _cache(c: dict) -> CacheDict:
     return CacheDict(c)
 
 
+def _backward_cases(forward, cases, rng, fixed, drawn) -> list[Case]:
+    """The cases of a layer's backward pass: each case of its forward pass run through the
+    reference ``forward``, with an upstream gradient of the output's shape, ``fixed(shape, i)``
+    for the i-th public case (``rng`` is None) or ``drawn(rng, shape)`` for a hidden one."""
+    out = []
+    for i, case in enumerate(cases):
+        y, cache = forward(*case.args, **case.kwargs)
+        dout = fixed(y.shape, i) if rng is None else drawn(rng, y.shape)
+        out.append(Case((dout, _cache(cache)), {}, case.label))
+    return out
+
+
 def _f(a) -> np.ndarray:
     return np.asarray(a, dtype=np.float64)
 
@@ -968,12 +980,8 @@ def _conv_b_dw_mean(dout, cache):
 
 
 def _conv_backward_cases(cases, rng):
-    out = []
-    for case in cases:
-        y, cache = _conv_forward(*case.args, **case.kwargs)
-        dout = _normal(rng, y.shape, 1.0, 2) if rng is not None else _distinct(y.shape, seed=21, scale=0.125)
-        out.append(Case((dout, _cache(cache)), {}, case.label))
-    return out
+    return _backward_cases(_conv_forward, cases, rng, lambda shape, i: _distinct(shape, seed=21, scale=0.125),
+                           lambda rng, shape: _normal(rng, shape, 1.0, 2))
 
 
 conv2d_backward = Check(
@@ -1142,17 +1150,15 @@ def _pool_b_overwrite(dout, cache):
     return _pool_scatter(cache, w.astype(float), dout, add=False)
 
 
+def _pool_fixed_dout(shape, i):
+    dout = _distinct(shape, seed=41 + i, offset=0.5 * (math.prod(shape) % 2 == 0), scale=0.5)
+    dout[dout == 0] = 0.75
+    return dout
+
+
 def _pool_backward_cases(cases, rng):
-    out = []
-    for i, case in enumerate(cases):
-        y, cache = _pool_forward(*case.args, **case.kwargs)
-        if rng is None:
-            dout = _distinct(y.shape, seed=41 + i, offset=0.5 * (y.size % 2 == 0), scale=0.5)
-            dout[dout == 0] = 0.75
-        else:
-            dout = _normal(rng, y.shape, 1.0, 2) + 0.005
-        out.append(Case((dout, _cache(cache)), {}, case.label))
-    return out
+    return _backward_cases(_pool_forward, cases, rng, _pool_fixed_dout,
+                           lambda rng, shape: _normal(rng, shape, 1.0, 2) + 0.005)
 
 
 maxpool2d_backward = Check(
@@ -1253,12 +1259,8 @@ def _gap_b_divided_by_h(dout, cache):
 
 
 def _gap_backward_cases(cases, rng):
-    out = []
-    for i, case in enumerate(cases):
-        y, cache = _gap_forward(*case.args)
-        dout = _distinct(y.shape, seed=61 + i, offset=0.3, scale=0.5) if rng is None else _normal(rng, y.shape) + 0.01
-        out.append(Case((dout, _cache(cache)), {}, case.label))
-    return out
+    return _backward_cases(_gap_forward, cases, rng, lambda shape, i: _distinct(shape, seed=61 + i, offset=0.3, scale=0.5),
+                           lambda rng, shape: _normal(rng, shape) + 0.01)
 
 
 global_avg_pool_backward = Check(
@@ -1455,12 +1457,8 @@ _bn_b_unbiased = variant(_bn_backward_variant, ddof=1)
 
 
 def _bn_backward_cases(cases, rng):
-    out = []
-    for i, case in enumerate(cases):
-        y, cache = _bn_forward(*case.args, **case.kwargs)
-        dout = _distinct(y.shape, seed=71 + i, offset=0.2, scale=0.3) if rng is None else _normal(rng, y.shape)
-        out.append(Case((dout, _cache(cache)), {}, case.label))
-    return out
+    return _backward_cases(_bn_forward, cases, rng, lambda shape, i: _distinct(shape, seed=71 + i, offset=0.2, scale=0.3),
+                           _normal)
 
 
 batchnorm2d_backward = Check(
@@ -1669,12 +1667,8 @@ def _dropout_b_inverted(dout, cache):
 
 
 def _dropout_backward_cases(cases, rng):
-    out = []
-    for i, case in enumerate(cases):
-        y, cache = _dropout_forward(*case.args, **case.kwargs)
-        dout = _distinct(y.shape, seed=91 + i, offset=0.125, scale=0.25) if rng is None else _nonzero(rng, y.shape)
-        out.append(Case((dout, _cache(cache)), {}, case.label))
-    return out
+    return _backward_cases(_dropout_forward, cases, rng,
+                           lambda shape, i: _distinct(shape, seed=91 + i, offset=0.125, scale=0.25), _nonzero)
 
 
 def _dropout_backward_hidden(rng):
@@ -2277,28 +2271,16 @@ def _flops_variant(spec, shape, *, single=False, no_stride=False, no_padding=Fal
     return shape, flops
 
 
-def _flops_single(spec, input_shape):
-    return _flops_variant(spec, tuple(input_shape), single=True)[1]
+def _flops_mistake(flag):
+    """A mistake of model_flops: :func:`_flops_variant` with ``flag`` set, its count only."""
+    def wrong(spec, input_shape):
+        return _flops_variant(spec, tuple(input_shape), **{flag: True})[1]
+    wrong.__name__ = wrong.__qualname__ = f"_flops_{flag}"
+    return wrong
 
 
-def _flops_no_stride(spec, input_shape):
-    return _flops_variant(spec, tuple(input_shape), no_stride=True)[1]
-
-
-def _flops_no_padding(spec, input_shape):
-    return _flops_variant(spec, tuple(input_shape), no_padding=True)[1]
-
-
-def _flops_no_linear(spec, input_shape):
-    return _flops_variant(spec, tuple(input_shape), no_linear=True)[1]
-
-
-def _flops_no_shortcut(spec, input_shape):
-    return _flops_variant(spec, tuple(input_shape), no_shortcut=True)[1]
-
-
-def _flops_no_in(spec, input_shape):
-    return _flops_variant(spec, tuple(input_shape), no_in=True)[1]
+_flops_single, _flops_no_stride, _flops_no_padding, _flops_no_linear, _flops_no_shortcut, _flops_no_in = (
+    _flops_mistake(flag) for flag in ("single", "no_stride", "no_padding", "no_linear", "no_shortcut", "no_in"))
 
 
 def _flops_hidden(rng):
