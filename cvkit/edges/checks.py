@@ -265,9 +265,16 @@ def _grad_numpy(image, scheme="central", border="reflect101"):
     return ix, iy
 
 
-def _gradient_hidden(rng):
+def _images(rng):
+    """``img(h, w, kind="unit")``: a random (h, w) image of that kind drawn from ``rng``
+    (:func:`~cvkit.grading.casekit.random_image`)."""
     def img(h, w, kind="unit"):
         return random_image(rng, (h, w), kind)
+    return img
+
+
+def _gradient_hidden(rng):
+    img = _images(rng)
 
     return [
         Case((img(_size(rng, 6, 10), _size(rng, 8, 14)),), {"scheme": "central", "border": "zero"},
@@ -511,8 +518,7 @@ def _derivative_mistakes(reference, other, other_name: str, scale: int, what: st
 
 
 def _derivative_hidden(rng):
-    def img(h, w, kind="unit"):
-        return random_image(rng, (h, w), kind)
+    img = _images(rng)
 
     step = oriented_step_image((_size(rng, 8, 12), _size(rng, 9, 14)), angle=float(rng.uniform(-np.pi, np.pi)),
                                offset=float(rng.uniform(-1, 1)), low=0.2, high=0.9)
@@ -673,8 +679,7 @@ def _log_scaled(image, sigma, border="reflect101"):
 
 
 def _log_hidden(rng):
-    def img(h, w, kind="unit"):
-        return random_image(rng, (h, w), kind)
+    img = _images(rng)
 
     return [
         Case((img(_size(rng, 8, 12), _size(rng, 9, 14)), _sigma(rng, 0.6, 1.4)), {"border": "zero"}, "zero border"),
@@ -747,8 +752,7 @@ def _k(rng, lo=1.2, hi=2.0):
 
 
 def _dog_hidden(rng):
-    def img(h, w, kind="unit"):
-        return random_image(rng, (h, w), kind)
+    img = _images(rng)
 
     return [
         Case((img(_size(rng, 8, 12), _size(rng, 9, 14)), _sigma(rng, 0.6, 1.2), _k(rng)), {"border": "zero"},

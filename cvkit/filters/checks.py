@@ -221,8 +221,7 @@ def _linear_public(even_anchor):
 
 def _linear_hidden(rng, even_sizes):
     """Cases shared by correlate and convolve; ``even_sizes`` the even kernel shapes to use."""
-    def img(h, w, kind="unit", channels=None):
-        return _image(rng, h, w, kind, channels)
+    img = partial(_image, rng)
 
     e1, e2 = even_sizes
     return [
@@ -380,6 +379,15 @@ def _mean_size_as_radius(image, size, border="reflect101"):
     return _mean(image, 2 * size + 1, border)
 
 
+def _window_public():
+    """The visible cases of a window filter (``filters.mean``, ``filters.median``)."""
+    return [
+        Case((_distinct((5, 6)), 3), {}, "5×6 image, 3×3 window, default border (reflect101)"),
+        Case((_distinct((6, 7)), 3), {"border": "reflect"}, "3×3 window, reflect"),
+        Case((_distinct((4, 5, 3), dtype=np.uint8), 3), {"border": "replicate"}, "colour uint8 image, replicate"),
+    ]
+
+
 def _window_edge_cases(rng, img, copy_border):
     """The awkward inputs of a window filter (``filters.mean``, ``filters.median``): a constant
     image, a 1×N and a 2×3 image with 3×3 windows, and a 1×1 window (a copy)."""
@@ -393,8 +401,7 @@ def _window_edge_cases(rng, img, copy_border):
 
 
 def _mean_hidden(rng):
-    def img(h, w, kind="unit", channels=None):
-        return _image(rng, h, w, kind, channels)
+    img = partial(_image, rng)
 
     return [
         Case((img(_size(rng, 8, 20), _size(rng, 9, 24)), 3), {"border": "zero"}, "3×3 window, zero border"),
@@ -411,11 +418,7 @@ def _mean_hidden(rng):
 
 
 mean = Check(
-    public=[
-        Case((_distinct((5, 6)), 3), {}, "5×6 image, 3×3 window, default border (reflect101)"),
-        Case((_distinct((6, 7)), 3), {"border": "reflect"}, "3×3 window, reflect"),
-        Case((_distinct((4, 5, 3), dtype=np.uint8), 3), {"border": "replicate"}, "colour uint8 image, replicate"),
-    ],
+    public=_window_public,
     hidden=_mean_hidden,
     compare=_LINEAR,
     mistakes=[
@@ -535,8 +538,7 @@ def _g_floor(image, sigma, border="reflect101"):
 
 
 def _gaussian_hidden(rng):
-    def img(h, w, kind="unit", channels=None):
-        return _image(rng, h, w, kind, channels)
+    img = partial(_image, rng)
 
     return [
         Case((img(_size(rng, 10, 16), _size(rng, 12, 20)), _sigma(rng, 0.6, 1.6)), {"border": "zero"},
@@ -607,8 +609,7 @@ def _median_separable(image, size, border="reflect101"):
 
 
 def _median_hidden(rng):
-    def img(h, w, kind="unit", channels=None):
-        return _image(rng, h, w, kind, channels)
+    img = partial(_image, rng)
 
     return [
         Case((img(_size(rng, 8, 16), _size(rng, 9, 20)), 3), {"border": "zero"}, "3×3 window, zero border"),
@@ -626,11 +627,7 @@ def _median_hidden(rng):
 
 
 median = Check(
-    public=[
-        Case((_distinct((5, 6)), 3), {}, "5×6 image, 3×3 window, default border (reflect101)"),
-        Case((_distinct((6, 7)), 3), {"border": "reflect"}, "3×3 window, reflect"),
-        Case((_distinct((4, 5, 3), dtype=np.uint8), 3), {"border": "replicate"}, "colour uint8 image, replicate"),
-    ],
+    public=_window_public,
     hidden=_median_hidden,
     compare=_NONLINEAR,
     mistakes=[
@@ -687,8 +684,7 @@ _bil = partial(variant, _bilateral_variant)
 
 
 def _bilateral_hidden(rng):
-    def img(h, w, kind="unit", channels=None):
-        return _image(rng, h, w, kind, channels)
+    img = partial(_image, rng)
 
     def ss():
         return _sigma(rng, 0.6, 1.3)
