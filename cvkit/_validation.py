@@ -62,6 +62,13 @@ def check_int(value, name: str, *, minimum=None, odd: bool = False) -> int:
     return value
 
 
+def check_bool(value, name: str) -> bool:
+    """``value`` as a ``bool``; it must be ``True`` or ``False`` (a NumPy bool too), not 0, 1 or None."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
+    return bool(value)
+
+
 def check_real(value, name: str, *, positive: bool = False, nonnegative: bool = False) -> float:
     """A finite real scalar, optionally > 0 or >= 0."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Real, np.integer, np.floating)):

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import check_size
+from .._validation import check_bool, check_size
 from ..registry import algorithm, implementation
 from ._common import (
     as_intrinsics,
@@ -191,8 +191,7 @@ def undistort_points(xy_distorted: ArrayLike, k: ArrayLike, p: ArrayLike, iterat
     converge = iterations is None
     steps = DEFAULT_ITERATIONS if iterations is None else check_size(
         iterations, "iterations", minimum=0, maximum=MAX_ITERATIONS)
-    if not isinstance(strict, (bool, np.bool_)):
-        raise TypeError(f"strict must be True or False, got {type(strict).__name__} {strict!r}")
+    check_bool(strict, "strict")
     xd, yd = xy[:, 0], xy[:, 1]
     x, y = xd.copy(), yd.copy()
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):

@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike
 
 from .._validation import MAX_ARRAY_BYTES, MAX_WORK, as_float_array, check_size
 from ..registry import algorithm, implementation
+from ._shape import _sobel
 
 __all__ = ["ght_build", "ght_detect", "MAX_BINS"]
 
@@ -32,11 +33,6 @@ def _direction_bins(gx: np.ndarray, gy: np.ndarray, bins: int, angle: float = 0.
     """round((atan2(gy, gx) − angle) / (2π / bins)) mod bins, rounding as np.round."""
     phi = np.arctan2(gy, gx) - angle
     return np.round(phi / (2 * math.pi / bins)).astype(np.int64) % bins
-
-
-def _sobel(img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    gx, gy = implementation("edges.sobel")(img)
-    return np.asarray(gx, dtype=np.float64), np.asarray(gy, dtype=np.float64)
 
 
 @algorithm("detection.ght_build", section="6.0.6", check="cvkit.detection.checks:ght_build")

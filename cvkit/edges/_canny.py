@@ -12,19 +12,13 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, as_image, check_real
+from .._validation import as_float_array, as_image, check_bool, check_real
 from ..registry import algorithm, implementation
 
 __all__ = ["non_max_suppression", "hysteresis", "canny"]
 
 def _image2d(value: ArrayLike, name: str) -> np.ndarray:
     return as_float_array(value, name, ndim=2)
-
-
-def _check_flag(value: object, name: str) -> bool:
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
-    return bool(value)
 
 
 # --------------------------------------------------------------------------------------------
@@ -86,7 +80,7 @@ def non_max_suppression(magnitude: ArrayLike, ix: ArrayLike, iy: ArrayLike, inte
         raise ValueError(
             f"magnitude, ix and iy must have the same shape, got {mag.shape}, {gx.shape} and {gy.shape}"
         )
-    interpolate = _check_flag(interpolate, "interpolate")
+    interpolate = check_bool(interpolate, "interpolate")
     h, w = mag.shape
     padded = np.zeros((h + 2, w + 2))
     padded[1:-1, 1:-1] = mag
@@ -314,7 +308,7 @@ def canny(image: ArrayLike, sigma: float = 1.4, low: float = 0.1, high: float = 
     high = check_real(high, "high", nonnegative=True)
     if low > high:
         raise ValueError(f"low must be <= high, got low={low} and high={high}")
-    relative = _check_flag(relative, "relative")
+    relative = check_bool(relative, "relative")
     smoothed = implementation("filters.gaussian")(img, sigma)
     gx, gy = implementation("edges.sobel")(smoothed)
     strength = np.asarray(implementation("edges.magnitude")(gx, gy, "l2"), dtype=np.float64)

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, check_allocation, check_padded, check_size, check_work
+from .._validation import as_float_array, check_allocation, check_bool, check_padded, check_size, check_work
 from ..registry import algorithm, implementation
 from ._common import check_int, check_real, gray
 
@@ -87,8 +87,7 @@ def pyramid_arguments(shape: Sequence[int], sigma0: float, scales: int, octaves:
     sigma0 = check_real(sigma0, "sigma0", positive=True)
     scales = check_size(scales, "scales", minimum=1, maximum=MAX_SCALES)
     octaves = check_int(octaves, "octaves", minimum=1)
-    if not isinstance(upsample, (bool, np.bool_)):
-        raise TypeError(f"upsample must be True or False, got {type(upsample).__name__} {upsample!r}")
+    check_bool(upsample, "upsample")
     assumed_blur = check_real(assumed_blur, "assumed_blur", nonnegative=True)
     blur = 2.0 * assumed_blur if upsample else assumed_blur
     if sigma0 <= blur:

@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterator
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, check_allocation, check_size, check_work
+from .._validation import as_float_array, check_allocation, check_bool, check_size, check_work
 from ..registry import algorithm, get, implementation
 from ._common import check_int, check_real, gray
 from ._scale_space import _hessian_trace_det, derivatives_3d, pyramid_arguments
@@ -536,8 +536,7 @@ def sift(image: ArrayLike, sigma0: float = 1.6, scales: int = 3, octaves: int | 
     ratio = check_real(edge_ratio, "edge_ratio", positive=True)
     border = check_int(border, "border", minimum=1)
     max_steps = check_size(max_steps, "max_steps", minimum=1, maximum=MAX_STEPS)
-    if not isinstance(upsample, (bool, np.bool_)):
-        raise TypeError(f"upsample must be True or False, got {type(upsample).__name__} {upsample!r}")
+    check_bool(upsample, "upsample")
     if octaves is None:
         octaves = _default_octaves((2 * img.shape[0], 2 * img.shape[1]) if upsample else img.shape)
     sigma0, scales, octaves, _ = pyramid_arguments(img.shape, sigma0, scales, octaves, upsample, assumed_blur)

@@ -7,20 +7,15 @@ layers. Not graded: a tool for the notebooks and ``benchmarks/train_small_cnn.py
 """
 from __future__ import annotations
 
-import contextlib
 import copy
 import time
 from collections.abc import Iterable, Sequence
-from typing import Any, ContextManager
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-try:  # installed with scikit-learn, which the digits come from
-    from threadpoolctl import threadpool_limits as _threadpool_limits
-except ImportError:  # pragma: no cover
-    _threadpool_limits = None
-
+from .._threads import single_thread
 from .._validation import as_float_array, as_rng, check_allocation, check_int, check_real, check_size
 from ..registry import implementation
 from ._conv import check_conv_cost
@@ -34,13 +29,6 @@ BLOCK2 = ("w2", "gamma2", "beta2")
 HEAD = ("W", "b")
 #: the most epochs :meth:`SmallCNN.fit` accepts
 MAX_EPOCHS = 100_000
-
-
-def single_thread() -> ContextManager[Any]:
-    """BLAS limited to one thread: the matrices of a small CNN are tiny, and extra threads only
-    add overhead (on a busy 2-core machine a product of 512×144 by 144×32 took 16 ms with
-    threads and 0.5 ms without)."""
-    return _threadpool_limits(1) if _threadpool_limits is not None else contextlib.nullcontext()
 
 
 class SmallCNN:

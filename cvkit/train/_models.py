@@ -31,19 +31,14 @@ The building blocks are looked up through :func:`cvkit.registry.implementation`,
 """
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, ContextManager, Literal, overload
+from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-try:  # installed with scikit-learn, which the digits come from
-    from threadpoolctl import threadpool_limits as _threadpool_limits
-except ImportError:  # pragma: no cover
-    _threadpool_limits = None
-
+from .._threads import single_thread
 from .._validation import as_rng
 from ..registry import get, implementation
 from ._augment import _crop_boxes, _resample_boxes
@@ -94,12 +89,6 @@ class TrainResult:
     val_accuracy: np.ndarray = field(default_factory=lambda: np.zeros(0))
     lrs: np.ndarray = field(default_factory=lambda: np.zeros(0))        # lr of every step
     diverged: bool = False
-
-
-def _single_thread() -> ContextManager[Any]:
-    """BLAS limited to one thread: the matrices of this model are tiny, and extra threads only
-    add overhead (and steal CPU from the rest of a busy machine)."""
-    return _threadpool_limits(1) if _threadpool_limits is not None else contextlib.nullcontext()
 
 
 def init_params(sizes: Sequence[int], rng: np.random.Generator | int | None) -> list[np.ndarray]:
@@ -284,7 +273,7 @@ def train(X: ArrayLike, y: ArrayLike, recipe: Recipe = Recipe(), rng: np.random.
     ema_update = _building_block("train.ema_update", _ema_fast)
     step = 0
     diverged = False
-    with np.errstate(all="ignore"), _single_thread():
+    with np.errstate(all="ignore"), single_thread():
         for epoch in range(recipe.epochs):
             order = generator.permutation(n)
             for start in range(0, n, recipe.batch_size):
@@ -409,7 +398,7 @@ def recipe_table(train_set: tuple[np.ndarray, np.ndarray], test_set: tuple[np.nd
     list of RecipeRow
     """
     (X_train, y_train), (X_test, y_test) = train_set, test_set
-    with _single_thread():
+    with single_thread():
         return _recipe_rows(X_train, y_train, X_test, y_test, seeds, steps, baseline, epochs, progress)
 
 

@@ -9,7 +9,7 @@ from typing import TypeAlias
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, as_rng, check_allocation, check_int, check_real
+from .._validation import as_float_array, as_rng, check_allocation, check_bool, check_int, check_real
 from ..registry import algorithm
 
 __all__ = ["sgd_weight_decay_step", "early_stopping", "smooth_labels", "stochastic_depth"]
@@ -281,8 +281,7 @@ def stochastic_depth(x: ArrayLike, residual: ArrayLike, survival_prob: float, tr
     p = check_real(survival_prob, "survival_prob")
     if not 0.0 <= p <= 1.0:
         raise ValueError(f"survival_prob must be in [0, 1], got {p}")
-    if not isinstance(training, (bool, np.bool_)):
-        raise TypeError(f"training must be True or False, got {type(training).__name__} {training!r}")
+    check_bool(training, "training")
     generator = as_rng(rng)
     if not training:
         return identity + p * branch
