@@ -41,6 +41,7 @@ from ..camera import rotation_matrix as _rotation_matrix
 from ..camera.checks import FloatClose, Parts
 from ..grading import Case, Check, Comparator, Mismatch, Mistake
 from ..grading.casekit import variant
+from ..grading.casekit import size as _size
 from ..grading.casekit import uniform as _u
 from ..grading.compare import FloatArrayComparator, as_float_array, tuple_problem
 from ._homography import _apply, _dlt_matrix, _null_vector, _scaled, hartley_normalization
@@ -435,7 +436,7 @@ def _cp_squares(cols, rows, square_size):
 
 def _cp_hidden(rng):
     def n(lo, hi):
-        return int(rng.integers(lo, hi + 1))
+        return _size(rng, lo, hi)
 
     c = n(4, 9)
     r = c - n(1, 3)

@@ -414,7 +414,9 @@ def _q_image(rng, shape, bits, vmax, lo=-0.1, hi=1.1, decimals=4):
 
 
 def _q_hidden(rng):
-    b = lambda lo, hi: int(rng.integers(lo, hi + 1))  # noqa: E731
+    def b(lo, hi):
+        return _size(rng, lo, hi)
+
     bits_a, bits_b, bits_c = b(2, 4), b(3, 6), b(10, 16)
     halves = np.array([[0.0, 0.5, 1.0, 0.25], [0.75, 0.5, -0.5, 2.0]]) * float(rng.choice([1.0, 4.0, 255.0]))
     return [
@@ -482,7 +484,7 @@ def _mb_pixels(width, height, bits_per_pixel):
 
 def _mb_hidden(rng):
     def side(lo, hi):
-        return int(rng.integers(lo, hi + 1))
+        return _size(rng, lo, hi)
 
     return [
         Case((side(100, 4000), side(100, 3000), 8), {}, "grayscale, 8 bits"),

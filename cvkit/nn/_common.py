@@ -8,9 +8,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, check_int, check_real
+from .._validation import as_float_array, check_bool, check_int, check_real
 
-__all__ = ["as_batch", "as_gradient", "pair", "check_bool", "cache_value", "check_cache"]
+__all__ = ["as_batch", "as_gradient", "pair", "check_bool", "cache_value", "check_cache", "entry_name"]
 
 
 def as_batch(x: ArrayLike, name: str = "x") -> np.ndarray:
@@ -37,10 +37,10 @@ def pair(value: int | Sequence[int] | np.ndarray, name: str, *, minimum: int) ->
     return (v, v)
 
 
-def check_bool(value: object, name: str) -> bool:
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
-    return bool(value)
+def entry_name(prefix: str, key: str) -> str:
+    """How an error names the argument ``key``: ``key`` itself, or ``prefix[key]``
+    (``cache['x']``) when the arguments are the entries of a cache."""
+    return f"{prefix}[{key!r}]" if prefix else key
 
 
 def check_cache(cache: object, keys: tuple[str, ...], layer: str) -> dict[str, Any]:

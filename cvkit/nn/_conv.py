@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
+from functools import partial
 from typing import Any, TypeAlias
 
 import numpy as np
@@ -17,7 +18,7 @@ from numpy.typing import ArrayLike
 
 from .._validation import MAX_ARRAY_BYTES, as_float_array, check_allocation, check_int
 from ..registry import algorithm
-from ._common import as_batch, as_gradient, check_cache, pair
+from ._common import as_batch, as_gradient, check_cache, entry_name, pair
 
 __all__ = ["conv_output_size", "receptive_field", "conv2d_forward", "conv2d_backward"]
 
@@ -130,8 +131,7 @@ def _conv_arguments(x: ArrayLike, w: ArrayLike, b: ArrayLike, stride: IntOrPair,
                     prefix: str = "") -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[int, int], tuple[int, int]]:
     """The arguments of the layer checked; ``prefix`` (``"cache"``) names them as entries of a
     cache: ``cache['x']``."""
-    def name(key: str) -> str:
-        return f"{prefix}[{key!r}]" if prefix else key
+    name = partial(entry_name, prefix)
 
     x = as_batch(x, name("x"))
     w = as_float_array(w, name("w"), ndim=4)

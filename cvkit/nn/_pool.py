@@ -1,6 +1,7 @@
 """Pooling layers: max pooling (§10.7.5) and global average pooling (§11.3.5)."""
 from __future__ import annotations
 
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -9,7 +10,7 @@ from numpy.typing import ArrayLike
 
 from .._validation import check_allocation, check_int
 from ..registry import algorithm
-from ._common import as_batch, as_gradient, check_cache
+from ._common import as_batch, as_gradient, check_cache, entry_name
 
 __all__ = ["maxpool2d_forward", "maxpool2d_backward", "global_avg_pool_forward", "global_avg_pool_backward"]
 
@@ -19,8 +20,7 @@ def _pool_arguments(x: ArrayLike, size: int, stride: int,
     """The checked arguments and the output size ``(Ho, Wo)``; ``prefix`` (``"cache"``) names
     them as entries of a cache. The window must fit in ``x`` and the copy of all windows
     (``N·C·Ho·Wo·size²`` values) in cvkit's 2 GiB per array."""
-    def name(key: str) -> str:
-        return f"{prefix}[{key!r}]" if prefix else key
+    name = partial(entry_name, prefix)
 
     x = as_batch(x, name("x"))
     size = check_int(size, name("size"), minimum=1)
