@@ -17,8 +17,9 @@ step                            formula                                     func
 vanishing points. ``decompose_projection`` factorises P back into A, R, t, and
 ``undistort_points`` inverts the distortion (it warns with ``ConvergenceWarning`` where it
 cannot). The argument checks ``as_points``, ``as_matrix``, ``as_rotation``, ``as_translation``,
-``as_intrinsics`` and ``distortion_coefficients`` are public for the topics built on the camera
-model (not algorithms of the catalog, so not in ``__all__``).
+``as_intrinsics`` and ``distortion_coefficients``, and the lens model's arithmetic
+``radial_tangential``, are public for the topics built on the camera model (not algorithms of
+the catalog, so not in ``__all__``).
 
 Conventions: pixels are (u, v) = (x, y) = (col, row) with the origin at the top-left pixel;
 the camera frame has x to the right, y down and z along the optical axis (OpenCV's); angles
@@ -53,6 +54,7 @@ from ._common import (
     as_rotation,
     as_translation,
     distortion_coefficients,
+    radial_tangential,
 )
 
 __all__ = [
