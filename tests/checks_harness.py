@@ -8,12 +8,18 @@ blocks, how to fingerprint a case) as an argument; none has a chapter's value bu
 """
 from __future__ import annotations
 
+import contextlib
+import copy
 import dataclasses
+import hashlib
+import pickle
+import time
+from unittest import mock
 
 import numpy as np
 
 from cvkit import registry
-from cvkit.grading import evaluate
+from cvkit.grading import engine, evaluate
 
 BORDERS = frozenset({"zero", "replicate", "reflect", "reflect101"})
 
@@ -66,6 +72,56 @@ def allowing_itself(spec, algorithm_id):
 # --------------------------------------------------------------------------------------------
 # grading
 # --------------------------------------------------------------------------------------------
+class _Outputs:
+    """The reference's and the bank's mistakes' outputs by (function, case), for this test
+    process. Grading a mistake as a candidate runs the whole bank on every failing case to
+    name it, and the tests grade every mistake of a bank on the same cases: the same
+    deterministic calls (on deep copies of the case) again and again. Only the *known* outputs
+    the candidate is compared with are reused — the candidate itself always runs — and only
+    calls that took at least ``SLOW`` seconds are kept (the rest are cheaper to repeat)."""
+
+    SLOW = 0.02
+
+    def __init__(self):
+        self.kept = {}
+        self.reference_output = engine._reference_output
+        self.mistake_output = engine._mistake_output
+
+    @staticmethod
+    def _key(function, case, call):
+        try:
+            data = pickle.dumps((case.args, case.kwargs), protocol=5)
+        except Exception:  # noqa: BLE001 - a case that cannot be pickled is simply not kept
+            return None
+        return function, call, hashlib.sha1(data).hexdigest()  # the functions themselves: no id reused
+
+    def _kept(self, key, compute):
+        if key is not None and key in self.kept:
+            return copy.deepcopy(self.kept[key])
+        start = time.perf_counter()
+        value = compute()
+        if key is not None and time.perf_counter() - start >= self.SLOW:
+            self.kept[key] = copy.deepcopy(value)
+        return value
+
+    def reference(self, function, case, call=None):
+        return self._kept(self._key(function, case, call), lambda: self.reference_output(function, case, call))
+
+    def mistake(self, mistake, case, call=None):
+        return self._kept(self._key(mistake.function, case, call), lambda: self.mistake_output(mistake, case, call))
+
+
+_OUTPUTS = _Outputs()
+
+
+@contextlib.contextmanager
+def reusing_known_outputs():
+    """Within: the engine reuses the reference's and the mistakes' slow outputs (:class:`_Outputs`)."""
+    with mock.patch.object(engine, "_reference_output", _OUTPUTS.reference), \
+            mock.patch.object(engine, "_mistake_output", _OUTPUTS.mistake):
+        yield
+
+
 def grade_everywhere(algorithm_id, candidate, seeds, check=None, allowed=None):
     """Reports of ``candidate`` on the public cases, then on the hidden cases of each seed.
 
@@ -73,8 +129,9 @@ def grade_everywhere(algorithm_id, candidate, seeds, check=None, allowed=None):
     registered check)."""
     if allowed is not None:
         check = allowing(check if check is not None else check_of(algorithm_id), allowed)
-    reports = [evaluate(algorithm_id, candidate, check=check)]
-    reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in seeds]
+    with reusing_known_outputs():
+        reports = [evaluate(algorithm_id, candidate, check=check)]
+        reports += [evaluate(algorithm_id, candidate, hidden=True, seed=s, check=check) for s in seeds]
     return reports
 
 
@@ -120,12 +177,14 @@ def assert_mistake_fails_and_is_named(algorithm_id, name, seeds, allowed=None, *
     spec = check_of(algorithm_id)
     mistake = spec.mistake(name)
     check = spec if allowed is None else allowing(spec, allowed)
-    public = evaluate(algorithm_id, mistake.function, check=check)
+    with reusing_known_outputs():
+        public = evaluate(algorithm_id, mistake.function, check=check)
     assert not public.passed, f"the public cases do not catch {name!r}"
     if named_on_public:
         assert public.mistake == name, "public cases: " + _named_wrongly(public, name)
     for seed in seeds:
-        report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=check)
+        with reusing_known_outputs():
+            report = evaluate(algorithm_id, mistake.function, hidden=True, seed=seed, check=check)
         assert not report.passed, f"hidden cases (seed {seed}) do not catch {name!r}"
         assert report.mistake == name, f"seed {seed}: " + _named_wrongly(report, name)
         if hint:
