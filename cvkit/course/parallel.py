@@ -108,26 +108,18 @@ def _on_local_pool(batches: _Batches, payloads: list[tuple[Any, ...]], workers: 
     context = multiprocessing.get_context("spawn")  # no inherited threads or state
     with concurrent.futures.ProcessPoolExecutor(max_workers=max(1, workers), mp_context=context) as pool:
         batches.pool = pool
-        waiting = list(payloads)  # submitted a few at a time, so that feedback jobs queued
-        pending: set[Future[ExecutedSubmission]] = set()  # by `drain` run before the submissions still waiting
-
-        def submit_next() -> None:
-            if waiting:
-                job = waiting.pop(0)
-                future = pool.submit(grade_submission, *job)
-                batches.owners[future] = job[1:3]
-                pending.add(future)
-
-        for _ in range(max(1, workers) + 1):
-            submit_next()
+        # every grading job is queued at once, and the feedback pages of each recorded batch
+        # behind them: a worker is never idle while a submission waits, and the pages (short)
+        # fill the end, when the last long executions keep the other workers busy
+        pending: set[Future[ExecutedSubmission]] = set()
+        for job in payloads:
+            future = pool.submit(grade_submission, *job)
+            batches.owners[future] = job[1:3]
+            pending.add(future)
         while pending:
             done, _ = concurrent.futures.wait(pending, return_when=concurrent.futures.FIRST_COMPLETED)
             pending.difference_update(done)
-            for _ in done:
-                submit_next()
-            batches.drain(done, len(pending) + len(waiting))
-        # feedback pages (nbconvert, CPU-heavy) were queued batch by batch behind the
-        # grading jobs, so a worker with no submission left writes them meanwhile
+            batches.drain(done, len(pending))
         batches.feedback_done(wait=True)
 
 
