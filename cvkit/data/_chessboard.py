@@ -112,23 +112,42 @@ def _rays(A_key: tuple[float, ...], k: tuple[float, ...], p: tuple[float, ...], 
     uu, vv = np.meshgrid(u, v)
     yd = (vv - A[1, 2]) / A[1, 1]
     xd = (uu - A[0, 2] - A[0, 1] * yd) / A[0, 0]
-    x, y = xd.copy(), yd.copy()
     k1, k2, k3 = k
     p1, p2 = p
+    # Newton's step is element-wise, so a point it leaves exactly unchanged stays so: once
+    # most points have settled, only the others are stepped again (the same numbers as
+    # stepping all of them twelve times)
+    x_all, y_all = xd.ravel().copy(), yd.ravel().copy()
+    x, y, xt, yt = x_all, y_all, xd.ravel(), yd.ravel()
+    moving: np.ndarray | None = None                        # None: every point
     for _ in range(12):
         r2 = x * x + y * y
         radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
         dradial = k1 + r2 * (2 * k2 + 3 * k3 * r2)          # d radial / d r²
-        fx = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) - xd
-        fy = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y - yd
-        jxx = radial + 2 * x * x * dradial + 2 * p1 * y + 6 * p2 * x
-        jxy = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
-        jyx = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
-        jyy = radial + 2 * y * y * dradial + 6 * p1 * y + 2 * p2 * x
-        det = jxx * jyy - jxy * jyx
+        xx2, yy2 = 2 * x * x, 2 * y * y
+        fx = x * radial + 2 * p1 * x * y + p2 * (r2 + xx2) - xt
+        fy = y * radial + p1 * (r2 + yy2) + 2 * p2 * x * y - yt
+        jxx = radial + xx2 * dradial + 2 * p1 * y + 6 * p2 * x
+        jxy = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y  # = d fx / dy = d fy / dx
+        jyy = radial + yy2 * dradial + 6 * p1 * y + 2 * p2 * x
+        det = jxx * jyy - jxy * jxy
         with np.errstate(divide="ignore", invalid="ignore"):
-            x = x - (jyy * fx - jxy * fy) / det
-            y = y - (jxx * fy - jyx * fx) / det
+            x_next = x - (jyy * fx - jxy * fy) / det
+            y_next = y - (jxx * fy - jxy * fx) / det
+        changed = (x_next != x) | (y_next != y)             # NaN counts as changed
+        if moving is None:
+            x_all, y_all = x_next, y_next
+            if 4 * np.count_nonzero(changed) > changed.size:
+                x, y = x_all, y_all
+                continue
+            moving = np.flatnonzero(changed)
+        else:
+            x_all[moving], y_all[moving] = x_next, y_next
+            moving = moving[changed]
+        if not moving.size:
+            break
+        x, y, xt, yt = x_all[moving], y_all[moving], xd.ravel()[moving], yd.ravel()[moving]
+    x, y = x_all.reshape(xd.shape), y_all.reshape(xd.shape)
     out = np.stack([x, y], axis=-1)
     out.setflags(write=False)
     return out
@@ -171,10 +190,12 @@ def _plane_homography(R: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def _board_xy(X: np.ndarray, Y: np.ndarray, Wh: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Euclidean board coordinates from homogeneous ones; +inf where the plane is behind."""
-    hit = Wh > 0
+    behind = ~(Wh > 0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        xw = np.where(hit, X / Wh, np.inf)
-        yw = np.where(hit, Y / Wh, np.inf)
+        xw = X / Wh
+        yw = Y / Wh
+    np.copyto(xw, np.inf, where=behind)
+    np.copyto(yw, np.inf, where=behind)
     return xw, yw
 
 
@@ -185,9 +206,12 @@ def _labels(xw: np.ndarray, yw: np.ndarray, cols: int, rows: int, s: float, marg
         v = yw / s
         on_paper = (u >= -1 - margin) & (u <= cols + margin) & (v >= -1 - margin) & (v <= rows + margin)
         on_squares = (u >= -1) & (u < cols) & (v >= -1) & (v < rows)
-        parity = (np.floor(np.where(on_squares, u, 0.0)) + np.floor(np.where(on_squares, v, 0.0))) % 2
+        # the parity only matters on the squares, where u and v are finite
+        parity = (np.floor(u) + np.floor(v)) % 2
     dark = on_squares & (parity == 0)   # square (-1, -1), at the origin, is dark
-    return np.where(dark, 0, np.where(on_paper, 1, 2)).astype(np.int8)
+    labels = np.where(on_paper, np.int8(1), np.int8(2))
+    labels[dark] = 0
+    return labels
 
 
 def render_chessboard(A: ArrayLike, R: ArrayLike, t: ArrayLike, cols: int = 9, rows: int = 6,
@@ -298,7 +322,9 @@ def render_chessboard(A: ArrayLike, R: ArrayLike, t: ArrayLike, cols: int = 9, r
             Wh = a0[:, 2:3] + ax[:, 2:3] * fx + ay[:, 2:3] * fy + axy[:, 2:3] * fxy
             sx, sy = _board_xy(X, Y, Wh)
             labels = _labels(sx, sy, cols, rows, s, margin)                     # (n, ss²)
-            counts = np.stack([(labels == i).mean(axis=1) for i in range(3)], axis=1)  # (n, 3)
+            # the share of each label among the pixel's samples (n, 3)
+            counts = np.bincount((labels + 3 * np.arange(len(r))[:, None]).ravel(), minlength=3 * len(r))
+            counts = counts.reshape(len(r), 3) / labels.shape[1]
             image[r, c] = counts @ values
     if noise > 0:
         image = image + as_rng(rng).normal(0.0, noise, image.shape)
