@@ -183,6 +183,38 @@ def test_the_pose_samplers_projection_is_project_full_bit_for_bit():
         np.testing.assert_array_equal(_project(points, A, R, t, k, p), expected)
 
 
+def test_project_full_and_the_refinement_use_a_providers_lens(monkeypatch):
+    """project_full runs the active provider's camera.distort; calibrate's refinement skips the
+    argument checks only with the reference lens: under a provider whose distort is the
+    reference's in a wrapper (so called through the checked path), the same numbers bit for
+    bit, and the wrapper is really called."""
+    from cvkit import registry
+
+    calls = []
+
+    def distort(xy_normalized, k=(0.0, 0.0, 0.0), p=(0.0, 0.0)):
+        calls.append(len(xy_normalized))
+        return camera.distort(xy_normalized, k, p)
+
+    monkeypatch.setattr(registry, "_providers", dict(registry._providers))
+    registry.register_provider("testing-wrapped-lens", {"camera.distort": distort})
+    A = camera.intrinsic_matrix(400.0, 410.0, 160.0, 120.0)
+    R, t = camera.rotation_matrix(0.2, -0.3, 0.1), np.array([-40.0, -30.0, 300.0])
+    grid = np.column_stack([np.tile(np.arange(6.0), 5), np.repeat(np.arange(5.0), 6), np.zeros(30)]) * 10
+    views = [camera.project_full(grid, A, camera.rotation_matrix(*angles), t + shift, k=(-0.15, 0.03))
+             for angles, shift in [((0.3, 0.1, 0.0), (0, 0, 0)), ((-0.25, 0.2, 0.1), (10, 0, 20)),
+                                   ((0.1, -0.35, -0.1), (-5, 8, -10)), ((0.0, 0.0, 0.3), (3, -3, 40))]]
+    plain = calibration.calibrate(grid, views)
+    with registry.use("testing-wrapped-lens"):
+        wrapped = calibration.calibrate(grid, views)
+        assert calls and camera.project_full(grid, A, R, t, (-0.1,)).shape == (30, 2)
+        count = len(calls)
+        camera.project_full(grid, A, R, t, (-0.1,))
+        assert len(calls) == count + 1
+    for key in ("A", "k", "rms", "rotations", "translations"):
+        np.testing.assert_array_equal(np.asarray(wrapped[key]), np.asarray(plain[key]), err_msg=key)
+
+
 # --------------------------------------------------------------------------------------------
 # homographies
 # --------------------------------------------------------------------------------------------

@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._validation import AttributeDict, as_float_array, check_allocation
+from .. import camera
 from ..camera import as_intrinsics, as_matrix, as_points, as_rotation, as_translation
 from ..registry import algorithm, implementation
 
@@ -464,8 +465,15 @@ def _calibrate(world_points: ArrayLike, image_points_list: Sequence[ArrayLike] |
         Rs = _rotations(poses[:, :3])
         return (np.einsum("vij,nj->vni", Rs, world) + poses[:, None, 3:]).reshape(-1, 3)
 
+    reference_lens = project is camera.project_full and implementation("camera.distort") is camera.distort
+
     def lens(camera_points, k):
-        """Distorted normalised coordinates: project_full with A = I (steps 2-3 of §7.7.3)."""
+        """Distorted normalised coordinates: project_full with A = I (steps 2-3 of §7.7.3);
+        with the reference camera model, its arithmetic without the argument checks (the
+        refinement projects hundreds of times; the same numbers)."""
+        if reference_lens:
+            kk, pp = camera.distortion_coefficients(k, (0.0, 0.0))
+            return camera.project_checked(camera_points, identity, identity, origin, kk, pp)
         return project(camera_points, identity, identity, origin, k)
 
     def pixels(A, xy):

@@ -17,9 +17,10 @@ step                            formula                                     func
 vanishing points. ``decompose_projection`` factorises P back into A, R, t, and
 ``undistort_points`` inverts the distortion (it warns with ``ConvergenceWarning`` where it
 cannot). The argument checks ``as_points``, ``as_matrix``, ``as_rotation``, ``as_translation``,
-``as_intrinsics`` and ``distortion_coefficients``, and the lens model's arithmetic
-``radial_tangential``, are public for the topics built on the camera model (not algorithms of
-the catalog, so not in ``__all__``).
+``as_intrinsics`` and ``distortion_coefficients``, the lens model's arithmetic
+``radial_tangential`` and ``project_full``'s steps on checked arguments (``project_checked``)
+are public for the topics built on the camera model (not algorithms of the catalog, so not in
+``__all__``).
 
 Conventions: pixels are (u, v) = (x, y) = (col, row) with the origin at the top-left pixel;
 the camera frame has x to the right, y down and z along the optical axis (OpenCV's); angles
@@ -44,7 +45,7 @@ from ._projection import (
     projection_matrix,
     rotation_matrix,
 )
-from ._distortion import ConvergenceWarning, distort, project_full, undistort_points
+from ._distortion import ConvergenceWarning, distort, project_checked, project_full, undistort_points
 
 # argument checks of the camera model, public for the topics built on it (calibration, warp, data)
 from ._common import (

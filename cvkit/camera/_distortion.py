@@ -3,6 +3,7 @@ four-step image formation pipeline."""
 from __future__ import annotations
 
 import warnings
+from typing import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -92,6 +93,12 @@ def distort(xy_normalized: ArrayLike, k: ArrayLike = (0.0, 0.0, 0.0), p: ArrayLi
     """
     xy = as_points(xy_normalized, "xy_normalized", 2)
     kk, pp = distortion_coefficients(k, p)
+    return _distorted(xy, kk, pp)
+
+
+def _distorted(xy: np.ndarray, kk: np.ndarray, pp: np.ndarray) -> np.ndarray:
+    """:func:`distort`'s arithmetic on checked arguments (``kk``, ``pp`` from
+    :func:`distortion_coefficients`)."""
     x, y = xy[:, 0], xy[:, 1]
     radial, dx, dy = radial_tangential(x, y, kk, pp)
     return np.stack([x * radial + dx, y * radial + dy], axis=1)
@@ -343,15 +350,30 @@ def project_full(points_world: ArrayLike, A: ArrayLike, R: ArrayLike, t: ArrayLi
     intr = as_intrinsics(A, "A")
     rot = as_rotation(R, "R")
     trans = as_translation(t, "t")
-    distortion_coefficients(k, p)  # validate before any work
-    camera = pts @ rot.T + trans                                  # 1. world -> camera frame
+    kk, pp = distortion_coefficients(k, p)  # validate before any work
+    distort_now = implementation("camera.distort")
+    lens = None if distort_now is distort else (lambda xy: distort_now(xy, k, p))
+    return project_checked(pts, intr, rot, trans, kk, pp, lens)
+
+
+def project_checked(points: np.ndarray, A: np.ndarray, R: np.ndarray, t: np.ndarray, k: np.ndarray, p: np.ndarray,
+                    lens: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+    """The four steps of :func:`project_full` on arguments already checked: float64 ``(N, 3)``
+    points, ``A``, ``R`` and ``t`` as :func:`as_intrinsics`, :func:`as_rotation` and
+    :func:`as_translation` return them, ``k`` and ``p`` as :func:`distortion_coefficients`
+    returns them. ``lens`` maps ``(M, 2)`` normalised points to distorted ones (the active
+    provider's ``camera.distort``); None: the reference's arithmetic. For the topics that
+    project many times with arguments they made themselves (calibration's refinement, the
+    chessboard pose sampler): the same numbers as :func:`project_full`, bit for bit."""
+    camera = points @ R.T + t                                     # 1. world -> camera frame
     with np.errstate(divide="ignore", invalid="ignore"):
         normalized = camera[:, :2] / camera[:, 2:]                # 2. canonical projection
     finite = np.all(np.isfinite(normalized), axis=1)
     distorted = np.array(normalized)                              # 3. lens distortion
     if finite.any():
-        distorted[finite] = implementation("camera.distort")(normalized[finite], k, p)
-    a = intr / intr[2, 2]                                         # 4. intrinsics
+        inside = normalized[finite]
+        distorted[finite] = _distorted(inside, k, p) if lens is None else lens(inside)
+    a = A / A[2, 2]                                               # 4. intrinsics
     u = a[0, 0] * distorted[:, 0] + a[0, 2]
     if a[0, 1] != 0.0:  # (skipped when 0: keeps 0·inf from turning a point at infinity into nan)
         u = u + a[0, 1] * distorted[:, 1]

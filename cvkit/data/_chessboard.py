@@ -343,27 +343,13 @@ def _rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
 
 def _project(points: np.ndarray, A: np.ndarray, R: np.ndarray, t: np.ndarray, k: tuple[float, ...],
              p: tuple[float, ...]) -> np.ndarray:
-    """The arithmetic of :func:`cvkit.camera.project_full` (the reference's distortion), without
-    its argument checks: the pose sampler projects thousands of candidate poses, whose camera,
-    rotation and translation it has made itself (float64 arrays, ``k`` and ``p`` validated by
-    :func:`_distortion`). Bit for bit the same result (``tests/test_data_files.py``)."""
-    from ..camera import radial_tangential
+    """:func:`cvkit.camera.project_full` without its argument checks (the pose sampler projects
+    thousands of candidate poses whose camera, rotation and translation it has made itself, and
+    whose ``k`` and ``p`` :func:`_distortion` has checked): the reference's lens, bit for bit
+    the same numbers (``tests/test_calibration.py``)."""
+    from ..camera import project_checked
 
-    camera = points @ R.T + t
-    with np.errstate(divide="ignore", invalid="ignore"):
-        normalized = camera[:, :2] / camera[:, 2:]
-    finite = np.all(np.isfinite(normalized), axis=1)
-    distorted = np.array(normalized)
-    if finite.any():
-        x, y = normalized[finite, 0], normalized[finite, 1]
-        radial, dx, dy = radial_tangential(x, y, np.array(k, dtype=np.float64), np.array(p, dtype=np.float64))
-        distorted[finite] = np.stack([x * radial + dx, y * radial + dy], axis=1)
-    a = A / A[2, 2]
-    u = a[0, 0] * distorted[:, 0] + a[0, 2]
-    if a[0, 1] != 0.0:
-        u = u + a[0, 1] * distorted[:, 1]
-    v = a[1, 1] * distorted[:, 1] + a[1, 2]
-    return np.stack([u, v], axis=1)
+    return project_checked(points, A, R, t, np.array(k, dtype=np.float64), np.array(p, dtype=np.float64))
 
 
 def random_board_poses(n: int, A: ArrayLike, image_size: tuple[int, int] = (480, 640), cols: int = 9,
