@@ -716,3 +716,44 @@ def test_detector_steps_refuse_bad_input():
         calibration.refine_corners(np.zeros((10, 10)), np.zeros((3, 3)), 1.0)
     with pytest.raises(ValueError, match="image"):
         calibration.refine_corners(np.zeros((10, 10, 4)), np.zeros((3, 2)), 1.0)
+
+
+def _rays_twelve_full_steps(A, k, p, rows, cols):
+    """The renderer's ray inversion as first written: twelve Newton steps on every pixel corner."""
+    u, v = np.meshgrid(np.arange(cols + 1) - 0.5, np.arange(rows + 1) - 0.5)
+    yd = (v - A[1, 2]) / A[1, 1]
+    xd = (u - A[0, 2] - A[0, 1] * yd) / A[0, 0]
+    x, y = xd.copy(), yd.copy()
+    (k1, k2, k3), (p1, p2) = k, p
+    for _ in range(12):
+        r2 = x * x + y * y
+        radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        dradial = k1 + r2 * (2 * k2 + 3 * k3 * r2)
+        fx = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) - xd
+        fy = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y - yd
+        jxx = radial + 2 * x * x * dradial + 2 * p1 * y + 6 * p2 * x
+        jxy = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
+        jyy = radial + 2 * y * y * dradial + 6 * p1 * y + 2 * p2 * x
+        det = jxx * jyy - jxy * jxy
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x, y = x - (jyy * fx - jxy * fy) / det, y - (jxx * fy - jxy * fx) / det
+    return np.stack([x, y], axis=-1)
+
+
+def test_the_renderers_ray_inversion_steps_only_moving_points_with_the_same_bits():
+    """render_chessboard inverts the lens for every pixel corner and stops stepping the points
+    that have settled: the same bits as twelve steps everywhere, strong distortion included."""
+    from cvkit.data._chessboard import _rays
+
+    rng = np.random.default_rng(11)
+    for trial in range(12):
+        H, W = [(60, 80), (100, 136), (240, 320)][trial % 3]
+        f = rng.uniform(0.7, 1.3) * W
+        A = np.array([[f, rng.uniform(-2, 2) * (trial % 2), W / 2 + rng.uniform(-5, 5)],
+                      [0.0, f * rng.uniform(0.95, 1.05), H / 2], [0.0, 0.0, 1.0]])
+        k = (rng.uniform(-0.5, 0.2), rng.uniform(-0.05, 0.1), rng.uniform(-0.02, 0.02) * (trial % 3 == 0))
+        p = tuple(rng.uniform(-0.02, 0.02, 2) * (trial % 2 == 0))
+        expected = _rays_twelve_full_steps(A, k, p, H, W)
+        got = _rays(tuple(A.ravel().tolist()), k, p, H, W)
+        assert got.shape == expected.shape
+        assert got.tobytes() == expected.tobytes(), f"trial {trial}"

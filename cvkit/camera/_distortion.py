@@ -374,8 +374,9 @@ def project_checked(points: np.ndarray, A: np.ndarray, R: np.ndarray, t: np.ndar
         inside = normalized[finite]
         distorted[finite] = _distorted(inside, k, p) if lens is None else lens(inside)
     a = A / A[2, 2]                                               # 4. intrinsics
-    u = a[0, 0] * distorted[:, 0] + a[0, 2]
-    if a[0, 1] != 0.0:  # (skipped when 0: keeps 0·inf from turning a point at infinity into nan)
-        u = u + a[0, 1] * distorted[:, 1]
-    v = a[1, 1] * distorted[:, 1] + a[1, 2]
+    with np.errstate(invalid="ignore"):  # a point at infinity: inf - inf is nan, without a warning
+        u = a[0, 0] * distorted[:, 0] + a[0, 2]
+        if a[0, 1] != 0.0:  # (skipped when 0: keeps 0·inf from turning a point at infinity into nan)
+            u = u + a[0, 1] * distorted[:, 1]
+        v = a[1, 1] * distorted[:, 1] + a[1, 2]
     return np.stack([u, v], axis=1)

@@ -134,7 +134,8 @@ def _rays(A_key: tuple[float, ...], k: tuple[float, ...], p: tuple[float, ...], 
         with np.errstate(divide="ignore", invalid="ignore"):
             x_next = x - (jyy * fx - jxy * fy) / det
             y_next = y - (jxx * fy - jxy * fx) / det
-        changed = (x_next != x) | (y_next != y)             # NaN counts as changed
+        # unchanged means the same bits (-0.0 and 0.0 differ; a NaN stays a NaN either way)
+        changed = (x_next.view(np.int64) != x.view(np.int64)) | (y_next.view(np.int64) != y.view(np.int64))
         if moving is None:
             x_all, y_all = x_next, y_next
             if 4 * np.count_nonzero(changed) > changed.size:
