@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import AttributeDict, as_float_array, check_allocation
 from .. import camera
+from .._validation import AttributeDict, as_float_array, check_allocation
 from ..camera import as_intrinsics, as_matrix, as_points, as_rotation, as_translation
 from ..registry import algorithm, implementation
 
