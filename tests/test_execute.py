@@ -81,3 +81,37 @@ def test_command_line_marks_checks_as_decided_elsewhere(tmp_path):
     assert "".join(json.loads(target.read_text())["cells"][0]["outputs"][0]["text"]) == "1\n"
     bad = subprocess.run([sys.executable, "-m", "cvkit.grading.execute", str(source)], capture_output=True, text=True)
     assert bad.returncode == 2 and "usage" in bad.stderr
+
+
+def test_matplotlib_reads_a_font_list_made_once_and_kept_read_only(tmp_path, monkeypatch, grading_sandbox):
+    """Each sandboxed run finds matplotlib's font list ready (no rebuild, no fontconfig error in
+    the student's outputs), and no notebook can change it for the next one."""
+    import pytest
+
+    from cvkit.grading import execute as execution
+
+    assert grading_sandbox is None, grading_sandbox
+    pytest.importorskip("matplotlib")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(execution, "_font_lists", {})
+    code = ("import os, matplotlib.font_manager as fm\n"
+            "names = [n for n in os.listdir(os.environ['MPLCONFIGDIR']) if n.startswith('fontlist')]\n"
+            "try:\n"
+            "    open(os.path.join(os.environ['MPLCONFIGDIR'], names[0]), 'w').write('{}')\n"
+            "    print('changed')\n"
+            "except OSError:\n"
+            "    print('refused')\n"
+            "print(len(names), len(fm.fontManager.ttflist) > 0)")
+    notebook = dict(_release(), cells=[_cell(code)])
+    files = {"a.ipynb": json.dumps(notebook).encode()}
+    runs = [execution.execute_in_sandbox(files, "a.ipynb") for _ in range(2)]
+    made = list((tmp_path / "cache" / "cvkit").glob("matplotlib-*/fontlist-*.json"))
+    assert len(made) == 1
+    content = made[0].read_bytes()
+    json.loads(content)
+    for executed, log in runs:
+        assert executed is not None, log
+        outputs = json.loads(executed)["cells"][0]["outputs"]
+        assert [(o["name"], "".join(o["text"])) for o in outputs] == [("stdout", "refused\n1 True\n")], outputs
+    assert made[0].read_bytes() == content
+    assert execution.matplotlib_font_list()[0] == str(made[0])

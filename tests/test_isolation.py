@@ -162,3 +162,28 @@ def test_collect_files_refuses_links_and_devices(tmp_path):
     text = " ".join(refused)
     for name in ("passwd", "up", "hard.txt", "pipe"):
         assert name in text
+
+
+def test_read_only_binds_into_the_private_tmp(tmp_path):
+    shared = tmp_path / "fontlist.json"
+    shared.write_text('{"made": "by the grader"}')
+    mounts = isolation.Mounts(read_only_in_tmp=[(str(shared), "/tmp/.cache/list.json")])
+    status, out = run("""\
+        import os
+        print(open('/tmp/.cache/list.json').read())
+        for attempt in (lambda: open('/tmp/.cache/list.json', 'w'), lambda: os.remove('/tmp/.cache/list.json'),
+                        lambda: os.rename('/tmp/.cache/list.json', '/tmp/.cache/moved')):
+            try:
+                attempt()
+                print('changed')
+            except OSError:
+                print('refused')
+        open('/tmp/.cache/own', 'w').write('ok')   # the folder around it stays the sandbox's own
+        print(sorted(os.listdir('/tmp/.cache')))""", mounts=mounts)
+    assert status == 0, out
+    assert out.split("\n")[:5] == ['{"made": "by the grader"}', "refused", "refused", "refused",
+                                   "['list.json', 'own']"]
+    assert shared.read_text() == '{"made": "by the grader"}'
+    with pytest.raises(ValueError, match="read_only_in_tmp"):
+        isolation.command(["true"], isolation.Mounts(read_only_in_tmp=[(str(shared), "/etc/list.json")]),
+                          isolation.Limits(), {})

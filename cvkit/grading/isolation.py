@@ -67,6 +67,7 @@ class Mounts:
     chdir: str = "/tmp"
     with_environment: bool = True   # the grader's Python environment (a venv: its packages)
     masked: list = field(default_factory=list)  # folders hidden behind an empty tmpfs
+    read_only_in_tmp: list = field(default_factory=list)  # read-only binds into the private /tmp
 
 
 def collect_files(folder: Path) -> tuple[dict[str, bytes], list[str]]:
@@ -160,6 +161,10 @@ def command(argv: list[str], mounts: Mounts, limits: Limits, env: dict[str, str]
     args += ["--proc", "/proc", "--dev", "/dev",
              "--size", str(limits.tmpfs_mb * 1024 * 1024), "--tmpfs", "/tmp",
              "--size", str(64 * 1024 * 1024), "--tmpfs", "/dev/shm"]
+    for source, target in mounts.read_only_in_tmp:  # after /tmp is made, or its tmpfs would hide them
+        if not str(target).startswith("/tmp/"):
+            raise ValueError(f"read_only_in_tmp targets must lie in /tmp, got {target!r}")
+        args += ["--ro-bind", str(source), str(target)]
     for source, target in mounts.writable:
         args += ["--bind", str(source), str(target)]
     args += ["--chdir", mounts.chdir, "--clearenv"]
