@@ -115,3 +115,34 @@ def test_matplotlib_reads_a_font_list_made_once_and_kept_read_only(tmp_path, mon
         assert [(o["name"], "".join(o["text"])) for o in outputs] == [("stdout", "refused\n1 True\n")], outputs
     assert made[0].read_bytes() == content
     assert execution.matplotlib_font_list()[0] == str(made[0])
+
+
+def test_inline_figures_are_the_same_pixels_written_faster(tmp_path):
+    """The grading kernel writes inline PNGs with zlib level 3 (not 6): the same pixels."""
+    import base64
+    import io
+
+    import numpy as np
+    import pytest
+
+    Image = pytest.importorskip("PIL.Image")
+    nb = _release()
+    nb["cells"] = [_cell("%matplotlib inline\nimport matplotlib.pyplot as plt\nimport numpy as np\n"
+                         "from IPython.core.pylabtools import print_figure\n"
+                         "from matplotlib_inline.config import InlineBackend\n"
+                         "print(InlineBackend.instance().print_figure_kwargs)\n"
+                         "fig, ax = plt.subplots(figsize=(2, 2), dpi=50)\n"
+                         "ax.imshow(np.arange(64.0).reshape(8, 8), cmap='gray')\n"
+                         "import base64; default = base64.b64encode(print_figure(fig, 'png', bbox_inches='tight'))\n"
+                         "print(default.decode())\n"
+                         "plt.show()")]
+    outputs = execute(nb, str(tmp_path), timeout=60)["cells"][0]["outputs"]
+    text = "".join("".join(o["text"]) for o in outputs if o["output_type"] == "stream").split("\n")
+    assert "'compress_level': 3" in text[0] and "'bbox_inches': 'tight'" in text[0]
+    shown = [o["data"]["image/png"] for o in outputs if "image/png" in o.get("data", {})]
+    assert len(shown) == 1
+
+    def pixels(encoded):
+        return np.asarray(Image.open(io.BytesIO(base64.b64decode(encoded))))
+
+    assert np.array_equal(pixels(shown[0]), pixels(text[1]))

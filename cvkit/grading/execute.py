@@ -223,12 +223,19 @@ def execute(notebook: dict, folder: str, timeout: int | None = None) -> dict:
         nb, timeout=timeout, kernel_name=kernel, allow_errors=True, interrupt_on_timeout=True,
         raise_on_iopub_timeout=True, error_on_timeout=TIMEOUT_ERROR, record_timing=False,
         shutdown_kernel="immediate",  # every output is in; a graceful shutdown only waits (~0.2 s)
-        extra_arguments=["--HistoryManager.hist_file=:memory:"] if kernel.startswith("python") else [],
+        extra_arguments=PYTHON_KERNEL_ARGUMENTS if kernel.startswith("python") else [],
         resources={"metadata": {"path": folder}},
     )
     client.execute()
     return json.loads(nbformat.writes(nb))
 
+
+#: the grading run's IPython kernel: no history file, and inline figures written with zlib
+#: level 3 instead of 6 (the same pixels, about 30 ms less per figure: 0.6 s of ch03's run)
+PYTHON_KERNEL_ARGUMENTS = [
+    "--HistoryManager.hist_file=:memory:",
+    "--InlineBackend.print_figure_kwargs={'bbox_inches': 'tight', 'pil_kwargs': {'compress_level': 3}}",
+]
 
 MAX_TEXT = 100_000        # characters of one text output kept for the feedback
 MAX_OUTPUTS_BYTES = 16 << 20   # all outputs of a notebook
