@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cvkit import registry
-from cvkit.grading import Case, Check, Mistake, Statistics, check, close, evaluate, hidden_seed
+from cvkit.grading import Case, Check, Mistake, Statistics, check, close, evaluate, hidden_seed, mistake
 from cvkit.grading.report import MIME_TYPE
 
 
@@ -75,6 +75,24 @@ def test_mistake_is_named_with_hint():
     assert report.mistake == "rolled left"
     assert "x + steps" in report.hint
     assert "rolled left" in report.text()
+
+
+def test_a_mistake_marked_on_its_function_joins_the_bank_in_the_listed_order():
+    @mistake("rolled left", "a shift to the right moves x to x + steps")
+    def rolled_left(image, steps=1):
+        return np.roll(np.asarray(image, float), -steps, axis=1)
+
+    assert rolled_left(np.eye(2)).tolist() == [[0.0, 1.0], [1.0, 0.0]]  # the function itself is unchanged
+    rows = Mistake("rolled the rows", lambda image, steps=1: np.roll(np.asarray(image, float), steps, axis=0),
+                   "columns are axis 1")
+    spec = Check(public=_cases_public, hidden=_cases_hidden, compare=close(), mistakes=[rolled_left, rows])
+    assert [type(m) for m in spec.mistakes] == [Mistake, Mistake]
+    assert [m.name for m in spec.mistakes] == ["rolled left", "rolled the rows"]
+    assert spec.mistakes[0].function is rolled_left and spec.mistakes[0].hint.endswith("x + steps")
+    with pytest.raises(TypeError, match="marked with @mistake"):
+        Check(public=_cases_public, hidden=_cases_hidden, compare=close(), mistakes=[_shift])
+    with pytest.raises(TypeError, match="mistake hint"):
+        mistake("a name", "")
 
 
 def test_partial_score_is_fraction_of_cases():

@@ -39,7 +39,7 @@ from .. import registry
 from ..camera import project_full as _project_full
 from ..camera import rotation_matrix as _rotation_matrix
 from ..camera.checks import FloatClose, Parts
-from ..grading import Case, Check, Comparator, Mismatch, Mistake
+from ..grading import Case, Check, Comparator, Mismatch, Mistake, mistake
 from ..grading.casekit import variant
 from ..grading.casekit import size as _size
 from ..grading.casekit import uniform as _u
@@ -407,29 +407,40 @@ def _pairs(rng, n, H, noise, spread=200.0):
 # --------------------------------------------------------------------------------------------
 # calibration.chessboard_points (§8.3)
 # --------------------------------------------------------------------------------------------
+@mistake("column by column (x varies slowest)",
+         "Point r·cols + c is (c·s, r·s, 0): go row by row, x (c) varying fastest, like "
+         "np.mgrid[0:cols, 0:rows].T.reshape(-1, 2)")
 def _cp_column_major(cols, rows, square_size):
     P = _chessboard_points(cols, rows, square_size)
     return P.reshape(rows, cols, 3).transpose(1, 0, 2).reshape(-1, 3)
 
 
+@mistake("x and y swapped", "x goes along a row of the board (the cols corners), y along a column: (c·s, r·s, 0)")
 def _cp_xy_swapped(cols, rows, square_size):
     return _chessboard_points(cols, rows, square_size)[:, [1, 0, 2]]
 
 
+@mistake("square size ignored (unit squares)",
+         "Multiply the grid indices by square_size: the world unit is the unit of the squares")
 def _cp_unit_squares(cols, rows, square_size):
     return _chessboard_points(cols, rows, 1.0)
 
 
+@mistake("grid starts one square from the origin",
+         "The origin is the first inner corner itself: indices start at 0, (0, 0, 0) is a point")
 def _cp_from_one(cols, rows, square_size):
     P = _chessboard_points(cols, rows, square_size)
     P[:, :2] += float(square_size)
     return P
 
 
+@mistake("2-D points (z column missing)", "Return 3-D world points (N, 3) with z = 0: the board is the plane z_W = 0")
 def _cp_2d(cols, rows, square_size):
     return _chessboard_points(cols, rows, square_size)[:, :2]
 
 
+@mistake("squares counted instead of inner corners",
+         "cols × rows count the inner corners (where four squares meet), not the squares")
 def _cp_squares(cols, rows, square_size):
     return _chessboard_points(cols + 1, rows + 1, square_size)
 
@@ -462,21 +473,7 @@ chessboard_points = Check(
     ],
     hidden=_cp_hidden,
     compare=FloatClose(rtol=1e-12, atol=1e-12),
-    mistakes=[
-        Mistake("column by column (x varies slowest)", _cp_column_major,
-                "Point r·cols + c is (c·s, r·s, 0): go row by row, x (c) varying fastest, like "
-                "np.mgrid[0:cols, 0:rows].T.reshape(-1, 2)"),
-        Mistake("x and y swapped", _cp_xy_swapped,
-                "x goes along a row of the board (the cols corners), y along a column: (c·s, r·s, 0)"),
-        Mistake("square size ignored (unit squares)", _cp_unit_squares,
-                "Multiply the grid indices by square_size: the world unit is the unit of the squares"),
-        Mistake("grid starts one square from the origin", _cp_from_one,
-                "The origin is the first inner corner itself: indices start at 0, (0, 0, 0) is a point"),
-        Mistake("2-D points (z column missing)", _cp_2d,
-                "Return 3-D world points (N, 3) with z = 0: the board is the plane z_W = 0"),
-        Mistake("squares counted instead of inner corners", _cp_squares,
-                "cols × rows count the inner corners (where four squares meet), not the squares"),
-    ],
+    mistakes=[_cp_column_major, _cp_xy_swapped, _cp_unit_squares, _cp_from_one, _cp_2d, _cp_squares],
 )
 
 
@@ -502,16 +499,23 @@ def _board_image(rng, cols, rows, size=(100, 136), tilt=0.5, spin=0.3, flip=Fals
     return image
 
 
+@mistake("(row, col) returned instead of (x, y)",
+         "Points are (x, y) = (col, row): np.nonzero gives (rows, cols), swap them before returning")
 def _fc_swapped_xy(image, cols, rows):
     corners = _find_chessboard_corners(image, cols, rows)
     return None if corners is None else corners[:, ::-1].copy()
 
 
+@mistake("no sub-pixel refinement (integer pixels)",
+         "Refine each corner below the pixel: e.g. Newton steps to the saddle point of the smoothed image, "
+         "q ← q − H⁻¹∇I with derivatives interpolated at q")
 def _fc_integer(image, cols, rows):
     corners = _find_chessboard_corners(image, cols, rows)
     return None if corners is None else np.round(corners)
 
 
+@mistake("column by column (x and y of the board swapped)",
+         "Corner r·cols + c: go along the side with `cols` corners first (x), then down the `rows` side")
 def _fc_column_major(image, cols, rows):
     corners = _find_chessboard_corners(image, cols, rows)
     if corners is None:
@@ -519,6 +523,9 @@ def _fc_column_major(image, cols, rows):
     return corners.reshape(rows, cols, 2).transpose(1, 0, 2).reshape(-1, 2)
 
 
+@mistake("left-handed order (mirror image of the board)",
+         "The board's x and y axes must turn like the image's (x right, y down): choose the origin and the "
+         "directions so that cross(x direction, y direction) > 0")
 def _fc_left_handed(image, cols, rows):
     corners = _find_chessboard_corners(image, cols, rows)
     if corners is None:
@@ -526,6 +533,9 @@ def _fc_left_handed(image, cols, rows):
     return corners.reshape(rows, cols, 2)[::-1].reshape(-1, 2)
 
 
+@mistake("a larger board accepted (grid size not checked)",
+         "Return None unless the grid you grow is exactly cols × rows corners: a board with more corners is "
+         "another board")
 def _fc_bigger_board(image, cols, rows):
     corners = _find_chessboard_corners(image, cols, rows)
     if corners is not None:
@@ -571,21 +581,7 @@ find_chessboard_corners = Check(
     public=_fc_public,
     hidden=_fc_hidden,
     compare=CornersClose(mean=0.2, maximum=0.6),
-    mistakes=[
-        Mistake("(row, col) returned instead of (x, y)", _fc_swapped_xy,
-                "Points are (x, y) = (col, row): np.nonzero gives (rows, cols), swap them before returning"),
-        Mistake("no sub-pixel refinement (integer pixels)", _fc_integer,
-                "Refine each corner below the pixel: e.g. Newton steps to the saddle point of the smoothed image, "
-                "q ← q − H⁻¹∇I with derivatives interpolated at q"),
-        Mistake("column by column (x and y of the board swapped)", _fc_column_major,
-                "Corner r·cols + c: go along the side with `cols` corners first (x), then down the `rows` side"),
-        Mistake("left-handed order (mirror image of the board)", _fc_left_handed,
-                "The board's x and y axes must turn like the image's (x right, y down): choose the origin and the "
-                "directions so that cross(x direction, y direction) > 0"),
-        Mistake("a larger board accepted (grid size not checked)", _fc_bigger_board,
-                "Return None unless the grid you grow is exactly cols × rows corners: a board with more corners is "
-                "another board"),
-    ],
+    mistakes=[_fc_swapped_xy, _fc_integer, _fc_column_major, _fc_left_handed, _fc_bigger_board],
     allowed=("calibration.chessboard_response", "calibration.corner_candidates", "calibration.grow_grid",
              "calibration.order_grid_corners",
              "calibration.refine_corners", "filters.gaussian", "filters.correlate", "filters.convolve",
@@ -736,27 +732,41 @@ def _cr_from(S, gxx=None, gxy=None, gyy=None):
     return gxy * gxy - gxx * gyy
 
 
+@mistake("det of the Hessian (sign flipped)",
+         "The response is I_xy² − I_xx·I_yy = −det(Hessian): positive at a saddle (an X-junction)")
 def _cr_det(image, sigma=1.5):
     return -_chessboard_response(image, sigma)
 
 
+@mistake("image not smoothed (sigma ignored)",
+         "Smooth the grey image with filters.gaussian(grey, sigma) before taking the second differences")
 def _cr_not_smoothed(image, sigma=1.5):
     return _cr_from(_cr_parts(image, sigma, smooth=False))
 
 
+@mistake("intensities not rescaled to [0, 1]",
+         "Rescale the grey image to [0, 1] first, (grey − min) / (max − min): then the response does not "
+         "depend on the dtype or the range of the input")
 def _cr_not_rescaled(image, sigma=1.5):
     return _cr_from(_cr_parts(image, sigma, rescale=False))
 
 
+@mistake("grey = mean of R, G, B", "Grey is the luma 0.299 R + 0.587 G + 0.114 B, not the plain mean of the channels")
 def _cr_mean_grey(image, sigma=1.5):
     return _cr_from(_cr_parts(image, sigma, mean_grey=True))
 
 
+@mistake("I_xy without the factor 1/4",
+         "The mixed difference spans two pixels in x and two in y: I_xy = (S[y+1,x+1] − S[y+1,x−1] − "
+         "S[y−1,x+1] + S[y−1,x−1]) / 4")
 def _cr_no_quarter(image, sigma=1.5):
     S = _cr_parts(image, sigma)
     return _cr_from(S, gxy=4.0 * _hessian_map(S)[1])
 
 
+@mistake("second derivatives by np.gradient twice (step 2)",
+         "np.gradient of np.gradient spans 5 pixels: use the 3-pixel second difference "
+         "S[y, x+1] − 2 S[y, x] + S[y, x−1] (and likewise in y)")
 def _cr_gradient_twice(image, sigma=1.5):
     S = _cr_parts(image, sigma)
     Iy, Ix = np.gradient(S)
@@ -797,33 +807,22 @@ chessboard_response = Check(
     public=_cr_public,
     hidden=_cr_hidden,
     compare=MapClose(rtol=1e-6),
-    mistakes=[
-        Mistake("det of the Hessian (sign flipped)", _cr_det,
-                "The response is I_xy² − I_xx·I_yy = −det(Hessian): positive at a saddle (an X-junction)"),
-        Mistake("image not smoothed (sigma ignored)", _cr_not_smoothed,
-                "Smooth the grey image with filters.gaussian(grey, sigma) before taking the second differences"),
-        Mistake("intensities not rescaled to [0, 1]", _cr_not_rescaled,
-                "Rescale the grey image to [0, 1] first, (grey − min) / (max − min): then the response does not "
-                "depend on the dtype or the range of the input"),
-        Mistake("grey = mean of R, G, B", _cr_mean_grey,
-                "Grey is the luma 0.299 R + 0.587 G + 0.114 B, not the plain mean of the channels"),
-        Mistake("I_xy without the factor 1/4", _cr_no_quarter,
-                "The mixed difference spans two pixels in x and two in y: I_xy = (S[y+1,x+1] − S[y+1,x−1] − "
-                "S[y−1,x+1] + S[y−1,x−1]) / 4"),
-        Mistake("second derivatives by np.gradient twice (step 2)", _cr_gradient_twice,
-                "np.gradient of np.gradient spans 5 pixels: use the 3-pixel second difference "
-                "S[y, x+1] − 2 S[y, x] + S[y, x−1] (and likewise in y)"),
-    ],
+    mistakes=[_cr_det, _cr_not_smoothed, _cr_not_rescaled, _cr_mean_grey, _cr_no_quarter, _cr_gradient_twice],
     allowed=("filters.gaussian", "filters.correlate", "filters.convolve", "filters.gaussian_kernel"),
 )
 
 
 # calibration.corner_candidates ---------------------------------------------------------------
+@mistake("(row, col) returned instead of (x, y)",
+         "Points and directions are (x, y) = (col, row): np.nonzero gives (rows, cols), swap them")
 def _cc_swapped(image, count, sigma=1.5):
     points, directions = _corner_candidates(image, count, sigma)
     return points[:, ::-1].copy(), directions[..., ::-1].copy()
 
 
+@mistake("no ring test (L-corners and edges kept)",
+         "Keep only X-junctions: the ring of radius 3 px around a corner must change sign 4 times "
+         "around its mean, with a contrast of at least 0.15")
 def _cc_no_ring_test(image, count, sigma=1.5):
     img = np.asarray(image, dtype=np.float64)
     response = _chessboard_response(img, sigma)
@@ -835,6 +834,9 @@ def _cc_no_ring_test(image, count, sigma=1.5):
     return np.column_stack([xs, ys]).astype(np.float64), _edge_directions(gxx[ys, xs], gxy[ys, xs], gyy[ys, xs])
 
 
+@mistake("Hessian eigenvectors instead of the edge directions",
+         "The eigenvectors bisect the edges; the edges are where the quadratic form vanishes: "
+         "e1 ± √(λ1/−λ0)·e0, normalised")
 def _cc_eigenvectors(image, count, sigma=1.5):
     points, _ = _corner_candidates(image, count, sigma)
     S = _cr_parts(image, sigma)
@@ -844,6 +846,9 @@ def _cc_eigenvectors(image, count, sigma=1.5):
     return points, np.linalg.eigh(H)[1].transpose(0, 2, 1).copy()
 
 
+@mistake("candidates not sorted by strength",
+         "Return the candidates strongest response first (np.argsort(-strength, kind='stable')): the "
+         "grid step takes its seeds from the front")
 def _cc_unsorted(image, count, sigma=1.5):
     points, directions = _corner_candidates(image, count, sigma)
     order = np.lexsort((points[:, 0], points[:, 1]))          # row by row, as np.nonzero gives them
@@ -878,19 +883,7 @@ corner_candidates = Check(
     public=_cc_public,
     hidden=_cc_hidden,
     compare=CandidatesClose(radius=0.5, slack=1, degrees=3.0),
-    mistakes=[
-        Mistake("(row, col) returned instead of (x, y)", _cc_swapped,
-                "Points and directions are (x, y) = (col, row): np.nonzero gives (rows, cols), swap them"),
-        Mistake("no ring test (L-corners and edges kept)", _cc_no_ring_test,
-                "Keep only X-junctions: the ring of radius 3 px around a corner must change sign 4 times "
-                "around its mean, with a contrast of at least 0.15"),
-        Mistake("Hessian eigenvectors instead of the edge directions", _cc_eigenvectors,
-                "The eigenvectors bisect the edges; the edges are where the quadratic form vanishes: "
-                "e1 ± √(λ1/−λ0)·e0, normalised"),
-        Mistake("candidates not sorted by strength", _cc_unsorted,
-                "Return the candidates strongest response first (np.argsort(-strength, kind='stable')): the "
-                "grid step takes its seeds from the front"),
-    ],
+    mistakes=[_cc_swapped, _cc_no_ring_test, _cc_eigenvectors, _cc_unsorted],
     allowed=("calibration.chessboard_response", "filters.gaussian", "filters.correlate", "filters.convolve",
              "warp.bilinear_sample"),
 )
@@ -1114,16 +1107,24 @@ grow_grid = Check(
 )
 
 
+@mistake("column by column (x and y of the board swapped)",
+         "Corner r·cols + c: go along the side with `cols` corners first (x), then down the `rows` side")
 def _og_column_major(points, directions, cols, rows):
     corners = _order_grid_corners(points, directions, cols, rows)
     return None if corners is None else corners.reshape(rows, cols, 2).transpose(1, 0, 2).reshape(-1, 2)
 
 
+@mistake("left-handed order (mirror image of the board)",
+         "The board's x and y axes must turn like the image's (x right, y down): choose the origin and the "
+         "directions so that cross(x direction, y direction) > 0")
 def _og_left_handed(points, directions, cols, rows):
     corners = _order_grid_corners(points, directions, cols, rows)
     return None if corners is None else corners.reshape(rows, cols, 2)[::-1].reshape(-1, 2)
 
 
+@mistake("a larger board accepted (grid size not checked)",
+         "Return None unless the grid you grow is exactly cols × rows corners: a board with more corners is "
+         "another board")
 def _og_bigger_board(points, directions, cols, rows):
     corners = _order_grid_corners(points, directions, cols, rows)
     if corners is not None:
@@ -1135,10 +1136,16 @@ def _og_bigger_board(points, directions, cols, rows):
     return None
 
 
+@mistake("x along the side with `rows` corners",
+         "The board's x axis runs along the side that has `cols` corners (corner r·cols + c is in row r): "
+         "count the corners of each side of your grid and pick the base accordingly")
 def _og_sides_swapped(points, directions, cols, rows):
     return _order_grid_corners(points, directions, rows, cols)
 
 
+@mistake("origin not the corner nearest the top-left",
+         "Of the admissible orders (x along `cols`, right-handed), take the one whose first corner is "
+         "nearest the pixel (0, 0): on a square board the four 90° turns are all admissible")
 def _og_first_origin(points, directions, cols, rows):
     corners = _order_grid_corners(points, directions, cols, rows)
     if corners is None or cols != rows:
@@ -1178,22 +1185,8 @@ order_grid_corners = Check(
     public=_og_public,
     hidden=_og_hidden,
     compare=CornersClose(mean=1e-6, maximum=1e-6),
-    mistakes=[
-        Mistake("column by column (x and y of the board swapped)", _og_column_major,
-                "Corner r·cols + c: go along the side with `cols` corners first (x), then down the `rows` side"),
-        Mistake("left-handed order (mirror image of the board)", _og_left_handed,
-                "The board's x and y axes must turn like the image's (x right, y down): choose the origin and the "
-                "directions so that cross(x direction, y direction) > 0"),
-        Mistake("a larger board accepted (grid size not checked)", _og_bigger_board,
-                "Return None unless the grid you grow is exactly cols × rows corners: a board with more corners is "
-                "another board"),
-        Mistake("x along the side with `rows` corners", _og_sides_swapped,
-                "The board's x axis runs along the side that has `cols` corners (corner r·cols + c is in row r): "
-                "count the corners of each side of your grid and pick the base accordingly"),
-        Mistake("origin not the corner nearest the top-left", _og_first_origin,
-                "Of the admissible orders (x along `cols`, right-handed), take the one whose first corner is "
-                "nearest the pixel (0, 0): on a square board the four 90° turns are all admissible"),
-    ],    allowed=("calibration.grow_grid",),
+    mistakes=[_og_column_major, _og_left_handed, _og_bigger_board, _og_sides_swapped,
+              _og_first_origin],    allowed=("calibration.grow_grid",),
 )
 
 
@@ -1225,6 +1218,9 @@ def _rc_newton(image, corners, sigma, iterations=10, damp=0.5, max_shift=1.5, sm
     return np.where(ok[:, None], q, start)
 
 
+@mistake("no refinement (the start returned)",
+         "Move each point to the saddle of the smoothed image: Newton steps q ← q − H⁻¹∇S with the "
+         "derivatives interpolated at q")
 def _rc_identity(image, corners, sigma):
     return np.array(corners, dtype=np.float64)
 
@@ -1273,9 +1269,7 @@ refine_corners = Check(
     hidden=_rc_hidden,
     compare=PointsClose(mean=0.01, maximum=0.05),
     mistakes=[
-        Mistake("no refinement (the start returned)", _rc_identity,
-                "Move each point to the saddle of the smoothed image: Newton steps q ← q − H⁻¹∇S with the "
-                "derivatives interpolated at q"),
+        _rc_identity,
         Mistake("a single Newton step", _rc_one_step,
                 "One step is not enough from a pixel away (and steps are shortened to 0.5 px): iterate 10 times"),
         Mistake("derivatives of the unsmoothed image", _rc_not_smoothed,
@@ -1298,18 +1292,27 @@ def _dlt_parts(src, dst):
     return s, d, hartley_normalization(s), hartley_normalization(d)
 
 
+@mistake("no Hartley normalisation",
+         "With normalize=True translate each point set to its centroid and scale it to mean distance √2 "
+         "(T, T′), solve the DLT there and return T′⁻¹·H̃·T: raw pixels in the thousands make L "
+         "ill-conditioned")
 def _hd_not_normalized(src, dst, normalize=True):
     return _homography_dlt(src, dst, normalize=False)
 
 
+@mistake("normalize=False ignored (always normalised)", "With normalize=False solve the DLT on the raw coordinates")
 def _hd_always_normalized(src, dst, normalize=True):
     return _homography_dlt(src, dst, normalize=True)
 
 
+@mistake("H inverted (maps dst to src)",
+         "Build the equations of m̃ × H w̃ = 0 with w = src and m = dst: H maps src to dst")
 def _hd_inverted(src, dst, normalize=True):
     return _homography_dlt(dst, src, normalize=normalize)
 
 
+@mistake("normalisation not undone (H̃ returned)",
+         "The SVD gives the homography between the *normalised* sets: return T′⁻¹·H̃·T")
 def _hd_not_denormalized(src, dst, normalize=True):
     s, d, Ts, Td = _dlt_parts(src, dst)
     if not normalize:
@@ -1318,6 +1321,7 @@ def _hd_not_denormalized(src, dst, normalize=True):
     return _scaled(h.reshape(3, 3))
 
 
+@mistake("normalisation undone the wrong way (T′·H̃·T⁻¹)", "dst_n = T′·dst and src_n = T·src, so H = T′⁻¹·H̃·T")
 def _hd_denormalized_backwards(src, dst, normalize=True):
     s, d, Ts, Td = _dlt_parts(src, dst)
     if not normalize:
@@ -1326,6 +1330,8 @@ def _hd_denormalized_backwards(src, dst, normalize=True):
     return _scaled(Td @ h.reshape(3, 3) @ np.linalg.inv(Ts))
 
 
+@mistake("one normalisation used for both point sets",
+         "Normalise src and dst separately (each with its own centroid and scale)")
 def _hd_one_normalization(src, dst, normalize=True):
     s, d, Ts, _ = _dlt_parts(src, dst)
     if not normalize:
@@ -1348,18 +1354,26 @@ def _hd_svd_variant(src, dst, normalize, pick):
     return _scaled(H)
 
 
+@mistake("largest singular vector (Vt[0]) taken",
+         "The solution is the right singular vector of the *smallest* singular value: the last row Vt[-1]")
 def _hd_largest(src, dst, normalize=True):
     return _hd_svd_variant(src, dst, normalize, "first")
 
 
+@mistake("column of Vᵀ taken (Vt[:, -1])",
+         "np.linalg.svd returns Vᵀ: its rows are the singular vectors, so take the row Vt[-1], not a column")
 def _hd_vt_column(src, dst, normalize=True):
     return _hd_svd_variant(src, dst, normalize, "vt_column")
 
 
+@mistake("economy SVD with 4 points (null vector missing)",
+         "With 4 points L is 8×9: np.linalg.svd(L, full_matrices=False) returns only 8 rows of Vᵀ; use the "
+         "full SVD (or pad L with a row of zeros) and take the 9th")
 def _hd_economy(src, dst, normalize=True):
     return _hd_svd_variant(src, dst, normalize, "economy")
 
 
+@mistake("not scaled to H[2, 2] = 1", "The SVD gives ‖h‖ = 1; divide H by H[2, 2] before returning it")
 def _hd_unit_norm(src, dst, normalize=True):
     H = _homography_dlt(src, dst, normalize=normalize)
     return H / np.linalg.norm(H)
@@ -1418,31 +1432,8 @@ homography_dlt = Check(
     public=_hd_public,
     hidden=_hd_hidden,
     compare=HomographyClose(atol=1e-4, rtol=1e-8),
-    mistakes=[
-        Mistake("no Hartley normalisation", _hd_not_normalized,
-                "With normalize=True translate each point set to its centroid and scale it to mean distance √2 "
-                "(T, T′), solve the DLT there and return T′⁻¹·H̃·T: raw pixels in the thousands make L "
-                "ill-conditioned"),
-        Mistake("normalize=False ignored (always normalised)", _hd_always_normalized,
-                "With normalize=False solve the DLT on the raw coordinates"),
-        Mistake("H inverted (maps dst to src)", _hd_inverted,
-                "Build the equations of m̃ × H w̃ = 0 with w = src and m = dst: H maps src to dst"),
-        Mistake("normalisation not undone (H̃ returned)", _hd_not_denormalized,
-                "The SVD gives the homography between the *normalised* sets: return T′⁻¹·H̃·T"),
-        Mistake("normalisation undone the wrong way (T′·H̃·T⁻¹)", _hd_denormalized_backwards,
-                "dst_n = T′·dst and src_n = T·src, so H = T′⁻¹·H̃·T"),
-        Mistake("one normalisation used for both point sets", _hd_one_normalization,
-                "Normalise src and dst separately (each with its own centroid and scale)"),
-        Mistake("largest singular vector (Vt[0]) taken", _hd_largest,
-                "The solution is the right singular vector of the *smallest* singular value: the last row Vt[-1]"),
-        Mistake("column of Vᵀ taken (Vt[:, -1])", _hd_vt_column,
-                "np.linalg.svd returns Vᵀ: its rows are the singular vectors, so take the row Vt[-1], not a column"),
-        Mistake("economy SVD with 4 points (null vector missing)", _hd_economy,
-                "With 4 points L is 8×9: np.linalg.svd(L, full_matrices=False) returns only 8 rows of Vᵀ; use the "
-                "full SVD (or pad L with a row of zeros) and take the 9th"),
-        Mistake("not scaled to H[2, 2] = 1", _hd_unit_norm,
-                "The SVD gives ‖h‖ = 1; divide H by H[2, 2] before returning it"),
-    ],
+    mistakes=[_hd_not_normalized, _hd_always_normalized, _hd_inverted, _hd_not_denormalized, _hd_denormalized_backwards,
+              _hd_one_normalization, _hd_largest, _hd_vt_column, _hd_economy, _hd_unit_norm],
 )
 
 
@@ -1623,6 +1614,8 @@ levenberg_marquardt = Check(
 # --------------------------------------------------------------------------------------------
 # calibration.refine_homography (§8.3.4)
 # --------------------------------------------------------------------------------------------
+@mistake("initial H returned (not refined)",
+         "Minimise Σ‖dst − π(H·src)‖² over the 8 free entries of H with your levenberg_marquardt")
 def _rh_unrefined(H, src, dst):
     H = np.asarray(H, dtype=np.float64)
     return H / H[2, 2]
@@ -1643,14 +1636,19 @@ def _rh_refit(H, src, dst, residual):
     return np.append(h, 1.0).reshape(3, 3)
 
 
+@mistake("no division by the third coordinate",
+         "The predicted pixel is π(H·(x, y, 1)) = (u/w, v/w): divide by w in the residuals")
 def _rh_no_division(H, src, dst):
     return _rh_refit(H, src, dst, lambda Hm, s, d: s @ Hm[:2, :2].T + Hm[:2, 2] - d)
 
 
+@mistake("error measured in the pattern plane (H⁻¹·dst)",
+         "Only the image points are measured (noisy): compare dst with H·src in the image, not src with H⁻¹·dst")
 def _rh_source_side(H, src, dst):
     return _rh_refit(H, src, dst, lambda Hm, s, d: _map(np.linalg.inv(Hm), d) - s)
 
 
+@mistake("not scaled to H[2, 2] = 1", "Return H divided by H[2, 2]")
 def _rh_unit_norm(H, src, dst):
     refined = _refine_homography(H, src, dst)
     return refined / np.linalg.norm(refined)
@@ -1706,15 +1704,7 @@ refine_homography = Check(
     # (at the data points only: with few pairs the minimum is flat in directions that move
     # points far outside them)
     compare=HomographyClose(atol=2e-3, rtol=1e-8, probes=_refine_probes, corners=False),
-    mistakes=[
-        Mistake("initial H returned (not refined)", _rh_unrefined,
-                "Minimise Σ‖dst − π(H·src)‖² over the 8 free entries of H with your levenberg_marquardt"),
-        Mistake("no division by the third coordinate", _rh_no_division,
-                "The predicted pixel is π(H·(x, y, 1)) = (u/w, v/w): divide by w in the residuals"),
-        Mistake("error measured in the pattern plane (H⁻¹·dst)", _rh_source_side,
-                "Only the image points are measured (noisy): compare dst with H·src in the image, not src with H⁻¹·dst"),
-        Mistake("not scaled to H[2, 2] = 1", _rh_unit_norm, "Return H divided by H[2, 2]"),
-    ],
+    mistakes=[_rh_unrefined, _rh_no_division, _rh_source_side, _rh_unit_norm],
     allowed=("calibration.levenberg_marquardt", "calibration.homography_dlt"),
 )
 
@@ -1763,28 +1753,37 @@ def _closed_form(b, order=(0, 1, 2, 3, 4, 5), skew=True):
     return np.array([[alpha, gamma, u0], [0.0, beta, v0], [0.0, 0.0, 1.0]])
 
 
+@mistake("b unpacked in the wrong order (B13 and B22 swapped)",
+         "v_ij follows b = (B11, B12, B22, B13, B23, B33): read B back in that same order")
 def _ih_wrong_order(homographies):
     return _closed_form(_zhang_b(homographies), order=(0, 1, 3, 2, 4, 5))
 
 
+@mistake("rows of H used instead of columns", "h1, h2 are the COLUMNS of H = λA[r1 r2 t]: use H[:, 0] and H[:, 1]")
 def _ih_rows(homographies):
     return _closed_form(_zhang_b(homographies, rows_of=True))
 
 
+@mistake("skew forced to zero", "Estimate the skew too: A[0, 1] = γ = −B12·α²·β/λ")
 def _ih_no_skew(homographies):
     A = _intrinsics_from_homographies(homographies)
     A[0, 1] = 0.0
     return A
 
 
+@mistake("only the orthogonality constraint (one row per view)",
+         "Each view gives two rows: v12ᵀ (r1 ⊥ r2) and (v11 − v22)ᵀ (‖r1‖ = ‖r2‖)")
 def _ih_orthogonality(homographies):
     return _closed_form(_zhang_b(homographies, orthogonality_only=True))
 
 
+@mistake("second row v11 + v22 instead of v11 − v22", "‖r1‖ = ‖r2‖ means h1ᵀBh1 − h2ᵀBh2 = 0: the row is (v11 − v22)ᵀ")
 def _ih_plus(homographies):
     return _closed_form(_zhang_b(homographies, plus=True))
 
 
+@mistake("Cholesky factor used as A (not inverted)",
+         "B = LLᵀ with L = A⁻ᵀ (up to scale): A is the inverse of Lᵀ, normalised so that A[2, 2] = 1")
 def _ih_cholesky_not_inverted(homographies):
     b = _zhang_b(homographies)
     B = np.array([[b[0], b[1], b[3]], [b[1], b[2], b[4]], [b[3], b[4], b[5]]])
@@ -1826,20 +1825,7 @@ intrinsics_from_homographies = Check(
     public=_ih_public,
     hidden=_ih_hidden,
     compare=FloatClose(rtol=1e-6, atol=1e-6),
-    mistakes=[
-        Mistake("b unpacked in the wrong order (B13 and B22 swapped)", _ih_wrong_order,
-                "v_ij follows b = (B11, B12, B22, B13, B23, B33): read B back in that same order"),
-        Mistake("rows of H used instead of columns", _ih_rows,
-                "h1, h2 are the COLUMNS of H = λA[r1 r2 t]: use H[:, 0] and H[:, 1]"),
-        Mistake("skew forced to zero", _ih_no_skew,
-                "Estimate the skew too: A[0, 1] = γ = −B12·α²·β/λ"),
-        Mistake("only the orthogonality constraint (one row per view)", _ih_orthogonality,
-                "Each view gives two rows: v12ᵀ (r1 ⊥ r2) and (v11 − v22)ᵀ (‖r1‖ = ‖r2‖)"),
-        Mistake("second row v11 + v22 instead of v11 − v22", _ih_plus,
-                "‖r1‖ = ‖r2‖ means h1ᵀBh1 − h2ᵀBh2 = 0: the row is (v11 − v22)ᵀ"),
-        Mistake("Cholesky factor used as A (not inverted)", _ih_cholesky_not_inverted,
-                "B = LLᵀ with L = A⁻ᵀ (up to scale): A is the inverse of Lᵀ, normalised so that A[2, 2] = 1"),
-    ],
+    mistakes=[_ih_wrong_order, _ih_rows, _ih_no_skew, _ih_orthogonality, _ih_plus, _ih_cholesky_not_inverted],
 )
 
 
@@ -1855,11 +1841,14 @@ def _eh_parts(A, H, mean_norm=False):
     return lam * M[:, 0], lam * M[:, 1], lam * M[:, 2]
 
 
+@mistake("R not re-orthonormalised", "With noise [r1 r2 r1×r2] is not a rotation: take its SVD UDVᵀ and return R = UVᵀ")
 def _eh_no_svd(A, H):
     r1, r2, t = _eh_parts(A, H)
     return np.column_stack([r1, r2, np.cross(r1, r2)]), t
 
 
+@mistake("sign of λ not fixed (t_z may be negative)",
+         "H is known up to sign: choose the sign of λ that puts the pattern in front (t_z > 0)")
 def _eh_sign(A, H):
     A = np.asarray(A, dtype=np.float64)
     M = np.linalg.solve(A, np.asarray(H, dtype=np.float64))
@@ -1869,16 +1858,22 @@ def _eh_sign(A, H):
     return U @ Vt, t
 
 
+@mistake("A⁻¹ not applied to the columns of H",
+         "r1 = λA⁻¹h1, r2 = λA⁻¹h2, t = λA⁻¹h3: solve with A first (np.linalg.solve(A, H))")
 def _eh_no_inverse(A, H):
     return _extrinsics_from_homography(np.eye(3), H)
 
 
+@mistake("r3 = r2 × r1 (left-handed, det R = −1)", "r3 = r1 × r2, in this order, for a right-handed frame (det R = +1)")
 def _eh_left_handed(A, H):
     r1, r2, t = _eh_parts(A, H)
     U, _, Vt = np.linalg.svd(np.column_stack([r1, r2, np.cross(r2, r1)]))
     return U @ Vt, t
 
 
+@mistake("Gram–Schmidt instead of the SVD",
+         "Gram–Schmidt keeps r1 and bends r2; the closest rotation (§8.3.6) is UVᵀ from the SVD of "
+         "[r1 r2 r3]")
 def _eh_gram_schmidt(A, H):
     r1, r2, t = _eh_parts(A, H)
     e1 = r1 / np.linalg.norm(r1)
@@ -1887,6 +1882,8 @@ def _eh_gram_schmidt(A, H):
     return np.column_stack([e1, e2, np.cross(e1, e2)]), t
 
 
+@mistake("λ from the mean of ‖A⁻¹h1‖ and ‖A⁻¹h2‖",
+         "As in §8.3.6, λ = 1/‖A⁻¹h1‖ (the SVD then takes care of the small difference in norms)")
 def _eh_mean_norm(A, H):
     r1, r2, t = _eh_parts(A, H, mean_norm=True)
     U, _, Vt = np.linalg.svd(np.column_stack([r1, r2, np.cross(r1, r2)]))
@@ -1931,21 +1928,7 @@ extrinsics_from_homography = Check(
     public=_eh_public,
     hidden=_eh_hidden,
     compare=Parts(names=("R", "t"), inner=FloatClose(rtol=1e-8, atol=1e-9)),
-    mistakes=[
-        Mistake("R not re-orthonormalised", _eh_no_svd,
-                "With noise [r1 r2 r1×r2] is not a rotation: take its SVD UDVᵀ and return R = UVᵀ"),
-        Mistake("sign of λ not fixed (t_z may be negative)", _eh_sign,
-                "H is known up to sign: choose the sign of λ that puts the pattern in front (t_z > 0)"),
-        Mistake("A⁻¹ not applied to the columns of H", _eh_no_inverse,
-                "r1 = λA⁻¹h1, r2 = λA⁻¹h2, t = λA⁻¹h3: solve with A first (np.linalg.solve(A, H))"),
-        Mistake("r3 = r2 × r1 (left-handed, det R = −1)", _eh_left_handed,
-                "r3 = r1 × r2, in this order, for a right-handed frame (det R = +1)"),
-        Mistake("Gram–Schmidt instead of the SVD", _eh_gram_schmidt,
-                "Gram–Schmidt keeps r1 and bends r2; the closest rotation (§8.3.6) is UVᵀ from the SVD of "
-                "[r1 r2 r3]"),
-        Mistake("λ from the mean of ‖A⁻¹h1‖ and ‖A⁻¹h2‖", _eh_mean_norm,
-                "As in §8.3.6, λ = 1/‖A⁻¹h1‖ (the SVD then takes care of the small difference in norms)"),
-    ],
+    mistakes=[_eh_no_svd, _eh_sign, _eh_no_inverse, _eh_left_handed, _eh_gram_schmidt, _eh_mean_norm],
 )
 
 
@@ -1991,6 +1974,8 @@ _rd_swapped = variant(_rd_solve, swapped=True)
 _rd_no_centre = variant(_rd_solve, no_centre=True)
 
 
+@mistake("only k1 estimated (k2 = 0)",
+         "Two unknowns: each row of D has a r² and a r⁴ column, solve for (k1, k2) together")
 def _rd_k1_only(A, world_points, image_points_list, rotations, translations):
     D, d = _rd_system(A, world_points, image_points_list, rotations, translations)
     k1 = float(np.linalg.lstsq(D[:, :1], d, rcond=None)[0][0])
@@ -2049,8 +2034,7 @@ estimate_radial_distortion = Check(
         Mistake("principal point not subtracted (u instead of u − u0)", _rd_no_centre,
                 "Distortion is about the principal point: the columns of D are (u − u0)·r², (u − u0)·r⁴ "
                 "and (v − v0)·r², (v − v0)·r⁴"),
-        Mistake("only k1 estimated (k2 = 0)", _rd_k1_only,
-                "Two unknowns: each row of D has a r² and a r⁴ column, solve for (k1, k2) together"),
+        _rd_k1_only,
         Mistake("r from the measured (distorted) points", _rd_distorted_r,
                 "r belongs to the IDEAL point (projected without distortion), not to the measured one"),
     ],
@@ -2064,12 +2048,16 @@ estimate_radial_distortion = Check(
 _cal_no_refinement = variant(_calibrate, refine=False)
 
 
+@mistake("rms = mean error (not the root of the mean square)",
+         "rms = √(Σ‖e‖² / number of points): square the error lengths, average, then take the root")
 def _cal_mean_error(world_points, image_points_list):
     result = _calibrate(world_points, image_points_list)
     result["rms"] = float(np.mean(np.sqrt(np.sum(result["residuals"] ** 2, axis=-1))))
     return result
 
 
+@mistake("rms over coordinates (divided by 2 per point)",
+         "Divide Σ‖e‖² by the number of POINTS (each has two coordinates), as OpenCV does")
 def _cal_per_coordinate(world_points, image_points_list):
     result = _calibrate(world_points, image_points_list)
     result["rms"] = float(np.sqrt(np.mean(result["residuals"] ** 2)))
@@ -2140,10 +2128,8 @@ calibrate = Check(
         Mistake("no global refinement (closed-form estimates)", _cal_no_refinement,
                 "Finish with levenberg_marquardt over (fu, fv, u0, v0, k1, k2) and every pose, minimising the "
                 "total reprojection error"),
-        Mistake("rms = mean error (not the root of the mean square)", _cal_mean_error,
-                "rms = √(Σ‖e‖² / number of points): square the error lengths, average, then take the root"),
-        Mistake("rms over coordinates (divided by 2 per point)", _cal_per_coordinate,
-                "Divide Σ‖e‖² by the number of POINTS (each has two coordinates), as OpenCV does"),
+        _cal_mean_error,
+        _cal_per_coordinate,
         Mistake("distortion not refined (linear k kept)", _cal_k_fixed,
                 "k1, k2 belong to the parameters of the final refinement too"),
         Mistake("skew left free in the refinement", _cal_free_skew,

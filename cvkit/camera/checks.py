@@ -28,7 +28,7 @@ from functools import partial
 import numpy as np
 import scipy.linalg
 
-from ..grading import Case, Check, Close, Comparator, Mismatch, Mistake
+from ..grading import Case, Check, Close, Comparator, Mismatch, Mistake, mistake
 from ..grading.casekit import variant
 from ..grading.casekit import size as _n
 from ..grading.casekit import uniform as _u
@@ -170,21 +170,28 @@ _WORLD = np.array([[0.0, 0.0, 0.0], [1.0, -0.5, 2.0], [-1.5, 0.8, 1.0], [0.3, 1.
 # --------------------------------------------------------------------------------------------
 # camera.to_homogeneous (§7.4.1)
 # --------------------------------------------------------------------------------------------
+@mistake("1 prepended instead of appended", "The homogeneous coordinate goes last: [x, y] → [x, y, 1]")
 def _th_prepend(points):
     p = np.asarray(points, dtype=np.float64)
     return np.concatenate([np.ones(p.shape[:-1] + (1,)), p], axis=-1)
 
 
+@mistake("0 appended (that makes a direction)",
+         "Append a 1; [x, y, 0] is the point at infinity in the direction (x, y) (§7.4.2)")
 def _th_zero(points):
     p = np.asarray(points, dtype=np.float64)
     return np.concatenate([p, np.zeros(p.shape[:-1] + (1,))], axis=-1)
 
 
+@mistake("row of ones added (wrong axis)",
+         "Points are rows: add a column, along the last axis (np.concatenate(..., axis=-1))")
 def _th_row(points):
     p = np.asarray(points, dtype=np.float64)
     return np.vstack([p, np.ones(p.shape[-1])])
 
 
+@mistake("integer dtype kept (np.ones_like)",
+         "Return float64 even for integer points: np.asarray(points, dtype=float) first")
 def _th_ones_like(points):
     p = np.asarray(points)
     return np.concatenate([p, np.ones_like(p[..., :1])], axis=-1)
@@ -214,41 +221,41 @@ to_homogeneous = Check(
     ],
     hidden=_th_hidden,
     compare=FloatClose(rtol=0.0, atol=0.0),
-    mistakes=[
-        Mistake("1 prepended instead of appended", _th_prepend,
-                "The homogeneous coordinate goes last: [x, y] → [x, y, 1]"),
-        Mistake("0 appended (that makes a direction)", _th_zero,
-                "Append a 1; [x, y, 0] is the point at infinity in the direction (x, y) (§7.4.2)"),
-        Mistake("row of ones added (wrong axis)", _th_row,
-                "Points are rows: add a column, along the last axis (np.concatenate(..., axis=-1))"),
-        Mistake("integer dtype kept (np.ones_like)", _th_ones_like,
-                "Return float64 even for integer points: np.asarray(points, dtype=float) first"),
-    ],
+    mistakes=[_th_prepend, _th_zero, _th_row, _th_ones_like],
 )
 
 
 # --------------------------------------------------------------------------------------------
 # camera.from_homogeneous (§7.4.1)
 # --------------------------------------------------------------------------------------------
+@mistake("no division (last coordinate dropped)",
+         "Divide by the last coordinate before dropping it: [x̃, ỹ, w] → [x̃/w, ỹ/w]")
 def _fh_drop(points_h):
     return np.asarray(points_h, dtype=np.float64)[..., :-1].copy()
 
 
+@mistake("divided by the third coordinate, not the last",
+         "Divide by the LAST coordinate (index -1): for 3-D points (x, y, z, w) that is w, not z")
 def _fh_third(points_h):
     p = np.asarray(points_h, dtype=np.float64)
     return p[..., :-1] / p[..., 2:3]
 
 
+@mistake("last coordinate kept (x/w, y/w, 1)",
+         "Drop the last coordinate after dividing: the result has one coordinate fewer")
 def _fh_keep(points_h):
     p = np.asarray(points_h, dtype=np.float64)
     return p / p[..., -1:]
 
 
+@mistake("floor division (//)", "Use true division `/` (float result); `//` rounds down")
 def _fh_floor(points_h):
     p = np.asarray(points_h)
     return (p[..., :-1] // p[..., -1:]).astype(np.float64)
 
 
+@mistake("points at infinity set to 0",
+         "Do not skip w = 0: dividing gives ±inf (nan for 0/0), which says 'at infinity'")
 def _fh_zero_at_infinity(points_h):
     p = np.asarray(points_h, dtype=np.float64)
     w = np.broadcast_to(p[..., -1:], p[..., :-1].shape)
@@ -298,42 +305,37 @@ from_homogeneous = Check(
     ],
     hidden=_fh_hidden,
     compare=FloatClose(rtol=1e-10, atol=1e-12),
-    mistakes=[
-        Mistake("no division (last coordinate dropped)", _fh_drop,
-                "Divide by the last coordinate before dropping it: [x̃, ỹ, w] → [x̃/w, ỹ/w]"),
-        Mistake("divided by the third coordinate, not the last", _fh_third,
-                "Divide by the LAST coordinate (index -1): for 3-D points (x, y, z, w) that is w, not z"),
-        Mistake("last coordinate kept (x/w, y/w, 1)", _fh_keep,
-                "Drop the last coordinate after dividing: the result has one coordinate fewer"),
-        Mistake("floor division (//)", _fh_floor,
-                "Use true division `/` (float result); `//` rounds down"),
-        Mistake("points at infinity set to 0", _fh_zero_at_infinity,
-                "Do not skip w = 0: dividing gives ±inf (nan for 0/0), which says 'at infinity'"),
-    ],
+    mistakes=[_fh_drop, _fh_third, _fh_keep, _fh_floor, _fh_zero_at_infinity],
 )
 
 
 # --------------------------------------------------------------------------------------------
 # camera.intrinsic_matrix (§7.5.2)
 # --------------------------------------------------------------------------------------------
+@mistake("principal point in the bottom row (A transposed)",
+         "A is upper triangular: [[fu, s, u0], [0, fv, v0], [0, 0, 1]] — u0, v0 in the last column")
 def _im_transposed(fu, fv, u0, v0, skew=0.0):
     return _intrinsic_matrix(fu, fv, u0, v0, skew).T
 
 
+@mistake("fu and fv swapped", "fu (horizontal pixels) scales x into u: A[0, 0] = fu, A[1, 1] = fv")
 def _im_f_swapped(fu, fv, u0, v0, skew=0.0):
     return _intrinsic_matrix(fv, fu, u0, v0, skew)
 
 
+@mistake("u0 and v0 swapped", "u0 is the column (x) of the principal point: A[0, 2] = u0, A[1, 2] = v0")
 def _im_pp_swapped(fu, fv, u0, v0, skew=0.0):
     return _intrinsic_matrix(fu, fv, v0, u0, skew)
 
 
+@mistake("skew at A[1, 0] instead of A[0, 1]", "The skew mixes y into u: it goes in the first row, A[0, 1]")
 def _im_skew_below(fu, fv, u0, v0, skew=0.0):
     A = _intrinsic_matrix(fu, fv, u0, v0)
     A[1, 0] = float(skew)
     return A
 
 
+@mistake("skew ignored", "Put the skew argument at A[0, 1]")
 def _im_no_skew(fu, fv, u0, v0, skew=0.0):
     return _intrinsic_matrix(fu, fv, u0, v0)
 
@@ -367,15 +369,7 @@ intrinsic_matrix = Check(
     ],
     hidden=_im_hidden,
     compare=FloatClose(rtol=1e-12, atol=0.0),
-    mistakes=[
-        Mistake("principal point in the bottom row (A transposed)", _im_transposed,
-                "A is upper triangular: [[fu, s, u0], [0, fv, v0], [0, 0, 1]] — u0, v0 in the last column"),
-        Mistake("fu and fv swapped", _im_f_swapped, "fu (horizontal pixels) scales x into u: A[0, 0] = fu, A[1, 1] = fv"),
-        Mistake("u0 and v0 swapped", _im_pp_swapped, "u0 is the column (x) of the principal point: A[0, 2] = u0, A[1, 2] = v0"),
-        Mistake("skew at A[1, 0] instead of A[0, 1]", _im_skew_below,
-                "The skew mixes y into u: it goes in the first row, A[0, 1]"),
-        Mistake("skew ignored", _im_no_skew, "Put the skew argument at A[0, 1]"),
-    ],
+    mistakes=[_im_transposed, _im_f_swapped, _im_pp_swapped, _im_skew_below, _im_no_skew],
 )
 
 
@@ -397,22 +391,30 @@ def _rz(a):
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+@mistake("rotation order reversed (Rx·Ry·Rz)",
+         "R = Rz(yaw) @ Ry(pitch) @ Rx(roll): the rightmost factor acts first, roll comes first")
 def _rm_reversed(roll, pitch, yaw):
     return _rx(roll) @ _ry(pitch) @ _rz(yaw)
 
 
+@mistake("roll and yaw swapped (roll about z)", "roll turns about x, pitch about y, yaw about z")
 def _rm_roll_yaw_swapped(roll, pitch, yaw):
     return _rz(roll) @ _ry(pitch) @ _rx(yaw)
 
 
+@mistake("passive rotations (each matrix transposed)",
+         "Use the active matrices: Rz(a) = [[cos a, −sin a, 0], [sin a, cos a, 0], [0, 0, 1]], same pattern for Rx")
 def _rm_passive(roll, pitch, yaw):
     return _rz(yaw).T @ _ry(pitch).T @ _rx(roll).T
 
 
+@mistake("signs of sin in Ry swapped",
+         "Ry(a) = [[cos a, 0, sin a], [0, 1, 0], [−sin a, 0, cos a]]: +sin in the first row")
 def _rm_ry_sign(roll, pitch, yaw):
     return _rz(yaw) @ _ry(pitch).T @ _rx(roll)
 
 
+@mistake("angles taken as degrees", "Angles are already in radians: no np.deg2rad / np.radians")
 def _rm_degrees(roll, pitch, yaw):
     return _rotation_matrix(*np.deg2rad([float(roll), float(pitch), float(yaw)]))
 
@@ -442,17 +444,7 @@ rotation_matrix = Check(
     ],
     hidden=_rm_hidden,
     compare=FloatClose(rtol=1e-9, atol=1e-12),
-    mistakes=[
-        Mistake("rotation order reversed (Rx·Ry·Rz)", _rm_reversed,
-                "R = Rz(yaw) @ Ry(pitch) @ Rx(roll): the rightmost factor acts first, roll comes first"),
-        Mistake("roll and yaw swapped (roll about z)", _rm_roll_yaw_swapped,
-                "roll turns about x, pitch about y, yaw about z"),
-        Mistake("passive rotations (each matrix transposed)", _rm_passive,
-                "Use the active matrices: Rz(a) = [[cos a, −sin a, 0], [sin a, cos a, 0], [0, 0, 1]], same pattern for Rx"),
-        Mistake("signs of sin in Ry swapped", _rm_ry_sign,
-                "Ry(a) = [[cos a, 0, sin a], [0, 1, 0], [−sin a, 0, cos a]]: +sin in the first row"),
-        Mistake("angles taken as degrees", _rm_degrees, "Angles are already in radians: no np.deg2rad / np.radians"),
-    ],
+    mistakes=[_rm_reversed, _rm_roll_yaw_swapped, _rm_passive, _rm_ry_sign, _rm_degrees],
 )
 
 
@@ -463,6 +455,8 @@ def _vec(t):
     return np.asarray(t, dtype=np.float64).reshape(3)
 
 
+@mistake("t in the bottom row (transposed layout)",
+         "G = [[R, t], [0, 0, 0, 1]]: t is the last column, the bottom row is [0, 0, 0, 1]")
 def _em_transposed_layout(R, t):
     G = np.eye(4)
     G[:3, :3] = np.asarray(R, dtype=np.float64)
@@ -470,15 +464,19 @@ def _em_transposed_layout(R, t):
     return G
 
 
+@mistake("R transposed", "Use R itself in the top-left block: M_C = R·M_W + t")
 def _em_r_transposed(R, t):
     return _extrinsic_matrix(np.asarray(R, dtype=np.float64).T, t)
 
 
+@mistake("inverse motion (camera → world)",
+         "G maps world to camera coordinates: [[R, t], [0, 1]], not its inverse [[Rᵀ, −Rᵀt], [0, 1]]")
 def _em_inverse(R, t):
     Rt = np.asarray(R, dtype=np.float64).T
     return _extrinsic_matrix(Rt, -Rt @ _vec(t))
 
 
+@mistake("bottom-right 1 missing", "The bottom row of G is [0, 0, 0, 1]")
 def _em_no_one(R, t):
     G = _extrinsic_matrix(R, t)
     G[3, 3] = 0.0
@@ -512,33 +510,32 @@ extrinsic_matrix = Check(
     ],
     hidden=_em_hidden,
     compare=FloatClose(rtol=1e-12, atol=1e-14),
-    mistakes=[
-        Mistake("t in the bottom row (transposed layout)", _em_transposed_layout,
-                "G = [[R, t], [0, 0, 0, 1]]: t is the last column, the bottom row is [0, 0, 0, 1]"),
-        Mistake("R transposed", _em_r_transposed, "Use R itself in the top-left block: M_C = R·M_W + t"),
-        Mistake("inverse motion (camera → world)", _em_inverse,
-                "G maps world to camera coordinates: [[R, t], [0, 1]], not its inverse [[Rᵀ, −Rᵀt], [0, 1]]"),
-        Mistake("bottom-right 1 missing", _em_no_one, "The bottom row of G is [0, 0, 0, 1]"),
-    ],
+    mistakes=[_em_transposed_layout, _em_r_transposed, _em_inverse, _em_no_one],
 )
 
 
 # --------------------------------------------------------------------------------------------
 # camera.projection_matrix (§7.6)
 # --------------------------------------------------------------------------------------------
+@mistake("t not multiplied by A ([A·R | t])", "P = A·[R | t]: A multiplies the whole 3×4 matrix, the t column included")
 def _pm_t_outside(A, R, t):
     return np.column_stack([np.asarray(A, dtype=np.float64) @ np.asarray(R, dtype=np.float64), _vec(t)])
 
 
+@mistake("R transposed", "Use R itself: P = A·[R | t]")
 def _pm_r_transposed(A, R, t):
     return np.asarray(A, dtype=np.float64) @ np.column_stack([np.asarray(R, dtype=np.float64).T, _vec(t)])
 
 
+@mistake("t taken as the camera centre (A·[R | −R·t])",
+         "t is the world origin seen from the camera, not the camera's position: P = A·[R | t]")
 def _pm_centre(A, R, t):
     R = np.asarray(R, dtype=np.float64)
     return np.asarray(A, dtype=np.float64) @ np.column_stack([R, -R @ _vec(t)])
 
 
+@mistake("camera → world pose used (A·[Rᵀ | −Rᵀt])",
+         "R, t map world to camera coordinates already: P = A·[R | t], no inversion")
 def _pm_inverse(A, R, t):
     Rt = np.asarray(R, dtype=np.float64).T
     return np.asarray(A, dtype=np.float64) @ np.column_stack([Rt, -Rt @ _vec(t)])
@@ -570,15 +567,7 @@ projection_matrix = Check(
     ],
     hidden=_pm_hidden,
     compare=FloatClose(rtol=1e-10, atol=1e-9),
-    mistakes=[
-        Mistake("t not multiplied by A ([A·R | t])", _pm_t_outside,
-                "P = A·[R | t]: A multiplies the whole 3×4 matrix, the t column included"),
-        Mistake("R transposed", _pm_r_transposed, "Use R itself: P = A·[R | t]"),
-        Mistake("t taken as the camera centre (A·[R | −R·t])", _pm_centre,
-                "t is the world origin seen from the camera, not the camera's position: P = A·[R | t]"),
-        Mistake("camera → world pose used (A·[Rᵀ | −Rᵀt])", _pm_inverse,
-                "R, t map world to camera coordinates already: P = A·[R | t], no inversion"),
-    ],
+    mistakes=[_pm_t_outside, _pm_r_transposed, _pm_centre, _pm_inverse],
     allowed=("camera.extrinsic_matrix",),
 )
 
@@ -593,19 +582,25 @@ def _homog(P, points_world):
     return pts @ np.asarray(P, dtype=np.float64).T, pts
 
 
+@mistake("forgot the division by z", "After k·m̃ = P·M̃ divide by the third coordinate k: u = m̃₁/m̃₃, v = m̃₂/m̃₃")
 def _pr_no_division(P, points_world):
     return _homog(P, points_world)[0][:, :2].copy()
 
 
+@mistake("w ignored (homogeneous input treated as w = 1)",
+         "Use (x, y, z, w) as given; only (N, 3) points get a 1 appended. w = 0 is a direction")
 def _pr_w_ignored(P, points_world):
     return _project(P, np.asarray(points_world, dtype=np.float64)[:, :3])
 
 
+@mistake("divided by the world z, not by the projected third coordinate",
+         "Divide by the third row of P·M̃ (the depth z_C in the camera frame), not by the point's world z")
 def _pr_world_z(P, points_world):
     projected, pts = _homog(P, points_world)
     return projected[:, :2] / pts[:, 2:3]
 
 
+@mistake("u and v swapped", "Return (u, v) = (x, y) = (column, row): the first row of P gives u")
 def _pr_swapped(P, points_world):
     return _project(P, points_world)[:, ::-1].copy()
 
@@ -658,15 +653,7 @@ project = Check(
     ],
     hidden=_pr_hidden,
     compare=FloatClose(rtol=1e-9, atol=1e-9),
-    mistakes=[
-        Mistake("forgot the division by z", _pr_no_division,
-                "After k·m̃ = P·M̃ divide by the third coordinate k: u = m̃₁/m̃₃, v = m̃₂/m̃₃"),
-        Mistake("w ignored (homogeneous input treated as w = 1)", _pr_w_ignored,
-                "Use (x, y, z, w) as given; only (N, 3) points get a 1 appended. w = 0 is a direction"),
-        Mistake("divided by the world z, not by the projected third coordinate", _pr_world_z,
-                "Divide by the third row of P·M̃ (the depth z_C in the camera frame), not by the point's world z"),
-        Mistake("u and v swapped", _pr_swapped, "Return (u, v) = (x, y) = (column, row): the first row of P gives u"),
-    ],
+    mistakes=[_pr_no_division, _pr_w_ignored, _pr_world_z, _pr_swapped],
     allowed=("camera.to_homogeneous", "camera.from_homogeneous"),
 )
 
@@ -682,16 +669,22 @@ def _dp_raw(P, rq):
     return K, Q, sign * p4
 
 
+@mistake("RQ sign fix missing (QR of the flipped matrix)",
+         "RQ is unique only up to signs: with D = diag(sign(diag K)), use A ∝ K·D and R = D·Q")
 def _dp_no_diag_fix_numpy(P):
     K, Q, p4 = _dp_raw(P, _rq)
     return K / K[2, 2], Q, np.linalg.solve(K, p4)
 
 
+@mistake("RQ sign fix missing (scipy.linalg.rq)",
+         "RQ is unique only up to signs: with D = diag(sign(diag K)), use A ∝ K·D and R = D·Q")
 def _dp_no_diag_fix_scipy(P):
     K, Q, p4 = _dp_raw(P, scipy.linalg.rq)
     return K / K[2, 2], Q, np.linalg.solve(K, p4)
 
 
+@mistake("overall sign of P not fixed (det R = −1)",
+         "P is known up to a scale λ that may be negative: multiply P by sign(det P[:, :3]) first, so det R = +1")
 def _dp_no_det_fix(P):
     mat = np.asarray(P, dtype=np.float64)
     K, Q = _rq(mat[:, :3])
@@ -700,6 +693,7 @@ def _dp_no_det_fix(P):
     return K / K[2, 2], Q, np.linalg.solve(K, mat[:, 3])
 
 
+@mistake("A not normalised (A[2, 2] ≠ 1)", "Divide the triangular factor by its bottom-right entry: A = K / K[2, 2]")
 def _dp_not_normalised(P):
     A, R, t = _decompose_projection(P)
     M = np.asarray(P, dtype=np.float64)[:, :3]
@@ -707,6 +701,8 @@ def _dp_not_normalised(P):
     return A * scale, R, t
 
 
+@mistake("t read off the last column (A⁻¹ not applied)",
+         "The last column of P is λ·A·t: solve K·t = p₄ (np.linalg.solve), do not just divide by λ")
 def _dp_last_column(P):
     A, R, t = _decompose_projection(P)
     mat = np.asarray(P, dtype=np.float64)
@@ -714,11 +710,15 @@ def _dp_last_column(P):
     return A, R, mat[:, 3] / lam
 
 
+@mistake("camera centre returned instead of t",
+         "Return t = K⁻¹·p₄ (world origin in camera coordinates); the camera centre C = −Rᵀt is another thing")
 def _dp_centre(P):
     A, R, t = _decompose_projection(P)
     return A, R, -R.T @ t
 
 
+@mistake("QR instead of RQ",
+         "M = A·R is upper-triangular × orthogonal: that is an RQ decomposition (QR gives orthogonal × upper)")
 def _dp_qr(P):
     mat = np.asarray(P, dtype=np.float64)
     M, p4 = mat[:, :3], mat[:, 3]
@@ -762,22 +762,8 @@ decompose_projection = Check(
     ],
     hidden=_dp_hidden,
     compare=Parts(names=("A", "R", "t"), inner=FloatClose(rtol=1e-7, atol=1e-8)),
-    mistakes=[
-        Mistake("RQ sign fix missing (QR of the flipped matrix)", _dp_no_diag_fix_numpy,
-                "RQ is unique only up to signs: with D = diag(sign(diag K)), use A ∝ K·D and R = D·Q"),
-        Mistake("RQ sign fix missing (scipy.linalg.rq)", _dp_no_diag_fix_scipy,
-                "RQ is unique only up to signs: with D = diag(sign(diag K)), use A ∝ K·D and R = D·Q"),
-        Mistake("overall sign of P not fixed (det R = −1)", _dp_no_det_fix,
-                "P is known up to a scale λ that may be negative: multiply P by sign(det P[:, :3]) first, so det R = +1"),
-        Mistake("A not normalised (A[2, 2] ≠ 1)", _dp_not_normalised,
-                "Divide the triangular factor by its bottom-right entry: A = K / K[2, 2]"),
-        Mistake("t read off the last column (A⁻¹ not applied)", _dp_last_column,
-                "The last column of P is λ·A·t: solve K·t = p₄ (np.linalg.solve), do not just divide by λ"),
-        Mistake("camera centre returned instead of t", _dp_centre,
-                "Return t = K⁻¹·p₄ (world origin in camera coordinates); the camera centre C = −Rᵀt is another thing"),
-        Mistake("QR instead of RQ", _dp_qr,
-                "M = A·R is upper-triangular × orthogonal: that is an RQ decomposition (QR gives orthogonal × upper)"),
-    ],
+    mistakes=[_dp_no_diag_fix_numpy, _dp_no_diag_fix_scipy, _dp_no_det_fix, _dp_not_normalised, _dp_last_column,
+              _dp_centre, _dp_qr],
 )
 
 
@@ -860,19 +846,26 @@ distort = Check(
 # --------------------------------------------------------------------------------------------
 # camera.undistort_points (§7.7)
 # --------------------------------------------------------------------------------------------
+@mistake("distortion applied instead of removed",
+         "Invert the model: solve x_d = L(r)·x + Δ(x) for x; distort(x_d) goes the wrong way")
 def _ud_distorts(xy_distorted, k, p, iterations=20):
     return _distort(xy_distorted, k, p)
 
 
+@mistake("first-order inverse 2·x_d − distort(x_d)",
+         "Subtracting the distortion once is only an approximation: iterate x ← (x_d − Δ(x)) / L(r(x))")
 def _ud_first_order(xy_distorted, k, p, iterations=20):
     xd = np.asarray(xy_distorted, dtype=np.float64)
     return 2 * xd - _distort(xd, k, p)
 
 
+@mistake("one step only", "Repeat the step `iterations` times, recomputing r, L and Δ from the current estimate")
 def _ud_one_step(xy_distorted, k, p, iterations=20):
     return _undistort_points(xy_distorted, k, p, min(int(iterations), 1))
 
 
+@mistake("tangential part not subtracted",
+         "Each step is x ← (x_d − Δx(x)) / L, y ← (y_d − Δy(x)) / L: remove the tangential shift first")
 def _ud_no_tangential(xy_distorted, k, p, iterations=20):
     xd = np.asarray(xy_distorted, dtype=np.float64)
     kk, _ = distortion_coefficients(k, p)
@@ -883,10 +876,12 @@ def _ud_no_tangential(xy_distorted, k, p, iterations=20):
     return x
 
 
+@mistake("p1 and p2 swapped", "Δx = 2·p1·x·y + p2·(r² + 2x²), Δy = p1·(r² + 2y²) + 2·p2·x·y")
 def _ud_p_swapped(xy_distorted, k, p, iterations=20):
     return _undistort_points(xy_distorted, k, tuple(np.asarray(p, dtype=float)[::-1]), iterations)
 
 
+@mistake("iterations ignored", "Do exactly `iterations` fixed-point steps, starting from x = x_d")
 def _ud_iterations_ignored(xy_distorted, k, p, iterations=20):
     return _undistort_points(xy_distorted, k, p, 20)
 
@@ -932,20 +927,7 @@ undistort_points = Check(
     public=_ud_public,
     hidden=_ud_hidden,
     compare=FloatClose(rtol=1e-9, atol=1e-10),
-    mistakes=[
-        Mistake("distortion applied instead of removed", _ud_distorts,
-                "Invert the model: solve x_d = L(r)·x + Δ(x) for x; distort(x_d) goes the wrong way"),
-        Mistake("first-order inverse 2·x_d − distort(x_d)", _ud_first_order,
-                "Subtracting the distortion once is only an approximation: iterate x ← (x_d − Δ(x)) / L(r(x))"),
-        Mistake("one step only", _ud_one_step,
-                "Repeat the step `iterations` times, recomputing r, L and Δ from the current estimate"),
-        Mistake("tangential part not subtracted", _ud_no_tangential,
-                "Each step is x ← (x_d − Δx(x)) / L, y ← (y_d − Δy(x)) / L: remove the tangential shift first"),
-        Mistake("p1 and p2 swapped", _ud_p_swapped,
-                "Δx = 2·p1·x·y + p2·(r² + 2x²), Δy = p1·(r² + 2y²) + 2·p2·x·y"),
-        Mistake("iterations ignored", _ud_iterations_ignored,
-                "Do exactly `iterations` fixed-point steps, starting from x = x_d"),
-    ],
+    mistakes=[_ud_distorts, _ud_first_order, _ud_one_step, _ud_no_tangential, _ud_p_swapped, _ud_iterations_ignored],
 )
 
 

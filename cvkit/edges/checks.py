@@ -31,7 +31,7 @@ import numpy as np
 from ..data import disk_image, oriented_step_image, square_image
 from ..filters import correlate as _correlate
 from ..filters import gaussian as _gaussian
-from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
+from ..grading import Case, Check, Comparator, Mismatch, Mistake, close, mistake
 from ..grading.casekit import BORDERS, border_mistakes, border_zero, random_image, reflect_swapped, variant
 from ..grading.casekit import distinct as _distinct
 from ..grading.casekit import sigma as _sigma
@@ -238,26 +238,37 @@ def _random_border(rng: np.random.Generator, choices=BORDERS) -> str:
 # --------------------------------------------------------------------------------------------
 # edges.gradient (§4.5)
 # --------------------------------------------------------------------------------------------
+@mistake("central difference not divided by 2",
+         "The central difference is (I(x+1) − I(x−1)) / 2: correlate with [-1, 0, 1] / 2")
 def _grad_not_halved(image, scheme="central", border="reflect101"):
     ix, iy = _gradient(image, scheme, border)
     return (2 * ix, 2 * iy) if scheme == "central" else (ix, iy)
 
 
+@mistake("x and y swapped",
+         "Return (ix, iy): ix differentiates along the columns (axis 1, x), iy down the rows (axis 0, y)")
 def _grad_swapped(image, scheme="central", border="reflect101"):
     ix, iy = _gradient(image, scheme, border)
     return iy, ix
 
 
+@mistake("sign flipped (kernel convolved, not correlated)",
+         "A derivative is positive where the image gets brighter: Ix = I(x+1) − I(x−1), not I(x−1) − I(x+1)")
 def _grad_sign(image, scheme="central", border="reflect101"):
     ix, iy = _gradient(image, scheme, border)
     return -ix, -iy
 
 
+@mistake("forward and backward swapped",
+         "forward: I(x+1) − I(x); backward: I(x) − I(x−1) (the same along y, rows going down)")
 def _grad_fwd_bwd(image, scheme="central", border="reflect101"):
     other = {"forward": "backward", "backward": "forward"}.get(scheme, scheme)
     return _gradient(image, other, border)
 
 
+@mistake("one-sided differences at the border (numpy.gradient)",
+         "Use the same formula at every pixel and read the missing neighbour through `border` "
+         "(pad the image); numpy.gradient switches to one-sided differences at the border")
 def _grad_numpy(image, scheme="central", border="reflect101"):
     if scheme != "central":
         return _gradient(image, scheme, border)
@@ -312,17 +323,11 @@ gradient = Check(
     hidden=_gradient_hidden,
     compare=_LINEAR,
     mistakes=[
-        Mistake("central difference not divided by 2", _grad_not_halved,
-                "The central difference is (I(x+1) − I(x−1)) / 2: correlate with [-1, 0, 1] / 2"),
-        Mistake("x and y swapped", _grad_swapped,
-                "Return (ix, iy): ix differentiates along the columns (axis 1, x), iy down the rows (axis 0, y)"),
-        Mistake("sign flipped (kernel convolved, not correlated)", _grad_sign,
-                "A derivative is positive where the image gets brighter: Ix = I(x+1) − I(x−1), not I(x−1) − I(x+1)"),
-        Mistake("forward and backward swapped", _grad_fwd_bwd,
-                "forward: I(x+1) − I(x); backward: I(x) − I(x−1) (the same along y, rows going down)"),
-        Mistake("one-sided differences at the border (numpy.gradient)", _grad_numpy,
-                "Use the same formula at every pixel and read the missing neighbour through `border` "
-                "(pad the image); numpy.gradient switches to one-sided differences at the border"),
+        _grad_not_halved,
+        _grad_swapped,
+        _grad_sign,
+        _grad_fwd_bwd,
+        _grad_numpy,
         *border_mistakes(_gradient, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
     ],
     allowed=("filters.pad",),
@@ -332,10 +337,13 @@ gradient = Check(
 # --------------------------------------------------------------------------------------------
 # edges.magnitude (§4.5)
 # --------------------------------------------------------------------------------------------
+@mistake("norm ignored (always L2)",
+         "Use the `norm` argument: l2 = sqrt(Ix² + Iy²), l1 = |Ix| + |Iy|, max = max(|Ix|, |Iy|)")
 def _mag_always_l2(ix, iy, norm="l2"):
     return _magnitude(ix, iy, "l2")
 
 
+@mistake("L2 without the square root", "l2 is sqrt(Ix² + Iy²), not Ix² + Iy²")
 def _mag_squared(ix, iy, norm="l2"):
     if norm != "l2":
         return _magnitude(ix, iy, norm)
@@ -343,18 +351,21 @@ def _mag_squared(ix, iy, norm="l2"):
     return gx * gx + gy * gy
 
 
+@mistake("L1 without absolute values", "l1 adds absolute values: |Ix| + |Iy|")
 def _mag_l1_no_abs(ix, iy, norm="l2"):
     if norm != "l1":
         return _magnitude(ix, iy, norm)
     return np.asarray(ix, dtype=np.float64) + np.asarray(iy, dtype=np.float64)
 
 
+@mistake("max without absolute values", "max compares absolute values: max(|Ix|, |Iy|)")
 def _mag_max_no_abs(ix, iy, norm="l2"):
     if norm != "max":
         return _magnitude(ix, iy, norm)
     return np.maximum(np.asarray(ix, dtype=np.float64), np.asarray(iy, dtype=np.float64))
 
 
+@mistake("l1 and max swapped", "l1 = |Ix| + |Iy| (the sum), max = max(|Ix|, |Iy|)")
 def _mag_l1_max_swapped(ix, iy, norm="l2"):
     return _magnitude(ix, iy, {"l1": "max", "max": "l1"}.get(norm, norm))
 
@@ -402,32 +413,31 @@ magnitude = Check(
     ],
     hidden=_magnitude_hidden,
     compare=_POINTWISE,
-    mistakes=[
-        Mistake("norm ignored (always L2)", _mag_always_l2,
-                "Use the `norm` argument: l2 = sqrt(Ix² + Iy²), l1 = |Ix| + |Iy|, max = max(|Ix|, |Iy|)"),
-        Mistake("L2 without the square root", _mag_squared, "l2 is sqrt(Ix² + Iy²), not Ix² + Iy²"),
-        Mistake("L1 without absolute values", _mag_l1_no_abs, "l1 adds absolute values: |Ix| + |Iy|"),
-        Mistake("max without absolute values", _mag_max_no_abs, "max compares absolute values: max(|Ix|, |Iy|)"),
-        Mistake("l1 and max swapped", _mag_l1_max_swapped, "l1 = |Ix| + |Iy| (the sum), max = max(|Ix|, |Iy|)"),
-    ],
+    mistakes=[_mag_always_l2, _mag_squared, _mag_l1_no_abs, _mag_max_no_abs, _mag_l1_max_swapped],
 )
 
 
 # --------------------------------------------------------------------------------------------
 # edges.direction (§4.3)
 # --------------------------------------------------------------------------------------------
+@mistake("atan instead of atan2",
+         "arctan(Iy / Ix) cannot tell a gradient from its opposite (and divides by zero): use np.arctan2(iy, ix)")
 def _dir_atan(ix, iy):
     return np.arctan(np.asarray(iy, dtype=np.float64) / np.asarray(ix, dtype=np.float64))
 
 
+@mistake("x and y swapped (atan2(Ix, Iy))", "The angle from the x axis is atan2(Iy, Ix): the y component comes first")
 def _dir_swapped(ix, iy):
     return np.arctan2(np.asarray(ix, dtype=np.float64), np.asarray(iy, dtype=np.float64))
 
 
+@mistake("y pointing up (Iy negated)",
+         "Images have y pointing down the rows: use atan2(Iy, Ix) as computed, without negating Iy")
 def _dir_y_up(ix, iy):
     return np.arctan2(-np.asarray(iy, dtype=np.float64), np.asarray(ix, dtype=np.float64))
 
 
+@mistake("degrees instead of radians", "Return radians, as np.arctan2 does (no np.degrees)")
 def _dir_degrees(ix, iy):
     return np.degrees(_direction(ix, iy))
 
@@ -464,15 +474,7 @@ direction = Check(
     ],
     hidden=_direction_hidden,
     compare=Angles(atol=1e-9),
-    mistakes=[
-        Mistake("atan instead of atan2", _dir_atan,
-                "arctan(Iy / Ix) cannot tell a gradient from its opposite (and divides by zero): use np.arctan2(iy, ix)"),
-        Mistake("x and y swapped (atan2(Ix, Iy))", _dir_swapped,
-                "The angle from the x axis is atan2(Iy, Ix): the y component comes first"),
-        Mistake("y pointing up (Iy negated)", _dir_y_up,
-                "Images have y pointing down the rows: use atan2(Iy, Ix) as computed, without negating Iy"),
-        Mistake("degrees instead of radians", _dir_degrees, "Return radians, as np.arctan2 does (no np.degrees)"),
-    ],
+    mistakes=[_dir_atan, _dir_swapped, _dir_y_up, _dir_degrees],
 )
 
 
@@ -568,14 +570,18 @@ sobel = Check(
 _EIGHT = np.array([[1.0, 1.0, 1.0], [1.0, -8.0, 1.0], [1.0, 1.0, 1.0]])
 
 
+@mistake("8-neighbour Laplacian",
+         "The 4-neighbour Laplacian uses only the up, down, left and right neighbours: [[0,1,0],[1,-4,1],[0,1,0]]")
 def _lap_eight(image, border="reflect101"):
     return _correlate(image, _EIGHT, border)
 
 
+@mistake("sign flipped", "Ixx + Iyy = (sum of the 4 neighbours) − 4·I(p), not 4·I(p) − (...)")
 def _lap_sign(image, border="reflect101"):
     return -_laplacian(image, border)
 
 
+@mistake("only Ixx (no Iyy)", "The Laplacian adds both second derivatives: Ixx + Iyy, i.e. all four neighbours")
 def _lap_x_only(image, border="reflect101"):
     return _correlate(image, np.array([[1.0, -2.0, 1.0]]), border)
 
@@ -589,11 +595,9 @@ laplacian = Check(
     hidden=_derivative_hidden,
     compare=_LINEAR,
     mistakes=[
-        Mistake("8-neighbour Laplacian", _lap_eight,
-                "The 4-neighbour Laplacian uses only the up, down, left and right neighbours: [[0,1,0],[1,-4,1],[0,1,0]]"),
-        Mistake("sign flipped", _lap_sign, "Ixx + Iyy = (sum of the 4 neighbours) − 4·I(p), not 4·I(p) − (...)"),
-        Mistake("only Ixx (no Iyy)", _lap_x_only,
-                "The Laplacian adds both second derivatives: Ixx + Iyy, i.e. all four neighbours"),
+        _lap_eight,
+        _lap_sign,
+        _lap_x_only,
         *border_mistakes(_laplacian, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
     ],
     allowed=("filters.pad",),
@@ -662,18 +666,23 @@ def _log_with(image, sigma, border, kernel):
     return _correlate(image, kernel, border)
 
 
+@mistake("kernel not zero-mean", "Subtract the mean of the sampled LoG kernel (it must sum to 0), then correlate")
 def _log_uncentred(image, sigma, border="reflect101"):
     return _log_with(image, sigma, border, _lk(sigma, centred=False))
 
 
+@mistake("sign flipped", "Correlate with ∇²G = (x²+y²−2σ²)/(2πσ⁶)·exp(−(x²+y²)/2σ²), negative at the centre")
 def _log_sign(image, sigma, border="reflect101"):
     return -_log(image, sigma, border)
 
 
+@mistake("Gaussian then 4-neighbour Laplacian (not the LoG kernel)",
+         "Correlate once with the sampled LoG kernel log_kernel(σ), not smoothing then a 3×3 Laplacian")
 def _log_two_steps(image, sigma, border="reflect101"):
     return _laplacian(_gaussian(image, sigma, border), border)
 
 
+@mistake("scale-normalised (multiplied by σ²)", "Return the LoG response itself, without a σ² factor")
 def _log_scaled(image, sigma, border="reflect101"):
     return sigma * sigma * _log(image, sigma, border)
 
@@ -710,14 +719,11 @@ log = Check(
     hidden=_log_hidden,
     compare=_LINEAR,
     mistakes=[
-        Mistake("kernel not zero-mean", _log_uncentred,
-                "Subtract the mean of the sampled LoG kernel (it must sum to 0), then correlate"),
-        Mistake("sign flipped", _log_sign,
-                "Correlate with ∇²G = (x²+y²−2σ²)/(2πσ⁶)·exp(−(x²+y²)/2σ²), negative at the centre"),
-        Mistake("Gaussian then 4-neighbour Laplacian (not the LoG kernel)", _log_two_steps,
-                "Correlate once with the sampled LoG kernel log_kernel(σ), not smoothing then a 3×3 Laplacian"),
+        _log_uncentred,
+        _log_sign,
+        _log_two_steps,
         border_zero(_log, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
-        Mistake("scale-normalised (multiplied by σ²)", _log_scaled, "Return the LoG response itself, without a σ² factor"),
+        _log_scaled,
         reflect_swapped(_log),
     ],
     allowed=("filters.pad", "filters.correlate", "filters.convolve", "edges.log_kernel"),
@@ -727,18 +733,22 @@ log = Check(
 # --------------------------------------------------------------------------------------------
 # edges.dog (§4.12)
 # --------------------------------------------------------------------------------------------
+@mistake("order swapped (G_σ − G_kσ)", "DoG = G_{kσ} ∗ I − G_σ ∗ I: the wider Gaussian first (same sign as the LoG)")
 def _dog_swapped(image, sigma, k=1.6, border="reflect101"):
     return -_dog(image, sigma, k, border)
 
 
+@mistake("second σ is σ + k instead of k·σ", "The wider Gaussian has standard deviation k·σ")
 def _dog_plus_k(image, sigma, k=1.6, border="reflect101"):
     return _gaussian(image, sigma + k, border) - _gaussian(image, sigma, border)
 
 
+@mistake("k ignored (always 1.6)", "Use the `k` argument: the second σ is k·σ")
 def _dog_k_ignored(image, sigma, k=1.6, border="reflect101"):
     return _dog(image, sigma, 1.6, border)
 
 
+@mistake("k squared (k²·σ)", "The wider Gaussian has standard deviation k·σ, not k²·σ")
 def _dog_k_squared(image, sigma, k=1.6, border="reflect101"):
     return _dog(image, sigma, k * k, border)
 
@@ -787,11 +797,10 @@ dog = Check(
     hidden=_dog_hidden,
     compare=_LINEAR,
     mistakes=[
-        Mistake("order swapped (G_σ − G_kσ)", _dog_swapped,
-                "DoG = G_{kσ} ∗ I − G_σ ∗ I: the wider Gaussian first (same sign as the LoG)"),
-        Mistake("second σ is σ + k instead of k·σ", _dog_plus_k, "The wider Gaussian has standard deviation k·σ"),
-        Mistake("k ignored (always 1.6)", _dog_k_ignored, "Use the `k` argument: the second σ is k·σ"),
-        Mistake("k squared (k²·σ)", _dog_k_squared, "The wider Gaussian has standard deviation k·σ, not k²·σ"),
+        _dog_swapped,
+        _dog_plus_k,
+        _dog_k_ignored,
+        _dog_k_squared,
         *border_mistakes(_dog, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
     ],
     allowed=("filters.pad", "filters.gaussian_kernel", "filters.gaussian"),
@@ -938,30 +947,45 @@ def _nms_variant(magnitude, ix, iy, interpolate=True, *, strict=False, swap_weig
     return out
 
 
+@mistake("no interpolation (nearest of four directions)",
+         "With interpolate=True compare with (1−w)·axis neighbour + w·diagonal neighbour, "
+         "w = min(|Ix|,|Iy|)/max(|Ix|,|Iy|), instead of rounding the direction")
 def _nms_nearest(magnitude, ix, iy, interpolate=True):
     return _nms(magnitude, ix, iy, False)
 
 
+@mistake("interpolate=False ignored (always interpolated)",
+         "With interpolate=False round the direction to 0°, 45°, 90° or 135° and compare with those two neighbours")
 def _nms_always_interpolated(magnitude, ix, iy, interpolate=True):
     return _nms(magnitude, ix, iy, True)
 
 
+@mistake("compared along the edge, not across it",
+         "Compare with the neighbours along the gradient (ix, iy), which crosses the edge; not along the edge")
 def _nms_along_edge(magnitude, ix, iy, interpolate=True):
     return _nms(magnitude, -np.asarray(iy, dtype=np.float64), ix, interpolate)
 
 
+@mistake("x and y swapped in the direction",
+         "ix is the step along the columns (x), iy along the rows (y): the + neighbour is at (row + sy, col + sx)")
 def _nms_xy_swapped(magnitude, ix, iy, interpolate=True):
     return _nms(magnitude, iy, ix, interpolate)
 
 
+@mistake("y pointing up (Iy negated)",
+         "y points down the rows: a gradient with Iy > 0 points to the row below (row + 1)")
 def _nms_y_up(magnitude, ix, iy, interpolate=True):
     return _nms(magnitude, ix, -np.asarray(iy, dtype=np.float64), interpolate)
 
 
+@mistake("magnitude recomputed from ix and iy",
+         "Use the magnitude you are given (it may be an L1 or smoothed magnitude), do not recompute hypot(ix, iy)")
 def _nms_recomputed(magnitude, ix, iy, interpolate=True):
     return _nms(_magnitude(ix, iy), ix, iy, interpolate)
 
 
+@mistake("strict maximum (> instead of ≥)",
+         "Keep a pixel when M ≥ both side values: a plateau of equal values keeps both pixels")
 def _nms_strict(magnitude, ix, iy, interpolate=True):
     return _nms_variant(magnitude, ix, iy, interpolate, strict=True)
 
@@ -1059,21 +1083,13 @@ non_max_suppression = Check(
     hidden=_nms_hidden,
     compare=close(rtol=0.0, atol=0.0, kind="f"),
     mistakes=[
-        Mistake("no interpolation (nearest of four directions)", _nms_nearest,
-                "With interpolate=True compare with (1−w)·axis neighbour + w·diagonal neighbour, "
-                "w = min(|Ix|,|Iy|)/max(|Ix|,|Iy|), instead of rounding the direction"),
-        Mistake("interpolate=False ignored (always interpolated)", _nms_always_interpolated,
-                "With interpolate=False round the direction to 0°, 45°, 90° or 135° and compare with those two neighbours"),
-        Mistake("compared along the edge, not across it", _nms_along_edge,
-                "Compare with the neighbours along the gradient (ix, iy), which crosses the edge; not along the edge"),
-        Mistake("x and y swapped in the direction", _nms_xy_swapped,
-                "ix is the step along the columns (x), iy along the rows (y): the + neighbour is at (row + sy, col + sx)"),
-        Mistake("y pointing up (Iy negated)", _nms_y_up,
-                "y points down the rows: a gradient with Iy > 0 points to the row below (row + 1)"),
-        Mistake("strict maximum (> instead of ≥)", _nms_strict,
-                "Keep a pixel when M ≥ both side values: a plateau of equal values keeps both pixels"),
-        Mistake("magnitude recomputed from ix and iy", _nms_recomputed,
-                "Use the magnitude you are given (it may be an L1 or smoothed magnitude), do not recompute hypot(ix, iy)"),
+        _nms_nearest,
+        _nms_always_interpolated,
+        _nms_along_edge,
+        _nms_xy_swapped,
+        _nms_y_up,
+        _nms_strict,
+        _nms_recomputed,
         Mistake("interpolation weights swapped", lambda magnitude, ix, iy, interpolate=True:
                 _nms_variant(magnitude, ix, iy, interpolate, swap_weights=True),
                 "The diagonal neighbour gets weight w = min/max and the axis neighbour 1 − w"),

@@ -23,7 +23,7 @@ from functools import partial
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from ..grading import Case, Check, Mistake, close
+from ..grading import Case, Check, Mistake, close, mistake
 from ..grading.casekit import BORDERS, border_mistakes, border_zero, random_image, reflect_swapped, variant
 from ..grading.casekit import distinct as _distinct
 from ..grading.casekit import sigma as _sigma
@@ -117,12 +117,14 @@ def _channels_last(img: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 # filters.pad (§3.7)
 # --------------------------------------------------------------------------------------------
+@mistake("(ry, rx) swapped", "`radius=(ry, rx)` adds ry rows above and below and rx columns left and right")
 def _pad_radius_swapped(image, radius, border="reflect101"):
     if isinstance(radius, (tuple, list, np.ndarray)):
         radius = (radius[1], radius[0])
     return _pad(image, radius, border)
 
 
+@mistake("channel axis padded too", "Pad only the two image axes of an (H, W, 3) image, never the channel axis")
 def _pad_channels_too(image, radius, border="reflect101"):
     out = _pad(image, radius, border)
     if out.ndim == 3 and not isinstance(radius, (tuple, list, np.ndarray)):  # np.pad(image, r, ...)
@@ -174,10 +176,8 @@ pad = Check(
     compare=_EXACT,
     mistakes=[
         reflect_swapped(_pad),
-        Mistake("(ry, rx) swapped", _pad_radius_swapped,
-                "`radius=(ry, rx)` adds ry rows above and below and rx columns left and right"),
-        Mistake("channel axis padded too", _pad_channels_too,
-                "Pad only the two image axes of an (H, W, 3) image, never the channel axis"),
+        _pad_radius_swapped,
+        _pad_channels_too,
         border_zero(_pad, "Use the `border` argument: zero, replicate, reflect or reflect101 (§3.7)"),
     ],
     forbidden=("numpy.pad",),
@@ -187,19 +187,27 @@ pad = Check(
 # --------------------------------------------------------------------------------------------
 # filters.correlate (§3.6)
 # --------------------------------------------------------------------------------------------
+@mistake("kernel flipped (that is convolution)",
+         "Correlation does not flip the kernel: O(i,j) = Σ K(m,n)·I(i+m−kh//2, j+n−kw//2)")
 def _corr_flipped(image, kernel, border="reflect101", output="same"):
     return _convolve(image, kernel, border, output)
 
 
+@mistake("anchor at the top-left (output shifted)",
+         "Centre the kernel on the output pixel: its tap (kh//2, kw//2) lies on (i, j)")
 def _corr_top_left(image, kernel, border="reflect101", output="same"):
     return _correlate_at(image, kernel, (0, 0), border, output)
 
 
+@mistake("even kernel anchored at (k−1)//2",
+         "The anchor of an even kernel is (kh//2, kw//2): pad kh//2 rows above and kh−1−kh//2 below")
 def _corr_even_anchor(image, kernel, border="reflect101", output="same"):
     kh, kw = np.shape(kernel)
     return _correlate_at(image, kernel, ((kh - 1) // 2, (kw - 1) // 2), border, output)
 
 
+@mistake("kernel transposed",
+         "In kernel[m, n], m runs down the rows (y) and n along the columns (x): do not transpose it")
 def _corr_transposed(image, kernel, border="reflect101", output="same"):
     return _correlate(image, np.asarray(kernel).T, border, output)
 
@@ -257,15 +265,11 @@ correlate = Check(
     hidden=lambda rng: _linear_hidden(rng, ((4, 4), (2, 4))),
     compare=_LINEAR,
     mistakes=[
-        Mistake("kernel flipped (that is convolution)", _corr_flipped,
-                "Correlation does not flip the kernel: O(i,j) = Σ K(m,n)·I(i+m−kh//2, j+n−kw//2)"),
-        Mistake("anchor at the top-left (output shifted)", _corr_top_left,
-                "Centre the kernel on the output pixel: its tap (kh//2, kw//2) lies on (i, j)"),
-        Mistake("even kernel anchored at (k−1)//2", _corr_even_anchor,
-                "The anchor of an even kernel is (kh//2, kw//2): pad kh//2 rows above and kh−1−kh//2 below"),
+        _corr_flipped,
+        _corr_top_left,
+        _corr_even_anchor,
         border_zero(_correlate, "Read outside the image through `border` (pad with filters.pad), not with zeros"),
-        Mistake("kernel transposed", _corr_transposed,
-                "In kernel[m, n], m runs down the rows (y) and n along the columns (x): do not transpose it"),
+        _corr_transposed,
         reflect_swapped(_correlate),
     ],
     allowed=("filters.pad",),
@@ -275,22 +279,31 @@ correlate = Check(
 # --------------------------------------------------------------------------------------------
 # filters.convolve (§3.4–3.7)
 # --------------------------------------------------------------------------------------------
+@mistake("kernel not flipped (that is correlation)",
+         "Convolution flips the kernel: O(i,j) = Σ K(m,n)·I(i−m+kh//2, j−n+kw//2)")
 def _conv_not_flipped(image, kernel, border="reflect101", output="same"):
     return _correlate(image, kernel, border, output)
 
 
+@mistake("kernel flipped up-down only", "Flip the kernel in both directions, K[::-1, ::-1] (a 180° rotation)")
 def _conv_flip_rows_only(image, kernel, border="reflect101", output="same"):
     return _correlate(image, np.asarray(kernel)[::-1, :], border, output)
 
 
+@mistake("kernel flipped left-right only", "Flip the kernel in both directions, K[::-1, ::-1] (a 180° rotation)")
 def _conv_flip_cols_only(image, kernel, border="reflect101", output="same"):
     return _correlate(image, np.asarray(kernel)[:, ::-1], border, output)
 
 
+@mistake("even kernel flipped without moving its anchor",
+         "After flipping an even kernel its anchor moves to (kh−1−kh//2, kw−1−kw//2): "
+         "O(i,j) = Σ K(m,n)·I(i−m+kh//2, j−n+kw//2)")
 def _conv_anchor_not_moved(image, kernel, border="reflect101", output="same"):
     return _correlate(image, np.asarray(kernel)[::-1, ::-1], border, output)
 
 
+@mistake("kernel origin at its top-left (output shifted)",
+         "The kernel's origin is its centre (kh//2, kw//2): O(i,j) = Σ K(m,n)·I(i−(m−kh//2), j−(n−kw//2))")
 def _conv_top_left(image, kernel, border="reflect101", output="same"):
     kh, kw = np.shape(kernel)
     return _correlate_at(image, np.asarray(kernel)[::-1, ::-1], (kh - 1, kw - 1), border, output)
@@ -301,17 +314,11 @@ convolve = Check(
     hidden=lambda rng: _linear_hidden(rng, ((4, 4), (2, 4))),
     compare=_LINEAR,
     mistakes=[
-        Mistake("kernel not flipped (that is correlation)", _conv_not_flipped,
-                "Convolution flips the kernel: O(i,j) = Σ K(m,n)·I(i−m+kh//2, j−n+kw//2)"),
-        Mistake("kernel flipped up-down only", _conv_flip_rows_only,
-                "Flip the kernel in both directions, K[::-1, ::-1] (a 180° rotation)"),
-        Mistake("kernel flipped left-right only", _conv_flip_cols_only,
-                "Flip the kernel in both directions, K[::-1, ::-1] (a 180° rotation)"),
-        Mistake("even kernel flipped without moving its anchor", _conv_anchor_not_moved,
-                "After flipping an even kernel its anchor moves to (kh−1−kh//2, kw−1−kw//2): "
-                "O(i,j) = Σ K(m,n)·I(i−m+kh//2, j−n+kw//2)"),
-        Mistake("kernel origin at its top-left (output shifted)", _conv_top_left,
-                "The kernel's origin is its centre (kh//2, kw//2): O(i,j) = Σ K(m,n)·I(i−(m−kh//2), j−(n−kw//2))"),
+        _conv_not_flipped,
+        _conv_flip_rows_only,
+        _conv_flip_cols_only,
+        _conv_anchor_not_moved,
+        _conv_top_left,
         *border_mistakes(_convolve, "Read outside the image through `border` (pad with filters.pad), not with zeros"),
     ],
     allowed=("filters.pad",),
@@ -321,18 +328,22 @@ convolve = Check(
 # --------------------------------------------------------------------------------------------
 # filters.mean_kernel and filters.mean (§3.8)
 # --------------------------------------------------------------------------------------------
+@mistake("not normalised (all ones)", "Divide by the number of taps: every value is 1/size², so the kernel sums to 1")
 def _mk_ones(size):
     return np.ones((size, size))
 
 
+@mistake("divided by size instead of size²", "The window has size² pixels: every value is 1/size²")
 def _mk_by_size(size):
     return np.ones((size, size)) / size
 
 
+@mistake("integer division (all zeros)", "1 // size² is 0: use true division, np.ones((size, size)) / size**2")
 def _mk_integer_division(size):
     return np.ones((size, size)) // (size * size)
 
 
+@mistake("1-D kernel", "Return the square (size, size) kernel, every value 1/size²")
 def _mk_one_dimensional(size):
     return np.ones(size) / size
 
@@ -354,27 +365,21 @@ mean_kernel = Check(
         Case((_size(rng, 19, 31),), {}, "very large size"),
     ],
     compare=close(rtol=1e-12, atol=1e-15, kind="f"),
-    mistakes=[
-        Mistake("not normalised (all ones)", _mk_ones,
-                "Divide by the number of taps: every value is 1/size², so the kernel sums to 1"),
-        Mistake("divided by size instead of size²", _mk_by_size,
-                "The window has size² pixels: every value is 1/size²"),
-        Mistake("integer division (all zeros)", _mk_integer_division,
-                "1 // size² is 0: use true division, np.ones((size, size)) / size**2"),
-        Mistake("1-D kernel", _mk_one_dimensional,
-                "Return the square (size, size) kernel, every value 1/size²"),
-    ],
+    mistakes=[_mk_ones, _mk_by_size, _mk_integer_division, _mk_one_dimensional],
 )
 
 
+@mistake("sum not divided (not normalised)", "Divide the window sum by the number of pixels, size²")
 def _mean_not_divided(image, size, border="reflect101"):
     return _mean(image, size, border) * size ** 2
 
 
+@mistake("divided by size instead of size²", "The window has size² pixels: O(p) = (1/size²)·Σ I(q)")
 def _mean_by_size(image, size, border="reflect101"):
     return _mean(image, size, border) * size
 
 
+@mistake("size used as radius (window 2·size+1)", "`size` is the side of the window; its radius is size // 2")
 def _mean_size_as_radius(image, size, border="reflect101"):
     return _mean(image, 2 * size + 1, border)
 
@@ -422,12 +427,9 @@ mean = Check(
     hidden=_mean_hidden,
     compare=_LINEAR,
     mistakes=[
-        Mistake("sum not divided (not normalised)", _mean_not_divided,
-                "Divide the window sum by the number of pixels, size²"),
-        Mistake("divided by size instead of size²", _mean_by_size,
-                "The window has size² pixels: O(p) = (1/size²)·Σ I(q)"),
-        Mistake("size used as radius (window 2·size+1)", _mean_size_as_radius,
-                "`size` is the side of the window; its radius is size // 2"),
+        _mean_not_divided,
+        _mean_by_size,
+        _mean_size_as_radius,
         *border_mistakes(_mean, "Read outside the image through `border` (pad with filters.pad), not with zeros"),
     ],
     allowed=("filters.pad", "filters.mean_kernel"),
@@ -508,31 +510,42 @@ def _gauss_with(image, g, border, axes="both", twice=False):
     return _correlate(_correlate(image, row, border), col, border)
 
 
+@mistake("σ used as variance", "The exponent is −x²/(2σ²): square σ")
 def _g_variance(image, sigma, border="reflect101"):
     return _gauss_with(image, _gk(sigma, variance=True), border)
 
 
+@mistake("only the rows smoothed (x)",
+         "Smooth along both axes: a 1-D pass along the rows, then one along the columns (§3.9.1)")
 def _g_rows_only(image, sigma, border="reflect101"):
     return _gauss_with(image, _gk(sigma), border, axes="x")
 
 
+@mistake("only the columns smoothed (y)",
+         "Smooth along both axes: a 1-D pass along the rows, then one along the columns (§3.9.1)")
 def _g_cols_only(image, sigma, border="reflect101"):
     return _gauss_with(image, _gk(sigma), border, axes="y")
 
 
+@mistake("same axis smoothed twice",
+         "The second 1-D pass runs along the other axis (columns), not again along the rows")
 def _g_same_axis_twice(image, sigma, border="reflect101"):
     return _gauss_with(image, _gk(sigma), border, axes="x", twice=True)
 
 
+@mistake("kernel not normalised", "Divide the kernel by its sum so that a constant image stays constant")
 def _g_unnormalised(image, sigma, border="reflect101"):
     x = np.arange(-_default_radius(sigma), _default_radius(sigma) + 1)
     return _gauss_with(image, np.exp(-x * x / (2.0 * sigma * sigma)), border)
 
 
+@mistake("normalised by 1/(σ√2π) instead of the sum",
+         "The sampled, truncated kernel must sum to exactly 1: divide by its sum")
 def _g_continuous(image, sigma, border="reflect101"):
     return _gauss_with(image, _gk(sigma, continuous=True), border)
 
 
+@mistake("radius floor(3σ) instead of ceil", "The kernel radius rounds 3σ up: r = ceil(3σ)")
 def _g_floor(image, sigma, border="reflect101"):
     return _gauss_with(image, _gk(sigma, rule="floor"), border)
 
@@ -576,19 +589,13 @@ gaussian = Check(
     hidden=_gaussian_hidden,
     compare=_LINEAR,
     mistakes=[
-        Mistake("σ used as variance", _g_variance, "The exponent is −x²/(2σ²): square σ"),
-        Mistake("only the rows smoothed (x)", _g_rows_only,
-                "Smooth along both axes: a 1-D pass along the rows, then one along the columns (§3.9.1)"),
-        Mistake("only the columns smoothed (y)", _g_cols_only,
-                "Smooth along both axes: a 1-D pass along the rows, then one along the columns (§3.9.1)"),
-        Mistake("same axis smoothed twice", _g_same_axis_twice,
-                "The second 1-D pass runs along the other axis (columns), not again along the rows"),
-        Mistake("kernel not normalised", _g_unnormalised,
-                "Divide the kernel by its sum so that a constant image stays constant"),
-        Mistake("normalised by 1/(σ√2π) instead of the sum", _g_continuous,
-                "The sampled, truncated kernel must sum to exactly 1: divide by its sum"),
-        Mistake("radius floor(3σ) instead of ceil", _g_floor,
-                "The kernel radius rounds 3σ up: r = ceil(3σ)"),
+        _g_variance,
+        _g_rows_only,
+        _g_cols_only,
+        _g_same_axis_twice,
+        _g_unnormalised,
+        _g_continuous,
+        _g_floor,
         *border_mistakes(_gaussian, "Read outside the image through `border` (filters.pad), not with zeros"),
     ],
     allowed=("filters.gaussian_kernel", "filters.pad"),
@@ -598,6 +605,8 @@ gaussian = Check(
 # --------------------------------------------------------------------------------------------
 # filters.median (§3.11)
 # --------------------------------------------------------------------------------------------
+@mistake("median computed separably (rows, then columns)",
+         "The median is not separable: take the median of all size² values of the window at once")
 def _median_separable(image, size, border="reflect101"):
     img = np.asarray(image, dtype=np.float64)
     r = size // 2
@@ -638,8 +647,7 @@ median = Check(
                 lambda image, size, border="reflect101": _median(image, 2 * size + 1, border),
                 "`size` is the side of the window; its radius is size // 2"),
         reflect_swapped(_median),
-        Mistake("median computed separably (rows, then columns)", _median_separable,
-                "The median is not separable: take the median of all size² values of the window at once"),
+        _median_separable,
     ],
     allowed=("filters.pad",),
 )
@@ -845,10 +853,13 @@ nl_means = Check(
 # --------------------------------------------------------------------------------------------
 # filters.temporal_mean (§3.1)
 # --------------------------------------------------------------------------------------------
+@mistake("integer division (mean rounded down)",
+         "Divide with `/`, not `//`, and keep the result in float: O(p) = (1/T)·Σ I_t(p)")
 def _tm_floor(frames):
     return np.floor(_temporal_mean(frames))
 
 
+@mistake("uint8 sum overflowed", "Convert to float before summing: a uint8 sum wraps around at 256")
 def _tm_uint8_overflow(frames):
     stack = np.asarray(frames)
     if stack.dtype != np.uint8:
@@ -859,14 +870,17 @@ def _tm_uint8_overflow(frames):
     return total / stack.shape[0]
 
 
+@mistake("median instead of mean", "Average the frames: O(p) = (1/T)·Σ_t I_t(p)")
 def _tm_median(frames):
     return np.median(np.asarray(frames, dtype=np.float64), axis=0)
 
 
+@mistake("mean over the wrong axis", "Frames are (T, H, W): average over axis 0 (time)")
 def _tm_wrong_axis(frames):
     return np.asarray(frames, dtype=np.float64).mean(axis=-1)
 
 
+@mistake("sum, not mean", "Divide the sum over the frames by their number T")
 def _tm_sum(frames):
     return np.asarray(frames, dtype=np.float64).sum(axis=0)
 
@@ -921,13 +935,5 @@ temporal_mean = Check(
     ],
     hidden=_tm_hidden,
     compare=close(rtol=1e-9, atol=1e-12, kind="f", scaled=True),
-    mistakes=[
-        Mistake("integer division (mean rounded down)", _tm_floor,
-                "Divide with `/`, not `//`, and keep the result in float: O(p) = (1/T)·Σ I_t(p)"),
-        Mistake("uint8 sum overflowed", _tm_uint8_overflow,
-                "Convert to float before summing: a uint8 sum wraps around at 256"),
-        Mistake("median instead of mean", _tm_median, "Average the frames: O(p) = (1/T)·Σ_t I_t(p)"),
-        Mistake("mean over the wrong axis", _tm_wrong_axis, "Frames are (T, H, W): average over axis 0 (time)"),
-        Mistake("sum, not mean", _tm_sum, "Divide the sum over the frames by their number T"),
-    ],
+    mistakes=[_tm_floor, _tm_uint8_overflow, _tm_median, _tm_wrong_axis, _tm_sum],
 )

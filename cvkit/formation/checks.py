@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..grading import Case, Check, Mistake, close
+from ..grading import Case, Check, Mistake, close, mistake
 from ..grading.casekit import distinct as _distinct
 from ..grading.casekit import size as _size
 from ..grading.casekit import uniform as _u
@@ -48,22 +48,29 @@ def _r3(values):
 # --------------------------------------------------------------------------------------------
 # formation.project_pinhole (§2.3)
 # --------------------------------------------------------------------------------------------
+@mistake("division by z forgotten", "Perspective divides by the depth: u = f·x/z, v = f·y/z (far things look small)")
 def _pp_no_division(points_cam, f):
     return f * np.asarray(points_cam, dtype=np.float64)[:, :2]
 
 
+@mistake("image inverted (u = −f·x/z)",
+         "Use the image plane in front of the pinhole: u = +f·x/z, v = +f·y/z (no sign flip)")
 def _pp_inverted(points_cam, f):
     return -_project(points_cam, f)
 
 
+@mistake("u and v swapped", "Return (u, v) = (f·x/z, f·y/z) in that order: column 0 comes from x, column 1 from y")
 def _pp_swapped(points_cam, f):
     return _project(points_cam, f)[:, ::-1]
 
 
+@mistake("focal length ignored", "Multiply by f: u = f·x/z")
 def _pp_no_focal(points_cam, f):
     return _project(points_cam, 1.0)
 
 
+@mistake("divided by the distance ‖P‖, not by z",
+         "Divide by the depth z (the third coordinate), not by the distance √(x²+y²+z²)")
 def _pp_distance(points_cam, f):
     p = np.asarray(points_cam, dtype=np.float64)
     return f * p[:, :2] / np.linalg.norm(p, axis=1, keepdims=True)
@@ -108,33 +115,27 @@ project_pinhole = Check(
     ],
     hidden=_pp_hidden,
     compare=close(rtol=1e-10, atol=1e-12, kind="f"),
-    mistakes=[
-        Mistake("division by z forgotten", _pp_no_division,
-                "Perspective divides by the depth: u = f·x/z, v = f·y/z (far things look small)"),
-        Mistake("image inverted (u = −f·x/z)", _pp_inverted,
-                "Use the image plane in front of the pinhole: u = +f·x/z, v = +f·y/z (no sign flip)"),
-        Mistake("u and v swapped", _pp_swapped,
-                "Return (u, v) = (f·x/z, f·y/z) in that order: column 0 comes from x, column 1 from y"),
-        Mistake("focal length ignored", _pp_no_focal, "Multiply by f: u = f·x/z"),
-        Mistake("divided by the distance ‖P‖, not by z", _pp_distance,
-                "Divide by the depth z (the third coordinate), not by the distance √(x²+y²+z²)"),
-    ],
+    mistakes=[_pp_no_division, _pp_inverted, _pp_swapped, _pp_no_focal, _pp_distance],
 )
 
 
 # --------------------------------------------------------------------------------------------
 # formation.depth_from_disparity (§2.5.1)
 # --------------------------------------------------------------------------------------------
+@mistake("z = d / (b·f) (formula upside down)", "Depth is inversely proportional to disparity: z = b·f / d")
 def _dd_inverted(disparity, baseline, focal):
     d = np.asarray(disparity, dtype=np.float64)
     with np.errstate(all="ignore"):
         return d / (baseline * focal)
 
 
+@mistake("focal length missing (z = b/d)", "z = b·f / d: multiply the baseline by the focal length")
 def _dd_no_focal(disparity, baseline, focal):
     return _depth(disparity, baseline, 1.0)
 
 
+@mistake("negative disparities not marked NaN",
+         "A negative disparity has no point in front of both cameras: return NaN there (np.where(d < 0, np.nan, …))")
 def _dd_negative_kept(disparity, baseline, focal):
     d = np.asarray(disparity, dtype=np.float64)
     with np.errstate(all="ignore"):
@@ -142,12 +143,15 @@ def _dd_negative_kept(disparity, baseline, focal):
     return np.where(d == 0, np.inf, z)
 
 
+@mistake("zero disparity marked NaN, not inf",
+         "d = 0 means parallel rays: the point is at infinity, so z = inf (only d < 0 is NaN)")
 def _dd_zero_nan(disparity, baseline, focal):
     d = np.asarray(disparity, dtype=np.float64)
     with np.errstate(all="ignore"):
         return np.where(d > 0, baseline * focal / d, np.nan)
 
 
+@mistake("floor division (//) instead of /", "Use true division `/`: depth is a real number")
 def _dd_floor(disparity, baseline, focal):
     d = np.asarray(disparity)
     with np.errstate(all="ignore"):
@@ -196,22 +200,14 @@ depth_from_disparity = Check(
     ],
     hidden=_dd_hidden,
     compare=close(rtol=1e-10, atol=1e-12, kind="f"),
-    mistakes=[
-        Mistake("z = d / (b·f) (formula upside down)", _dd_inverted,
-                "Depth is inversely proportional to disparity: z = b·f / d"),
-        Mistake("focal length missing (z = b/d)", _dd_no_focal, "z = b·f / d: multiply the baseline by the focal length"),
-        Mistake("negative disparities not marked NaN", _dd_negative_kept,
-                "A negative disparity has no point in front of both cameras: return NaN there (np.where(d < 0, np.nan, …))"),
-        Mistake("zero disparity marked NaN, not inf", _dd_zero_nan,
-                "d = 0 means parallel rays: the point is at infinity, so z = inf (only d < 0 is NaN)"),
-        Mistake("floor division (//) instead of /", _dd_floor, "Use true division `/`: depth is a real number"),
-    ],
+    mistakes=[_dd_inverted, _dd_no_focal, _dd_negative_kept, _dd_zero_nan, _dd_floor],
 )
 
 
 # --------------------------------------------------------------------------------------------
 # formation.thin_lens_image_distance (§2.8.1)
 # --------------------------------------------------------------------------------------------
+@mistake("sign error: 1/d_I = 1/d_S + 1/f", "The thin lens equation is 1/d_S + 1/d_I = 1/f, so 1/d_I = 1/f − 1/d_S")
 def _tl_plus(object_distance, focal_length):
     d = np.asarray(object_distance, dtype=np.float64)
     with np.errstate(all="ignore"):
@@ -219,17 +215,21 @@ def _tl_plus(object_distance, focal_length):
     return np.where(np.isinf(d), float(focal_length), out)
 
 
+@mistake("returned 1/d_I instead of d_I", "After computing 1/f − 1/d_S take its reciprocal to get the distance d_I")
 def _tl_reciprocal(object_distance, focal_length):
     d = np.asarray(object_distance, dtype=np.float64)
     return 1.0 / focal_length - 1.0 / d
 
 
+@mistake("object at infinity gives NaN",
+         "f·d_S/(d_S − f) is inf/inf at d_S = inf: use 1/(1/f − 1/d_S) (1/inf = 0) or handle it")
 def _tl_infinity_nan(object_distance, focal_length):
     d = np.asarray(object_distance, dtype=np.float64)
     with np.errstate(all="ignore"):
         return np.where(d == focal_length, np.inf, focal_length * d / (d - focal_length))
 
 
+@mistake("virtual images made positive", "For d_S < f the image distance is negative (a virtual image): keep the sign")
 def _tl_abs(object_distance, focal_length):
     return np.abs(_thin_lens(object_distance, focal_length))
 
@@ -268,16 +268,7 @@ thin_lens_image_distance = Check(
     ],
     hidden=_tl_hidden,
     compare=_FORMULA,
-    mistakes=[
-        Mistake("sign error: 1/d_I = 1/d_S + 1/f", _tl_plus,
-                "The thin lens equation is 1/d_S + 1/d_I = 1/f, so 1/d_I = 1/f − 1/d_S"),
-        Mistake("returned 1/d_I instead of d_I", _tl_reciprocal,
-                "After computing 1/f − 1/d_S take its reciprocal to get the distance d_I"),
-        Mistake("object at infinity gives NaN", _tl_infinity_nan,
-                "f·d_S/(d_S − f) is inf/inf at d_S = inf: use 1/(1/f − 1/d_S) (1/inf = 0) or handle it"),
-        Mistake("virtual images made positive", _tl_abs,
-                "For d_S < f the image distance is negative (a virtual image): keep the sign"),
-    ],
+    mistakes=[_tl_plus, _tl_reciprocal, _tl_infinity_nan, _tl_abs],
 )
 
 
@@ -288,27 +279,36 @@ def _bc_broadcast(*values):
     return np.broadcast_arrays(*[np.asarray(v, dtype=np.float64) for v in values])
 
 
+@mistake("infinite distances not handled (NaN)",
+         "At d_O = inf or d_F = inf the formula is inf/inf: use its limits D·f/(d_F − f) and D·f/d_O")
 def _bc_naive(object_distance, focus_distance, focal_length, aperture_diameter):
     o, fd, f, a = _bc_broadcast(object_distance, focus_distance, focal_length, aperture_diameter)
     with np.errstate(all="ignore"):
         return a * f * np.abs(o - fd) / (o * (fd - f))
 
 
+@mistake("absolute value missing",
+         "Points nearer and farther than the focus both blur: c = D·f·|d_O − d_F| / (d_O·(d_F − f)) ≥ 0")
 def _bc_no_abs(object_distance, focus_distance, focal_length, aperture_diameter):
     o, fd, f, a = _bc_broadcast(object_distance, focus_distance, focal_length, aperture_diameter)
     sign = np.sign(o - fd)
     return sign * _blur(o, fd, f, a)
 
 
+@mistake("object and focus distances swapped",
+         "d_O is the point's distance (in the denominator), d_F the distance the lens is focused on")
 def _bc_swapped(object_distance, focus_distance, focal_length, aperture_diameter):
     return _blur(focus_distance, object_distance, focal_length, aperture_diameter)
 
 
+@mistake("(d_F − f) replaced by d_F", "The sensor sits at d_I(d_F) = f·d_F/(d_F − f): keep the (d_F − f) factor")
 def _bc_no_minus_f(object_distance, focus_distance, focal_length, aperture_diameter):
     o, fd, f, a = _bc_broadcast(object_distance, focus_distance, focal_length, aperture_diameter)
     return _blur(o, fd, f, a) * np.where(np.isinf(fd), 1.0, (fd - f) / np.where(np.isinf(fd), 1.0, fd))
 
 
+@mistake("radius instead of diameter",
+         "The cone has diameter D at the lens, so the blur circle's diameter is D·|Δd_I|/d_I (not half)")
 def _bc_radius(object_distance, focus_distance, focal_length, aperture_diameter):
     return 0.5 * np.asarray(_blur(object_distance, focus_distance, focal_length, aperture_diameter))
 
@@ -349,49 +349,48 @@ blur_circle_diameter = Check(
     ],
     hidden=_bc_hidden,
     compare=_FORMULA,
-    mistakes=[
-        Mistake("absolute value missing", _bc_no_abs,
-                "Points nearer and farther than the focus both blur: c = D·f·|d_O − d_F| / (d_O·(d_F − f)) ≥ 0"),
-        Mistake("object and focus distances swapped", _bc_swapped,
-                "d_O is the point's distance (in the denominator), d_F the distance the lens is focused on"),
-        Mistake("(d_F − f) replaced by d_F", _bc_no_minus_f,
-                "The sensor sits at d_I(d_F) = f·d_F/(d_F − f): keep the (d_F − f) factor"),
-        Mistake("radius instead of diameter", _bc_radius,
-                "The cone has diameter D at the lens, so the blur circle's diameter is D·|Δd_I|/d_I (not half)"),
-        Mistake("infinite distances not handled (NaN)", _bc_naive,
-                "At d_O = inf or d_F = inf the formula is inf/inf: use its limits D·f/(d_F − f) and D·f/d_O"),
-    ],
+    mistakes=[_bc_no_abs, _bc_swapped, _bc_no_minus_f, _bc_radius, _bc_naive],
 )
 
 
 # --------------------------------------------------------------------------------------------
 # formation.quantize (§2.11)
 # --------------------------------------------------------------------------------------------
+@mistake("step vmax/2**bits (divide by 2**bits − 1)",
+         "With 2**bits levels from 0 to vmax there are 2**bits − 1 steps: step = vmax/(2**bits − 1)")
 def _q_power_of_two(image, bits, vmax=1.0):
     x = np.clip(np.asarray(image, dtype=np.float64), 0.0, vmax)
     return np.round(x * 2.0 ** bits / vmax) * vmax / 2.0 ** bits
 
 
+@mistake("truncated (floor) instead of rounded", "Round to the NEAREST level: np.round(x·L/vmax), not np.floor")
 def _q_floor(image, bits, vmax=1.0):
     levels = 2.0 ** bits - 1
     x = np.clip(np.asarray(image, dtype=np.float64), 0.0, vmax)
     return np.floor(x * levels / vmax) * vmax / levels
 
 
+@mistake("not clipped to [0, vmax]",
+         "Clip first (np.clip(x, 0, vmax)): a converter cannot output levels beyond its range")
 def _q_not_clipped(image, bits, vmax=1.0):
     levels = 2.0 ** bits - 1
     return np.round(np.asarray(image, dtype=np.float64) * levels / vmax) * vmax / levels
 
 
+@mistake("returned the level index k, not its value",
+         "Return the level's value k·vmax/(2**bits − 1) in the input's units, not the integer k")
 def _q_codes(image, bits, vmax=1.0):
     levels = 2.0 ** bits - 1
     return np.round(np.clip(np.asarray(image, dtype=np.float64), 0.0, vmax) * levels / vmax)
 
 
+@mistake("vmax ignored", "Scale by vmax: levels k·vmax/(2**bits − 1), clip to [0, vmax]")
 def _q_no_vmax(image, bits, vmax=1.0):
     return _quantize(image, bits, 1.0)
 
 
+@mistake("halves rounded up, not as np.round",
+         "Use np.round (half-way values go to the even level): floor(t + 0.5) rounds 0.5 up")
 def _q_half_up(image, bits, vmax=1.0):
     levels = 2.0 ** bits - 1
     x = np.clip(np.asarray(image, dtype=np.float64), 0.0, vmax)
@@ -451,33 +450,25 @@ quantize = Check(
     ],
     hidden=_q_hidden,
     compare=close(rtol=1e-10, atol=1e-12, kind="f", scaled=True),
-    mistakes=[
-        Mistake("step vmax/2**bits (divide by 2**bits − 1)", _q_power_of_two,
-                "With 2**bits levels from 0 to vmax there are 2**bits − 1 steps: step = vmax/(2**bits − 1)"),
-        Mistake("truncated (floor) instead of rounded", _q_floor,
-                "Round to the NEAREST level: np.round(x·L/vmax), not np.floor"),
-        Mistake("not clipped to [0, vmax]", _q_not_clipped,
-                "Clip first (np.clip(x, 0, vmax)): a converter cannot output levels beyond its range"),
-        Mistake("returned the level index k, not its value", _q_codes,
-                "Return the level's value k·vmax/(2**bits − 1) in the input's units, not the integer k"),
-        Mistake("vmax ignored", _q_no_vmax, "Scale by vmax: levels k·vmax/(2**bits − 1), clip to [0, vmax]"),
-        Mistake("halves rounded up, not as np.round", _q_half_up,
-                "Use np.round (half-way values go to the even level): floor(t + 0.5) rounds 0.5 up"),
-    ],
+    mistakes=[_q_power_of_two, _q_floor, _q_not_clipped, _q_codes, _q_no_vmax, _q_half_up],
 )
 
 
 # --------------------------------------------------------------------------------------------
 # formation.image_memory_bits (§2.11)
 # --------------------------------------------------------------------------------------------
+@mistake("bytes instead of bits (divided by 8)", "B = N·M·m counts bits; do not divide by 8")
 def _mb_bytes(width, height, bits_per_pixel):
     return width * height * bits_per_pixel // 8
 
 
+@mistake("2**m levels used instead of m bits",
+         "m bits per pixel encode 2**m levels, but each pixel costs m bits: B = N·M·m")
 def _mb_levels(width, height, bits_per_pixel):
     return width * height * 2 ** bits_per_pixel
 
 
+@mistake("bits per pixel forgotten", "Multiply the number of pixels N·M by the bits per pixel m")
 def _mb_pixels(width, height, bits_per_pixel):
     return width * height
 
@@ -506,12 +497,7 @@ image_memory_bits = Check(
     ],
     hidden=_mb_hidden,
     compare=close(rtol=0.0, atol=0.0, kind="iu"),
-    mistakes=[
-        Mistake("bytes instead of bits (divided by 8)", _mb_bytes, "B = N·M·m counts bits; do not divide by 8"),
-        Mistake("2**m levels used instead of m bits", _mb_levels,
-                "m bits per pixel encode 2**m levels, but each pixel costs m bits: B = N·M·m"),
-        Mistake("bits per pixel forgotten", _mb_pixels, "Multiply the number of pixels N·M by the bits per pixel m"),
-    ],
+    mistakes=[_mb_bytes, _mb_levels, _mb_pixels],
 )
 
 
@@ -533,6 +519,7 @@ def _snr_generic(frames, *, factor=20.0, ddof=0, invert=False, zero_nan=True, lo
     return out
 
 
+@mistake("statistics over the wrong axis", "frames is (T, H, W): take the mean and std over axis 0 (time), per pixel")
 def _snr_axis(frames):
     stack = np.asarray(frames, dtype=np.float64)
     with np.errstate(all="ignore"):
@@ -592,8 +579,7 @@ snr_db = Check(
                 "Decibels use log10: 20·log10(μ/σ)"),
         Mistake("mean ≤ 0 not marked NaN", lambda frames: _snr_generic(frames, zero_nan=False),
                 "Return NaN wherever the mean is ≤ 0 (a zero mean gives −inf otherwise)"),
-        Mistake("statistics over the wrong axis", _snr_axis,
-                "frames is (T, H, W): take the mean and std over axis 0 (time), per pixel"),
+        _snr_axis,
     ],
 )
 
@@ -650,14 +636,20 @@ dynamic_range_db = Check(
 _SHIFTED = {"RGGB": "GRBG", "GRBG": "RGGB", "BGGR": "GBRG", "GBRG": "BGGR"}  # one column off
 
 
+@mistake("pattern phase one column off",
+         "Pixel (row i, col j) takes pattern[2·(i % 2) + (j % 2)]; the block starts at (0, 0)")
 def _bm_shifted(rgb, pattern="RGGB"):
     return _bayer_mosaic(rgb, _SHIFTED[pattern])
 
 
+@mistake("red and blue swapped (BGR order, or pattern read by columns)",
+         "rgb[..., 0] is red and rgb[..., 2] blue; the pattern lists the 2×2 block row by row "
+         "('GRBG' is G R on row 0, B G on row 1)")
 def _bm_bgr(rgb, pattern="RGGB"):
     return _bayer_mosaic(np.asarray(rgb)[..., ::-1], pattern)
 
 
+@mistake("pattern argument ignored (always RGGB)", "Use the `pattern` argument: RGGB, BGGR, GRBG or GBRG")
 def _bm_ignored(rgb, pattern="RGGB"):
     return _bayer_mosaic(rgb, "RGGB")
 
@@ -701,14 +693,10 @@ bayer_mosaic = Check(
     compare=_VALUES,
     mistakes=[
         # first: on GRBG and BGGR its output is also that of the phase and BGR mistakes
-        Mistake("pattern argument ignored (always RGGB)", _bm_ignored,
-                "Use the `pattern` argument: RGGB, BGGR, GRBG or GBRG"),
-        Mistake("pattern phase one column off", _bm_shifted,
-                "Pixel (row i, col j) takes pattern[2·(i % 2) + (j % 2)]; the block starts at (0, 0)"),
+        _bm_ignored,
+        _bm_shifted,
         # reading 'GRBG' by columns gives 'GBRG': the same output as swapping red and blue
-        Mistake("red and blue swapped (BGR order, or pattern read by columns)", _bm_bgr,
-                "rgb[..., 0] is red and rgb[..., 2] blue; the pattern lists the 2×2 block row by row "
-                "('GRBG' is G R on row 0, B G on row 1)"),
+        _bm_bgr,
     ],
 )
 
@@ -739,6 +727,8 @@ def _demosaic_variant(raw, pattern="RGGB", *, pad_mode="reflect", box=False):
     return out
 
 
+@mistake("nearest neighbour (copied from the 2×2 block)",
+         "Bilinear: each missing sample is the MEAN of its nearest same-colour neighbours, not a copy of one")
 def _dm_nearest(raw, pattern="RGGB"):
     """Each missing sample copied from the 2×2 block the pixel belongs to (G from its row)."""
     img = np.asarray(raw, dtype=np.float64)
@@ -760,10 +750,13 @@ def _dm_nearest(raw, pattern="RGGB"):
     return out
 
 
+@mistake("pattern phase one column off",
+         "Site (i, j) has colour pattern[2·(i % 2) + (j % 2)]: check which pixels hold R, G and B")
 def _dm_shifted(raw, pattern="RGGB"):
     return _demosaic(raw, _SHIFTED[pattern])
 
 
+@mistake("output channels in BGR order", "Return R, G, B in channels 0, 1, 2")
 def _dm_bgr(raw, pattern="RGGB"):
     return _demosaic(raw, pattern)[..., ::-1]
 
@@ -813,8 +806,7 @@ demosaic_bilinear = Check(
     hidden=_demosaic_hidden,
     compare=_VALUES,
     mistakes=[
-        Mistake("pattern phase one column off", _dm_shifted,
-                "Site (i, j) has colour pattern[2·(i % 2) + (j % 2)]: check which pixels hold R, G and B"),
+        _dm_shifted,
         Mistake("zero border instead of reflect101", lambda raw, pattern="RGGB": _demosaic_variant(raw, pattern, pad_mode="zero"),
                 "Read outside the image by reflect101 (np.pad(..., mode='reflect')): it keeps the colour of each site"),
         Mistake("replicate border (mixes colours at the edge)",
@@ -823,8 +815,7 @@ demosaic_bilinear = Check(
         Mistake("zeros of the other colours counted in the mean",
                 lambda raw, pattern="RGGB": _demosaic_variant(raw, pattern, box=True),
                 "Average only the sites that measured this colour: 4 (G), 2 or 4 (R, B) neighbours, not all 9 pixels"),
-        Mistake("nearest neighbour (copied from the 2×2 block)", _dm_nearest,
-                "Bilinear: each missing sample is the MEAN of its nearest same-colour neighbours, not a copy of one"),
-        Mistake("output channels in BGR order", _dm_bgr, "Return R, G, B in channels 0, 1, 2"),
+        _dm_nearest,
+        _dm_bgr,
     ],
 )

@@ -1,7 +1,8 @@
 """The grading engine behind the course notebooks.
 
 - :class:`Check` (in :mod:`.checks`): public cases, a hidden-case generator, a comparator and a
-  bank of named :class:`Mistake`\\ s, declared next to each reference implementation.
+  bank of named :class:`Mistake`\\ s, declared next to each reference implementation; a wrong
+  version carries its name and advice on its own function (:func:`mistake`).
 - :func:`evaluate`: grade any callable, never raising for a faulty one; returns a
   :class:`Report`.
 - :func:`check`: what notebook test cells call (shows the report, asserts or returns partial
@@ -12,7 +13,7 @@
 - :mod:`.isolation` and :mod:`.sandbox`: the operating-system sandbox (bubblewrap) and the
   trusted side of a sandboxed run.
 """
-from .checks import FORBIDDEN_LIBRARIES, Case, Check, Mistake, instance_call
+from .checks import FORBIDDEN_LIBRARIES, Case, Check, Mistake, instance_call, mistake
 from .compare import Close, Comparator, Mismatch, Statistics, close
 from .diagnose import Diagnosis, diagnose
 from .engine import CheckFailed, check, evaluate, hidden_seed, needs_answer
@@ -21,7 +22,7 @@ from .report import MIME_TYPE, CaseResult, Report
 from .runtime import guard, wire  # noqa: F401  (cvkit.grading.wire, cvkit.grading.guard)
 
 __all__ = [
-    "Case", "Check", "Mistake", "FORBIDDEN_LIBRARIES", "instance_call",
+    "Case", "Check", "Mistake", "mistake", "FORBIDDEN_LIBRARIES", "instance_call",
     "Comparator", "Close", "Statistics", "Mismatch", "close",
     "check", "evaluate", "hidden_seed", "needs_answer", "CheckFailed", "diagnose", "Diagnosis",
     "Report", "CaseResult", "MIME_TYPE", "load_answers", "AnswersUnavailable",

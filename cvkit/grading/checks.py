@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Sequence, TypeVar
 
 import numpy as np
 
@@ -64,6 +64,49 @@ class Mistake:
     function: Callable
     hint: str
 
+    @classmethod
+    def of(cls, function: Callable) -> Mistake:
+        """The mistake a function was marked as with :func:`mistake`."""
+        recorded = getattr(function, MISTAKE_ATTRIBUTE, None)
+        if recorded is None:
+            raise TypeError(f"a check's mistakes must be Mistake objects or functions marked with @mistake(name, hint); "
+                            f"got {function!r}")
+        name, hint = recorded
+        return cls(name, function, hint)
+
+
+MISTAKE_ATTRIBUTE = "__cvkit_mistake__"
+_F = TypeVar("_F", bound=Callable)
+
+
+def mistake(name: str, hint: str) -> Callable[[_F], _F]:
+    """Mark a function as a typical wrong version of an algorithm, with the advice that fixes it.
+
+    Metadata only: the function comes back unchanged, with ``name`` and ``hint`` recorded on
+    it, so the wrong version, its name and its advice stand together. A :class:`Check` lists
+    it in its bank (``mistakes=[...]``, in the order the feedback tries them), where it becomes
+    ``Mistake(name, function, hint)``.
+
+    Examples
+    --------
+    >>> @mistake("absolute value instead of max(0, x)", "Negative inputs become 0: np.maximum(x, 0)")
+    ... def relu_abs(x):
+    ...     return abs(x)
+    >>> Mistake.of(relu_abs).name
+    'absolute value instead of max(0, x)'
+    """
+    if not isinstance(name, str) or not name.strip():
+        raise TypeError(f"mistake name must be a non-empty string, got {name!r}")
+    if not isinstance(hint, str) or not hint.strip():
+        raise TypeError(f"mistake hint must be a non-empty string, got {hint!r}")
+
+    def record(function: _F) -> _F:
+        if not callable(function):
+            raise TypeError(f"@mistake({name!r}, ...) must decorate a function, got {function!r}")
+        setattr(function, MISTAKE_ATTRIBUTE, (name, hint))
+        return function
+    return record
+
 
 @dataclass
 class Check:
@@ -78,8 +121,9 @@ class Check:
         inputs that separate each mistake of the bank from the right answer.
     compare : Comparator
         Decides whether an output is right (``cvkit.grading.compare``).
-    mistakes : list of Mistake
-        Typical wrong versions; a failing candidate whose output matches one is told which.
+    mistakes : list of Mistake, or of functions marked with :func:`mistake`
+        Typical wrong versions, in the order the feedback tries them; a failing candidate
+        whose output matches one is told which. Stored as :class:`Mistake` objects (:attr:`bank`).
     allowed : tuple of algorithm ids
         Reference building blocks the candidate may call (e.g. ``"filters.pad"``).
     allowed_libraries : tuple of module prefixes
@@ -104,7 +148,7 @@ class Check:
     public: Sequence[Case] | Callable[[], Sequence[Case]]
     hidden: Callable[[np.random.Generator], Sequence[Case]]
     compare: Comparator
-    mistakes: Sequence[Mistake] = ()
+    mistakes: Sequence[Mistake | Callable[..., Any]] = ()
     allowed: tuple = ()
     allowed_libraries: tuple = ()
     forbidden: tuple = ()
@@ -113,6 +157,10 @@ class Check:
     arg_names: tuple = ()
     call: Callable | None = None
 
+    def __post_init__(self) -> None:
+        # functions marked with @mistake stand for their Mistake; the bank keeps the listed order
+        self.mistakes = [m if isinstance(m, Mistake) else Mistake.of(m) for m in self.mistakes]
+
     def public_cases(self) -> list[Case]:
         cases = self.public() if callable(self.public) else self.public
         return list(cases)
@@ -120,11 +168,16 @@ class Check:
     def hidden_cases(self, rng: np.random.Generator) -> list[Case]:
         return list(self.hidden(rng))
 
+    @property
+    def bank(self) -> list[Mistake]:
+        """The mistakes as :class:`Mistake` objects, in the order the feedback tries them."""
+        return [m if isinstance(m, Mistake) else Mistake.of(m) for m in self.mistakes]
+
     def mistake(self, name: str) -> Mistake:
-        for m in self.mistakes:
+        for m in self.bank:
             if m.name == name:
                 return m
-        raise KeyError(f"no mistake called {name!r}; known: {[m.name for m in self.mistakes]}")
+        raise KeyError(f"no mistake called {name!r}; known: {[m.name for m in self.bank]}")
 
     @property
     def forbidden_libraries(self) -> tuple:

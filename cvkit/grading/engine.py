@@ -112,7 +112,7 @@ def _matching_mistakes(spec: Check, case, got: Any, expected: Any) -> list[Mista
     found = []
     if normalises:
         ng, ne = _normalised(compare, got), _normalised(compare, expected)
-    for mistake in spec.mistakes:
+    for mistake in spec.bank:
         produced, wrong = _mistake_output(mistake, case, spec.call)
         if not produced:
             continue
@@ -266,7 +266,7 @@ def _explain_crash(spec: Check, reference: Callable, case, outcome: Outcome, exp
                         f"{why}.")
     if mistake is None:
         error = outcome.error or ""
-        for candidate in spec.mistakes:
+        for candidate in spec.bank:
             raised = _mistake_error(candidate, case, spec.call)
             if raised and outcome.exception and raised.startswith(outcome.exception + ":") \
                     and raised.partition(": ")[2] == error.partition(": ")[2]:

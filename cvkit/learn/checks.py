@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
+from ..grading import Case, Check, Comparator, Mismatch, Mistake, close, mistake
 from ..grading.casekit import variant
 from ..grading.casekit import argument as _arg
 from ..grading.casekit import rounded as _round
@@ -117,21 +117,26 @@ def _numeric(value, name: str, shape: tuple, kind: str = "f") -> tuple[np.ndarra
 # --------------------------------------------------------------------------------------------
 # learn.linear_scores (§9.6)
 # --------------------------------------------------------------------------------------------
+@mistake("scores transposed (C, N)", "Return one row per sample and one column per class: X @ W.T + b has shape (N, C)")
 def _scores_transposed(X, W, b):
     X, W, b = (np.asarray(a, dtype=np.float64) for a in (X, W, b))
     return W @ X.T + b[:, None]
 
 
+@mistake("W not transposed (X @ W)", "W has one row per class, shape (C, D): the scores are X @ W.T + b")
 def _scores_w_not_transposed(X, W, b):
     X, W, b = (np.asarray(a, dtype=np.float64) for a in (X, W, b))
     return X @ W + b
 
 
+@mistake("bias missing", "Add the bias of each class: X @ W.T + b (the classifier is affine, §9.6.5)")
 def _scores_no_bias(X, W, b):
     X, W = (np.asarray(a, dtype=np.float64) for a in (X, W))
     return X @ W.T
 
 
+@mistake("bias added per sample instead of per class",
+         "b has one entry per class: add it to every row, X @ W.T + b (broadcast over rows)")
 def _scores_bias_per_sample(X, W, b):
     X, W, b = (np.asarray(a, dtype=np.float64) for a in (X, W, b))
     return X @ W.T + b[:, None]
@@ -178,40 +183,40 @@ linear_scores = Check(
     ],
     hidden=_scores_hidden,
     compare=close(rtol=1e-7, atol=1e-10, kind="f", scaled=True),
-    mistakes=[
-        Mistake("scores transposed (C, N)", _scores_transposed,
-                "Return one row per sample and one column per class: X @ W.T + b has shape (N, C)"),
-        Mistake("W not transposed (X @ W)", _scores_w_not_transposed,
-                "W has one row per class, shape (C, D): the scores are X @ W.T + b"),
-        Mistake("bias missing", _scores_no_bias,
-                "Add the bias of each class: X @ W.T + b (the classifier is affine, §9.6.5)"),
-        Mistake("bias added per sample instead of per class", _scores_bias_per_sample,
-                "b has one entry per class: add it to every row, X @ W.T + b (broadcast over rows)"),
-    ],
+    mistakes=[_scores_transposed, _scores_w_not_transposed, _scores_no_bias, _scores_bias_per_sample],
 )
 
 
 # --------------------------------------------------------------------------------------------
 # learn.softmax (§9.7.3)
 # --------------------------------------------------------------------------------------------
+@mistake("no max shift (exp overflows for large scores)",
+         "Subtract each row's maximum before np.exp: softmax(s) = softmax(s − max s) and the "
+         "largest exponent becomes e⁰ = 1 (§9.7.3)")
 def _softmax_no_shift(scores):
     s = np.asarray(scores, dtype=np.float64)
     e = np.exp(s)
     return e / e.sum(axis=-1, keepdims=True)
 
 
+@mistake("shifted by the global maximum instead of each row's",
+         "Subtract the maximum of each row (s.max(axis=-1, keepdims=True)); with the global "
+         "maximum a row far below it underflows to 0/0")
 def _softmax_global_shift(scores):
     s = np.asarray(scores, dtype=np.float64)
     e = np.exp(s - s.max())
     return e / e.sum(axis=-1, keepdims=True)
 
 
+@mistake("normalised over the columns (axis=0)",
+         "Each row is one sample: take the max and the sum along the last axis (axis=-1)")
 def _softmax_columns(scores):
     s = np.asarray(scores, dtype=np.float64)
     e = np.exp(s - s.max(axis=0, keepdims=True))
     return e / e.sum(axis=0, keepdims=True)
 
 
+@mistake("normalised over the whole array", "Normalise each row separately: e / e.sum(axis=-1, keepdims=True)")
 def _softmax_whole_array(scores):
     s = np.asarray(scores, dtype=np.float64)
     e = np.exp(s - s.max())
@@ -250,18 +255,7 @@ softmax = Check(
     ],
     hidden=_softmax_hidden,
     compare=close(rtol=1e-7, atol=1e-12, kind="f"),
-    mistakes=[
-        Mistake("no max shift (exp overflows for large scores)", _softmax_no_shift,
-                "Subtract each row's maximum before np.exp: softmax(s) = softmax(s − max s) and the "
-                "largest exponent becomes e⁰ = 1 (§9.7.3)"),
-        Mistake("shifted by the global maximum instead of each row's", _softmax_global_shift,
-                "Subtract the maximum of each row (s.max(axis=-1, keepdims=True)); with the global "
-                "maximum a row far below it underflows to 0/0"),
-        Mistake("normalised over the columns (axis=0)", _softmax_columns,
-                "Each row is one sample: take the max and the sum along the last axis (axis=-1)"),
-        Mistake("normalised over the whole array", _softmax_whole_array,
-                "Normalise each row separately: e / e.sum(axis=-1, keepdims=True)"),
-    ],
+    mistakes=[_softmax_no_shift, _softmax_global_shift, _softmax_columns, _softmax_whole_array],
 )
 
 
@@ -279,26 +273,37 @@ def _ce_parts(scores, y):
     return s, y, n, p, onehot, loss
 
 
+@mistake("summed over the samples instead of averaged",
+         "The loss is the mean over the N samples, and so its gradient is (p − onehot) / N")
 def _ce_summed(scores, y):
     s, y, n, p, onehot, loss = _ce_parts(scores, y)
     return loss * n, p - onehot
 
 
+@mistake("gradient not divided by N",
+         "The loss is a mean over N samples, so each row of the gradient is (p − onehot) / N")
 def _ce_grad_not_averaged(scores, y):
     s, y, n, p, onehot, loss = _ce_parts(scores, y)
     return loss, p - onehot
 
 
+@mistake("gradient missing the −1 at the true class",
+         "∂L_i/∂s_j = p_j − [j = y_i]: subtract 1 at the true class of every row")
 def _ce_no_minus_one(scores, y):
     s, y, n, p, onehot, loss = _ce_parts(scores, y)
     return loss, p / n
 
 
+@mistake("−log(softmax) (infinite for large scores)",
+         "Compute −s_y + logsumexp(s) with the maximum factored out: log Σ e^s = m + log Σ e^(s−m); "
+         "−log(p) of a probability that underflows to 0 is inf")
 def _ce_log_of_softmax(scores, y):
     s, y, n, p, onehot, loss = _ce_parts(scores, y)
     return float(-np.mean(np.log(p[np.arange(n), y]))), (p - onehot) / n
 
 
+@mistake("gradient with the wrong sign",
+         "The gradient of the loss is (p − onehot) / N (probabilities minus the one-hot label)")
 def _ce_sign(scores, y):
     s, y, n, p, onehot, loss = _ce_parts(scores, y)
     return loss, (onehot - p) / n
@@ -341,19 +346,7 @@ cross_entropy = Check(
     ],
     hidden=_ce_hidden,
     compare=close(rtol=1e-7, atol=1e-10, scaled=True),
-    mistakes=[
-        Mistake("summed over the samples instead of averaged", _ce_summed,
-                "The loss is the mean over the N samples, and so its gradient is (p − onehot) / N"),
-        Mistake("gradient not divided by N", _ce_grad_not_averaged,
-                "The loss is a mean over N samples, so each row of the gradient is (p − onehot) / N"),
-        Mistake("gradient missing the −1 at the true class", _ce_no_minus_one,
-                "∂L_i/∂s_j = p_j − [j = y_i]: subtract 1 at the true class of every row"),
-        Mistake("−log(softmax) (infinite for large scores)", _ce_log_of_softmax,
-                "Compute −s_y + logsumexp(s) with the maximum factored out: log Σ e^s = m + log Σ e^(s−m); "
-                "−log(p) of a probability that underflows to 0 is inf"),
-        Mistake("gradient with the wrong sign", _ce_sign,
-                "The gradient of the loss is (p − onehot) / N (probabilities minus the one-hot label)"),
-    ],
+    mistakes=[_ce_summed, _ce_grad_not_averaged, _ce_no_minus_one, _ce_log_of_softmax, _ce_sign],
 )
 
 
@@ -367,27 +360,37 @@ def _llg_parts(W, b, X, y, reg):
     return W, b, X, y, loss, dscores
 
 
+@mistake("missing factor 2 in the regularisation gradient", "d(λΣW²)/dW = 2λW: add 2 * reg * W to dW")
 def _llg_reg_grad_no_2(W, b, X, y, reg=0.0):
     W, b, X, y, loss, g = _llg_parts(W, b, X, y, reg)
     return loss + reg * np.sum(W * W), g.T @ X + reg * W, g.sum(axis=0)
 
 
+@mistake("loss and gradients summed over the samples, not averaged",
+         "Average the data loss over the N samples (and so its gradients); the regularisation "
+         "term λΣW² is added once")
 def _llg_not_averaged(W, b, X, y, reg=0.0):
     W, b, X, y, loss, g = _llg_parts(W, b, X, y, reg)
     n = X.shape[0]
     return loss * n + reg * np.sum(W * W), n * g.T @ X + 2 * reg * W, n * g.sum(axis=0)
 
 
+@mistake("bias regularised too",
+         "Only W is regularised: loss + reg·ΣW², dW += 2·reg·W, and db is just the column sum "
+         "of the score gradient")
 def _llg_bias_regularised(W, b, X, y, reg=0.0):
     W, b, X, y, loss, g = _llg_parts(W, b, X, y, reg)
     return (loss + reg * (np.sum(W * W) + np.sum(b * b)), g.T @ X + 2 * reg * W, g.sum(axis=0) + 2 * reg * b)
 
 
+@mistake("regularisation missing from the loss",
+         "The loss includes the penalty: mean cross-entropy + reg * np.sum(W * W)")
 def _llg_reg_not_in_loss(W, b, X, y, reg=0.0):
     W, b, X, y, loss, g = _llg_parts(W, b, X, y, reg)
     return loss, g.T @ X + 2 * reg * W, g.sum(axis=0)
 
 
+@mistake("dW transposed (D, C)", "dW has the shape of W, (C, D): dW = dscores.T @ X + 2·reg·W")
 def _llg_dw_transposed(W, b, X, y, reg=0.0):
     W, b, X, y, loss, g = _llg_parts(W, b, X, y, reg)
     return loss + reg * np.sum(W * W), X.T @ g + 2 * reg * W.T, g.sum(axis=0)
@@ -432,20 +435,7 @@ linear_loss_and_grad = Check(
     ],
     hidden=_llg_hidden,
     compare=close(rtol=1e-7, atol=1e-10, scaled=True),
-    mistakes=[
-        Mistake("missing factor 2 in the regularisation gradient", _llg_reg_grad_no_2,
-                "d(λΣW²)/dW = 2λW: add 2 * reg * W to dW"),
-        Mistake("loss and gradients summed over the samples, not averaged", _llg_not_averaged,
-                "Average the data loss over the N samples (and so its gradients); the regularisation "
-                "term λΣW² is added once"),
-        Mistake("bias regularised too", _llg_bias_regularised,
-                "Only W is regularised: loss + reg·ΣW², dW += 2·reg·W, and db is just the column sum "
-                "of the score gradient"),
-        Mistake("regularisation missing from the loss", _llg_reg_not_in_loss,
-                "The loss includes the penalty: mean cross-entropy + reg * np.sum(W * W)"),
-        Mistake("dW transposed (D, C)", _llg_dw_transposed,
-                "dW has the shape of W, (C, D): dW = dscores.T @ X + 2·reg·W"),
-    ],
+    mistakes=[_llg_reg_grad_no_2, _llg_not_averaged, _llg_bias_regularised, _llg_reg_not_in_loss, _llg_dw_transposed],
     allowed=_BUILDING_BLOCKS,
 )
 
@@ -462,6 +452,9 @@ def _exp(rng, shape):
     return "exp", np.stack([_round(rng.uniform(0.5, 2.0, shape)), _round(rng.uniform(2.0, 4.0, shape))])
 
 
+@mistake("one-sided difference (f(x+h) − f(x))/h",
+         "Use the central difference (f(x + h·e_i) − f(x − h·e_i)) / (2h): its error is O(h²), "
+         "a one-sided difference's O(h)")
 def _ng_forward(f, x, eps=1e-5):
     x = np.array(x, dtype=np.float64)
     grad = np.empty(x.shape)
@@ -491,6 +484,7 @@ def _ng_central(f, x, eps=1e-5, denominator_factor=2.0, as_float=True):
 _ng_half_step = variant(_ng_central, denominator_factor=1.0)
 
 
+@mistake("eps ignored (fixed step)", "Use the step the caller passes as eps")
 def _ng_eps_ignored(f, x, eps=1e-5):
     return _ng_central(f, x, 1e-5)
 
@@ -498,6 +492,9 @@ def _ng_eps_ignored(f, x, eps=1e-5):
 _ng_integer_x = variant(_ng_central, as_float=False)
 
 
+@mistake("all coordinates moved at once",
+         "Move one coordinate at a time: g[i] = (f(x + h·e_i) − f(x − h·e_i)) / (2h) with e_i the "
+         "i-th unit vector")
 def _ng_all_at_once(f, x, eps=1e-5):
     x = np.asarray(x, dtype=np.float64)
     return np.full(x.shape, (f(x + eps) - f(x - eps)) / (2 * eps))
@@ -542,19 +539,14 @@ numerical_gradient = Check(
     call=call_with_test_function,
     arg_names=("function", "table", "x"),
     mistakes=[
-        Mistake("one-sided difference (f(x+h) − f(x))/h", _ng_forward,
-                "Use the central difference (f(x + h·e_i) − f(x − h·e_i)) / (2h): its error is O(h²), "
-                "a one-sided difference's O(h)"),
+        _ng_forward,
         Mistake("divided by h instead of 2h", _ng_half_step,
                 "The two evaluation points are 2h apart: divide f(x+h) − f(x−h) by 2*eps"),
-        Mistake("eps ignored (fixed step)", _ng_eps_ignored,
-                "Use the step the caller passes as eps"),
+        _ng_eps_ignored,
         Mistake("integer x not converted to float (the step is lost)", _ng_integer_x,
                 "Work on a float copy: x = np.array(x, dtype=float); adding 1e-5 to an integer entry "
                 "changes nothing"),
-        Mistake("all coordinates moved at once", _ng_all_at_once,
-                "Move one coordinate at a time: g[i] = (f(x + h·e_i) − f(x − h·e_i)) / (2h) with e_i the "
-                "i-th unit vector"),
+        _ng_all_at_once,
     ],
 )
 
@@ -778,21 +770,28 @@ def _topk_sorted(scores, y, k=5, descending=True, stable=True):
 _topk_smallest = variant(_topk_sorted, descending=False)
 
 
+@mistake("number of hits instead of the fraction", "Return the fraction of samples that are hits (divide by N)")
 def _topk_count(scores, y, k=5):
     s = np.asarray(scores, dtype=np.float64)
     true = s[np.arange(s.shape[0]), np.asarray(y)]
     return float(np.sum(np.count_nonzero(s > true[:, None], axis=1) < k))
 
 
+@mistake("ties at the k-th score counted as misses",
+         "A sort puts equal scores in an arbitrary order: count the scores strictly greater than "
+         "the true class's score and call it a hit when fewer than k are")
 def _topk_ties_miss(scores, y, k=5):
     return _topk_sorted(scores, y, k)
 
 
+@mistake("k ignored (top-1 accuracy)", "Use k: a hit is a true label among the k highest scores")
 def _topk_top1(scores, y, k=5):
     s = np.asarray(scores, dtype=np.float64)
     return float(np.mean(s.argmax(axis=1) == np.asarray(y)))
 
 
+@mistake("top-(k+1): hit when k scores or fewer are higher",
+         "The true class is in the top k when FEWER than k scores beat it (rank < k)")
 def _topk_off_by_one(scores, y, k=5):
     s = np.asarray(scores, dtype=np.float64)
     true = s[np.arange(s.shape[0]), np.asarray(y)]
@@ -856,18 +855,13 @@ top_k_accuracy = Check(
     hidden=_topk_hidden,
     compare=close(rtol=0.0, atol=1e-12),
     mistakes=[
-        Mistake("ties at the k-th score counted as misses", _topk_ties_miss,
-                "A sort puts equal scores in an arbitrary order: count the scores strictly greater than "
-                "the true class's score and call it a hit when fewer than k are"),
+        _topk_ties_miss,
         Mistake("the k smallest scores", _topk_smallest,
                 "Take the k HIGHEST scores: np.argsort(-scores, axis=1)[:, :k] (or count the scores "
                 "greater than the true one)"),
-        Mistake("number of hits instead of the fraction", _topk_count,
-                "Return the fraction of samples that are hits (divide by N)"),
-        Mistake("k ignored (top-1 accuracy)", _topk_top1,
-                "Use k: a hit is a true label among the k highest scores"),
-        Mistake("top-(k+1): hit when k scores or fewer are higher", _topk_off_by_one,
-                "The true class is in the top k when FEWER than k scores beat it (rank < k)"),
+        _topk_count,
+        _topk_top1,
+        _topk_off_by_one,
     ],
 )
 
@@ -907,10 +901,13 @@ def _knn_generic(X_train, y_train, X_test, k=1, metric="l2", *, farthest=False, 
 _knn_farthest = variant(_knn_generic, farthest=True)
 
 
+@mistake("k ignored (always the nearest sample)",
+         "Let the k nearest samples vote: take the first k indices of the sorted distances")
 def _knn_k_ignored(X_train, y_train, X_test, k=1, metric="l2"):
     return _knn_generic(X_train, y_train, X_test, 1, metric)
 
 
+@mistake("metric ignored (always L2)", "metric='l1' is the Manhattan distance Σ|a − b|")
 def _knn_metric_ignored(X_train, y_train, X_test, k=1, metric="l2"):
     return _knn_generic(X_train, y_train, X_test, k, "l2")
 
@@ -1031,10 +1028,8 @@ knn_predict = Check(
         Mistake("vote ties go to the nearest neighbour's label", _knn_nearest_wins_tie,
                 "Counter.most_common breaks ties by first appearance: count the votes per label "
                 "(np.bincount) and take argmax, which gives ties to the smallest label"),
-        Mistake("k ignored (always the nearest sample)", _knn_k_ignored,
-                "Let the k nearest samples vote: take the first k indices of the sorted distances"),
-        Mistake("metric ignored (always L2)", _knn_metric_ignored,
-                "metric='l1' is the Manhattan distance Σ|a − b|"),
+        _knn_k_ignored,
+        _knn_metric_ignored,
         Mistake("vote ties go to the largest label", _knn_largest_wins_tie,
                 "Among labels with the same number of votes take the smallest (np.argmax of the counts)"),
         Mistake("equal distances: later training sample first", _knn_later_first,
@@ -1286,25 +1281,32 @@ def _bovw_counts(words, k):
     return np.bincount(words, minlength=k).astype(np.float64)
 
 
+@mistake("counts not normalised", "With normalize=True divide the counts by their sum (the number of descriptors)")
 def _bovw_never_normalised(descriptors, codebook, normalize=True):
     return _bovw_counts(*_bovw_words(descriptors, codebook))
 
 
+@mistake("normalised even when normalize=False", "With normalize=False return the raw counts")
 def _bovw_always_normalised(descriptors, codebook, normalize=True):
     h = _bovw_counts(*_bovw_words(descriptors, codebook))
     return h / h.sum()
 
 
+@mistake("farthest codeword instead of the nearest",
+         "Each descriptor votes for its NEAREST codeword: argmin of the distances")
 def _bovw_farthest(descriptors, codebook, normalize=True):
     h = _bovw_counts(*_bovw_words(descriptors, codebook, farthest=True))
     return h / h.sum() if normalize else h
 
 
+@mistake("L1 distance instead of L2", "Quantise with the Euclidean distance: Σ (d − c)², then argmin")
 def _bovw_l1(descriptors, codebook, normalize=True):
     h = _bovw_counts(*_bovw_words(descriptors, codebook, metric="l1"))
     return h / h.sum() if normalize else h
 
 
+@mistake("divided by the largest count instead of the sum",
+         "Normalise to frequencies that sum to 1: divide by the sum of the counts")
 def _bovw_max_normalised(descriptors, codebook, normalize=True):
     h = _bovw_counts(*_bovw_words(descriptors, codebook))
     return h / h.max() if normalize else h
@@ -1361,16 +1363,5 @@ bovw_histogram = Check(
     ],
     hidden=_bovw_hidden,
     compare=close(rtol=1e-9, atol=1e-12),
-    mistakes=[
-        Mistake("counts not normalised", _bovw_never_normalised,
-                "With normalize=True divide the counts by their sum (the number of descriptors)"),
-        Mistake("normalised even when normalize=False", _bovw_always_normalised,
-                "With normalize=False return the raw counts"),
-        Mistake("farthest codeword instead of the nearest", _bovw_farthest,
-                "Each descriptor votes for its NEAREST codeword: argmin of the distances"),
-        Mistake("L1 distance instead of L2", _bovw_l1,
-                "Quantise with the Euclidean distance: Σ (d − c)², then argmin"),
-        Mistake("divided by the largest count instead of the sum", _bovw_max_normalised,
-                "Normalise to frequencies that sum to 1: divide by the sum of the counts"),
-    ],
+    mistakes=[_bovw_never_normalised, _bovw_always_normalised, _bovw_farthest, _bovw_l1, _bovw_max_normalised],
 )

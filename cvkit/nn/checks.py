@@ -40,7 +40,7 @@ from functools import partial
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
+from ..grading import Case, Check, Comparator, Mismatch, Mistake, close, mistake
 from ..grading.casekit import distinct, variant
 from ..grading.casekit import rounded as _round
 from ..grading.casekit import seed as _any_seed
@@ -258,21 +258,27 @@ def _f(a) -> np.ndarray:
 # ============================================================================================
 # activations (§10.5.3–10.5.4)
 # ============================================================================================
+@mistake("returns the mask x > 0 instead of max(0, x)",
+         "ReLU keeps the positive values themselves: out = np.maximum(x, 0)")
 def _relu_mask_only(x):
     x = _f(x)
     return (x > 0).astype(np.float64), {"x": x}
 
 
+@mistake("absolute value instead of max(0, x)", "Negative inputs become 0, not their magnitude: np.maximum(x, 0)")
 def _relu_abs(x):
     x = _f(x)
     return np.abs(x), {"x": x}
 
 
+@mistake("leaky slope for negatives (that is leaky ReLU)", "Plain ReLU sets every negative input to exactly 0")
 def _relu_leaky(x):
     x = _f(x)
     return np.where(x >= 0, x, 0.01 * x), {"x": x}
 
 
+@mistake("no cache returned (out only)",
+         "Return the pair (out, cache) with cache = {'x': x}: the backward pass needs x")
 def _relu_no_cache(x):
     return np.maximum(_f(x), 0.0)
 
@@ -306,33 +312,31 @@ relu_forward = Check(
     hidden=_activation_hidden,
     compare=_forward_compare(_TIGHT),
     call=call_relu_forward,
-    mistakes=[
-        Mistake("returns the mask x > 0 instead of max(0, x)", _relu_mask_only,
-                "ReLU keeps the positive values themselves: out = np.maximum(x, 0)"),
-        Mistake("absolute value instead of max(0, x)", _relu_abs,
-                "Negative inputs become 0, not their magnitude: np.maximum(x, 0)"),
-        Mistake("leaky slope for negatives (that is leaky ReLU)", _relu_leaky,
-                "Plain ReLU sets every negative input to exactly 0"),
-        Mistake("no cache returned (out only)", _relu_no_cache,
-                "Return the pair (out, cache) with cache = {'x': x}: the backward pass needs x"),
-    ],
+    mistakes=[_relu_mask_only, _relu_abs, _relu_leaky, _relu_no_cache],
 )
 
 
 # --- relu backward ------------------------------------------------------------------------------
+@mistake("gradient 0 at x = 0 (PyTorch's convention, not the notes')",
+         "The notes take ReLU'(0) = 1: pass the gradient where x >= 0, not only where x > 0")
 def _relu_b_pytorch(dout, cache):
     return np.where(_f(cache["x"]) > 0, _f(dout), 0.0)
 
 
+@mistake("mask taken from dout instead of x",
+         "The gate depends on the forward's input: dx = dout where cache['x'] >= 0, else 0")
 def _relu_b_mask_of_dout(dout, cache):
     d = _f(dout)
     return np.where(d >= 0, d, 0.0)
 
 
+@mistake("mask returned without multiplying by dout",
+         "Chain rule: dx = dout * [x >= 0], the upstream gradient times the local derivative")
 def _relu_b_mask_only(dout, cache):
     return (_f(cache["x"]) >= 0).astype(np.float64)
 
 
+@mistake("gradient passed through unchanged", "Where x < 0 the output does not depend on x: set dx to 0 there")
 def _relu_b_identity(dout, cache):
     return _f(dout).copy()
 
@@ -362,20 +366,13 @@ relu_backward = Check(
     ],
     hidden=_elementwise_backward_hidden(_relu_forward),
     compare=_TIGHT,
-    mistakes=[
-        Mistake("gradient 0 at x = 0 (PyTorch's convention, not the notes')", _relu_b_pytorch,
-                "The notes take ReLU'(0) = 1: pass the gradient where x >= 0, not only where x > 0"),
-        Mistake("mask taken from dout instead of x", _relu_b_mask_of_dout,
-                "The gate depends on the forward's input: dx = dout where cache['x'] >= 0, else 0"),
-        Mistake("mask returned without multiplying by dout", _relu_b_mask_only,
-                "Chain rule: dx = dout * [x >= 0], the upstream gradient times the local derivative"),
-        Mistake("gradient passed through unchanged", _relu_b_identity,
-                "Where x < 0 the output does not depend on x: set dx to 0 there"),
-    ],
+    mistakes=[_relu_b_pytorch, _relu_b_mask_of_dout, _relu_b_mask_only, _relu_b_identity],
 )
 
 
 # --- sigmoid --------------------------------------------------------------------------------
+@mistake("exp(+x) instead of exp(−x): that is σ(−x)",
+         "σ(a) = 1 / (1 + exp(−a)): large positive inputs must give values near 1")
 def _sigmoid_sign(x):
     x = _f(x)
     with np.errstate(over="ignore"):
@@ -383,6 +380,8 @@ def _sigmoid_sign(x):
     return out, {"x": x, "out": out}
 
 
+@mistake("exp(x)/(1+exp(x)) overflows to NaN for large x",
+         "Only ever exponentiate −|x|: 1/(1+e^(−x)) for x ≥ 0 and e^x/(1+e^x) for x < 0 (np.where)")
 def _sigmoid_overflow(x):
     x = _f(x)
     with np.errstate(over="ignore", invalid="ignore"):
@@ -390,12 +389,15 @@ def _sigmoid_overflow(x):
     return out, {"x": x, "out": out}
 
 
+@mistake("tanh instead of the logistic sigmoid",
+         "The logistic sigmoid maps to (0, 1): 1/(1+exp(−x)); tanh maps to (−1, 1)")
 def _sigmoid_tanh(x):
     x = _f(x)
     out = np.tanh(x)
     return out, {"x": x, "out": out}
 
 
+@mistake("cache lacks 'out'", "Store the output too: cache = {'x': x, 'out': out}; the backward uses σ(x)(1 − σ(x))")
 def _sigmoid_no_out(x):
     out, _ = _sigmoid_forward(x)
     return out, {"x": _f(x)}
@@ -419,33 +421,29 @@ sigmoid_forward = Check(
     hidden=_sigmoid_hidden,
     compare=_forward_compare(_TIGHT),
     call=call_sigmoid_forward,
-    mistakes=[
-        Mistake("exp(+x) instead of exp(−x): that is σ(−x)", _sigmoid_sign,
-                "σ(a) = 1 / (1 + exp(−a)): large positive inputs must give values near 1"),
-        Mistake("exp(x)/(1+exp(x)) overflows to NaN for large x", _sigmoid_overflow,
-                "Only ever exponentiate −|x|: 1/(1+e^(−x)) for x ≥ 0 and e^x/(1+e^x) for x < 0 (np.where)"),
-        Mistake("tanh instead of the logistic sigmoid", _sigmoid_tanh,
-                "The logistic sigmoid maps to (0, 1): 1/(1+exp(−x)); tanh maps to (−1, 1)"),
-        Mistake("cache lacks 'out'", _sigmoid_no_out,
-                "Store the output too: cache = {'x': x, 'out': out}; the backward uses σ(x)(1 − σ(x))"),
-    ],
+    mistakes=[_sigmoid_sign, _sigmoid_overflow, _sigmoid_tanh, _sigmoid_no_out],
 )
 
 
+@mistake("σ' computed from x instead of σ(x): x(1 − x)",
+         "The derivative is σ(x)(1 − σ(x)): use cache['out'], not cache['x']")
 def _sigmoid_b_from_x(dout, cache):
     x = _f(cache["x"])
     return _f(dout) * x * (1.0 - x)
 
 
+@mistake("dout not multiplied in", "Chain rule: dx = dout * σ(x) * (1 − σ(x))")
 def _sigmoid_b_no_dout(dout, cache):
     out = _f(cache["out"])
     return out * (1.0 - out)
 
 
+@mistake("only 1 − σ(x)", "σ'(a) = σ(a)(1 − σ(a)): both factors")
 def _sigmoid_b_one_minus(dout, cache):
     return _f(dout) * (1.0 - _f(cache["out"]))
 
 
+@mistake("tanh's derivative 1 − out²", "For the logistic sigmoid σ' = σ(1 − σ), not 1 − σ²")
 def _sigmoid_b_tanh(dout, cache):
     out = _f(cache["out"])
     return _f(dout) * (1.0 - out ** 2)
@@ -460,35 +458,32 @@ sigmoid_backward = Check(
     ],
     hidden=_elementwise_backward_hidden(_sigmoid_forward),
     compare=_TIGHT,
-    mistakes=[
-        Mistake("σ' computed from x instead of σ(x): x(1 − x)", _sigmoid_b_from_x,
-                "The derivative is σ(x)(1 − σ(x)): use cache['out'], not cache['x']"),
-        Mistake("dout not multiplied in", _sigmoid_b_no_dout,
-                "Chain rule: dx = dout * σ(x) * (1 − σ(x))"),
-        Mistake("only 1 − σ(x)", _sigmoid_b_one_minus,
-                "σ'(a) = σ(a)(1 − σ(a)): both factors"),
-        Mistake("tanh's derivative 1 − out²", _sigmoid_b_tanh,
-                "For the logistic sigmoid σ' = σ(1 − σ), not 1 − σ²"),
-    ],
+    mistakes=[_sigmoid_b_from_x, _sigmoid_b_no_dout, _sigmoid_b_one_minus, _sigmoid_b_tanh],
 )
 
 
 # --- leaky ReLU -----------------------------------------------------------------------------
+@mistake("alpha ignored (plain ReLU)", "Negative inputs are multiplied by alpha, not set to 0")
 def _leaky_plain(x, alpha=0.01):
     x = _f(x)
     return np.maximum(x, 0.0), {"x": x, "alpha": alpha}
 
 
+@mistake("slope alpha applied to the positive side", "x where x >= 0, alpha * x where x < 0")
 def _leaky_wrong_side(x, alpha=0.01):
     x = _f(x)
     return np.where(x >= 0, alpha * x, x), {"x": x, "alpha": alpha}
 
 
+@mistake("alpha instead of alpha·x for negatives",
+         "The negative side is a line of slope alpha: np.where(x >= 0, x, alpha * x)")
 def _leaky_constant(x, alpha=0.01):
     x = _f(x)
     return np.where(x >= 0, x, alpha), {"x": x, "alpha": alpha}
 
 
+@mistake("cache lacks 'alpha'",
+         "Store the slope with the input: cache = {'x': x, 'alpha': alpha} (also when it is the default)")
 def _leaky_no_alpha(x, alpha=0.01):
     x = _f(x)
     return np.where(x >= 0, x, alpha * x), {"x": x}
@@ -520,33 +515,29 @@ leaky_relu_forward = Check(
     hidden=_leaky_hidden,
     compare=_forward_compare(_TIGHT),
     call=call_leaky_relu_forward,
-    mistakes=[
-        Mistake("alpha ignored (plain ReLU)", _leaky_plain,
-                "Negative inputs are multiplied by alpha, not set to 0"),
-        Mistake("slope alpha applied to the positive side", _leaky_wrong_side,
-                "x where x >= 0, alpha * x where x < 0"),
-        Mistake("alpha instead of alpha·x for negatives", _leaky_constant,
-                "The negative side is a line of slope alpha: np.where(x >= 0, x, alpha * x)"),
-        Mistake("cache lacks 'alpha'", _leaky_no_alpha,
-                "Store the slope with the input: cache = {'x': x, 'alpha': alpha} (also when it is the default)"),
-    ],
+    mistakes=[_leaky_plain, _leaky_wrong_side, _leaky_constant, _leaky_no_alpha],
 )
 
 
+@mistake("gradient 0 for negatives (ReLU's)", "For x < 0 the slope is alpha: dx = alpha * dout there")
 def _leaky_b_relu(dout, cache):
     return np.where(_f(cache["x"]) >= 0, _f(dout), 0.0)
 
 
+@mistake("alpha·x instead of alpha·dout for negatives",
+         "The local derivative for x < 0 is alpha; multiply it by the upstream gradient dout")
 def _leaky_b_alpha_x(dout, cache):
     x = _f(cache["x"])
     return np.where(x >= 0, _f(dout), cache["alpha"] * x)
 
 
+@mistake("slope alpha at x = 0", "As in the notes, the slope is 1 for x >= 0 (including 0)")
 def _leaky_b_zero_side(dout, cache):
     x = _f(cache["x"])
     return np.where(x > 0, _f(dout), cache["alpha"] * _f(dout))
 
 
+@mistake("dout not multiplied in (returns the slopes)", "Chain rule: dx = dout * slope")
 def _leaky_b_slopes(dout, cache):
     return np.where(_f(cache["x"]) >= 0, 1.0, cache["alpha"])
 
@@ -567,32 +558,27 @@ leaky_relu_backward = Check(
     ],
     hidden=_leaky_backward_hidden,
     compare=_TIGHT,
-    mistakes=[
-        Mistake("gradient 0 for negatives (ReLU's)", _leaky_b_relu,
-                "For x < 0 the slope is alpha: dx = alpha * dout there"),
-        Mistake("alpha·x instead of alpha·dout for negatives", _leaky_b_alpha_x,
-                "The local derivative for x < 0 is alpha; multiply it by the upstream gradient dout"),
-        Mistake("slope alpha at x = 0", _leaky_b_zero_side,
-                "As in the notes, the slope is 1 for x >= 0 (including 0)"),
-        Mistake("dout not multiplied in (returns the slopes)", _leaky_b_slopes,
-                "Chain rule: dx = dout * slope"),
-    ],
+    mistakes=[_leaky_b_relu, _leaky_b_alpha_x, _leaky_b_zero_side, _leaky_b_slopes],
 )
 
 
 # ============================================================================================
 # linear layer (§10.5.1)
 # ============================================================================================
+@mistake("bias missing", "The layer is affine: out = x @ W + b")
 def _linear_no_bias(x, W, b):
     x, W, b = _f(x), _f(W), _f(b)
     return x @ W, {"x": x, "W": W, "b": b}
 
 
+@mistake("W used as (C, D): x @ W.T",
+         "In the layer convention W is (D, C): out = x @ W + b (Chapter 9's learn.* used (C, D))")
 def _linear_transposed(x, W, b):
     x, W, b = _f(x), _f(W), _f(b)
     return x @ W.T + b, {"x": x, "W": W, "b": b}
 
 
+@mistake("no cache returned (out only)", "Return (out, cache) with cache = {'x': x, 'W': W, 'b': b}")
 def _linear_no_cache(x, W, b):
     return _f(x) @ _f(W) + _f(b)
 
@@ -637,31 +623,29 @@ linear_forward = Check(
     hidden=_linear_hidden,
     compare=_forward_compare(_SUMS),
     call=call_linear_forward,
-    mistakes=[
-        Mistake("bias missing", _linear_no_bias, "The layer is affine: out = x @ W + b"),
-        Mistake("W used as (C, D): x @ W.T", _linear_transposed,
-                "In the layer convention W is (D, C): out = x @ W + b (Chapter 9's learn.* used (C, D))"),
-        Mistake("no cache returned (out only)", _linear_no_cache,
-                "Return (out, cache) with cache = {'x': x, 'W': W, 'b': b}"),
-    ],
+    mistakes=[_linear_no_bias, _linear_transposed, _linear_no_cache],
 )
 
 
+@mistake("db averaged over the batch", "db = dout.sum(axis=0): the 1/N of a mean loss is already inside dout")
 def _linear_b_db_mean(dout, cache):
     d = _f(dout)
     return d @ _f(cache["W"]).T, _f(cache["x"]).T @ d, d.mean(axis=0)
 
 
+@mistake("dW = dout.T @ x (the (C, D) layout)", "dW must have W's shape (D, C): dW = x.T @ dout")
 def _linear_b_dw_transposed(dout, cache):
     d = _f(dout)
     return d @ _f(cache["W"]).T, d.T @ _f(cache["x"]), d.sum(axis=0)
 
 
+@mistake("dx = dout @ W (W not transposed)", "dx = dout @ W.T, shape (N, D) like x")
 def _linear_b_dx_not_transposed(dout, cache):
     d = _f(dout)
     return d @ _f(cache["W"]), _f(cache["x"]).T @ d, d.sum(axis=0)
 
 
+@mistake("dW averaged over the batch", "dW = x.T @ dout, a sum over the batch (dout already carries the 1/N)")
 def _linear_b_dw_mean(dout, cache):
     d = _f(dout)
     x = _f(cache["x"])
@@ -686,34 +670,30 @@ linear_backward = Check(
     ],
     hidden=_linear_backward_hidden,
     compare=Nested(_SUMS, names=("dx", "dW", "db")),
-    mistakes=[
-        Mistake("db averaged over the batch", _linear_b_db_mean,
-                "db = dout.sum(axis=0): the 1/N of a mean loss is already inside dout"),
-        Mistake("dW = dout.T @ x (the (C, D) layout)", _linear_b_dw_transposed,
-                "dW must have W's shape (D, C): dW = x.T @ dout"),
-        Mistake("dx = dout @ W (W not transposed)", _linear_b_dx_not_transposed,
-                "dx = dout @ W.T, shape (N, D) like x"),
-        Mistake("dW averaged over the batch", _linear_b_dw_mean,
-                "dW = x.T @ dout, a sum over the batch (dout already carries the 1/N)"),
-    ],
+    mistakes=[_linear_b_db_mean, _linear_b_dw_transposed, _linear_b_dx_not_transposed, _linear_b_dw_mean],
 )
 
 
 # ============================================================================================
 # output size and receptive field (§10.7.4)
 # ============================================================================================
+@mistake("padding counted once (H − K + P)", "P zeros are added on each side: H − K + 2P")
 def _size_padding_once(size, kernel, padding=0, stride=1):
     return (size - kernel + padding) // stride + 1
 
 
+@mistake("rounded up (ceil) instead of down",
+         "A window that does not fit entirely in the padded input is dropped: use floor (//)")
 def _size_ceil(size, kernel, padding=0, stride=1):
     return -(-(size - kernel + 2 * padding) // stride) + 1
 
 
+@mistake("+1 missing", "(H − K + 2P) // S counts the steps; the number of positions is one more")
 def _size_no_plus_one(size, kernel, padding=0, stride=1):
     return (size - kernel + 2 * padding) // stride
 
 
+@mistake("true division (a float, not floored)", "Use integer floor division //: sizes are whole numbers")
 def _size_true_division(size, kernel, padding=0, stride=1):
     return (size - kernel + 2 * padding) / stride + 1
 
@@ -746,23 +726,19 @@ conv_output_size = Check(
     ],
     hidden=_output_size_hidden,
     compare=IntegerResult(),
-    mistakes=[
-        Mistake("padding counted once (H − K + P)", _size_padding_once,
-                "P zeros are added on each side: H − K + 2P"),
-        Mistake("rounded up (ceil) instead of down", _size_ceil,
-                "A window that does not fit entirely in the padded input is dropped: use floor (//)"),
-        Mistake("+1 missing", _size_no_plus_one,
-                "(H − K + 2P) // S counts the steps; the number of positions is one more"),
-        Mistake("true division (a float, not floored)", _size_true_division,
-                "Use integer floor division //: sizes are whole numbers"),
-    ],
+    mistakes=[_size_padding_once, _size_ceil, _size_no_plus_one, _size_true_division],
 )
 
 
+@mistake("strides ignored: 1 + Σ(K − 1)",
+         "After a stride-S layer neighbouring units are S input pixels apart: weight each K − 1 by the "
+         "product of the strides of the layers below it")
 def _rf_no_strides(layers):
     return 1 + sum(k - 1 for k, _ in layers)
 
 
+@mistake("the layer's own stride included in its product",
+         "A layer's K − 1 is multiplied by the strides of the layers *before* it, not its own")
 def _rf_own_stride(layers):
     field, jump = 1, 1
     for k, s in layers:
@@ -771,10 +747,14 @@ def _rf_own_stride(layers):
     return field
 
 
+@mistake("kernel sizes summed (Σ K)",
+         "Each layer adds K − 1 (one unit is already counted): r = 1 + Σ (K_l − 1)·∏_{j<l} S_j")
 def _rf_sum_kernels(layers):
     return sum(k for k, _ in layers)
 
 
+@mistake("strides of the layers after each layer used (stack read backwards)",
+         "Go from the input up: the strides that matter for layer l are those of layers 1..l−1")
 def _rf_reversed(layers):
     field, jump = 1, 1
     for k, s in reversed(list(layers)):
@@ -814,17 +794,7 @@ receptive_field = Check(
     ],
     hidden=_rf_hidden,
     compare=IntegerResult(),
-    mistakes=[
-        Mistake("strides ignored: 1 + Σ(K − 1)", _rf_no_strides,
-                "After a stride-S layer neighbouring units are S input pixels apart: weight each K − 1 by the "
-                "product of the strides of the layers below it"),
-        Mistake("the layer's own stride included in its product", _rf_own_stride,
-                "A layer's K − 1 is multiplied by the strides of the layers *before* it, not its own"),
-        Mistake("kernel sizes summed (Σ K)", _rf_sum_kernels,
-                "Each layer adds K − 1 (one unit is already counted): r = 1 + Σ (K_l − 1)·∏_{j<l} S_j"),
-        Mistake("strides of the layers after each layer used (stack read backwards)", _rf_reversed,
-                "Go from the input up: the strides that matter for layer l are those of layers 1..l−1"),
-    ],
+    mistakes=[_rf_no_strides, _rf_own_stride, _rf_sum_kernels, _rf_reversed],
 )
 
 
@@ -835,11 +805,14 @@ def _conv_cache(x, w, b, stride, padding):
     return {"x": _f(x), "w": _f(w), "b": _f(b), "stride": stride, "padding": padding}
 
 
+@mistake("kernel flipped (true convolution, not correlation)",
+         "Deep-learning convolution is correlation (§10.7.1): out[i, j] = Σ w[m, l]·x[i+m, j+l], no flip")
 def _conv_flipped(x, w, b, stride=1, padding=0):
     out, _ = _conv_forward(x, _f(w)[:, :, ::-1, ::-1], b, stride, padding)
     return out, _conv_cache(x, w, b, stride, padding)
 
 
+@mistake("padding on one side only", "Add P zeros on every side: top, bottom, left and right")
 def _conv_one_side(x, w, b, stride=1, padding=0):
     x = _f(x)
     xp = np.pad(x, ((0, 0), (0, 0), (padding, 0), (padding, 0)))
@@ -847,6 +820,8 @@ def _conv_one_side(x, w, b, stride=1, padding=0):
     return out, _conv_cache(x, w, b, stride, padding)
 
 
+@mistake("output size rounded up with stride (ceil)",
+         "Keep only windows that fit in the padded input: Ho = (H − kh + 2P) // S + 1")
 def _conv_ceil(x, w, b, stride=1, padding=0):
     x = _f(x)
     kh, kw = np.shape(w)[2:]
@@ -859,11 +834,13 @@ def _conv_ceil(x, w, b, stride=1, padding=0):
     return out, _conv_cache(x, w, b, stride, padding)
 
 
+@mistake("bias missing", "Add b[f] to every value of feature map f")
 def _conv_no_bias(x, w, b, stride=1, padding=0):
     out, _ = _conv_forward(x, w, np.zeros(np.shape(w)[0]), stride, padding)
     return out, _conv_cache(x, w, b, stride, padding)
 
 
+@mistake("kernel rows and columns swapped", "w[f, c, m, l]: m runs over rows (kh), l over columns (kw)")
 def _conv_transposed_kernel(x, w, b, stride=1, padding=0):
     out, _ = _conv_forward(x, _f(w).transpose(0, 1, 3, 2), b, stride, padding)
     return out, _conv_cache(x, w, b, stride, padding)
@@ -926,20 +903,13 @@ conv2d_forward = Check(
     hidden=_conv_hidden,
     compare=_forward_compare(_SUMS),
     call=call_conv2d_forward,
-    mistakes=[
-        Mistake("kernel flipped (true convolution, not correlation)", _conv_flipped,
-                "Deep-learning convolution is correlation (§10.7.1): out[i, j] = Σ w[m, l]·x[i+m, j+l], no flip"),
-        Mistake("padding on one side only", _conv_one_side,
-                "Add P zeros on every side: top, bottom, left and right"),
-        Mistake("output size rounded up with stride (ceil)", _conv_ceil,
-                "Keep only windows that fit in the padded input: Ho = (H − kh + 2P) // S + 1"),
-        Mistake("bias missing", _conv_no_bias, "Add b[f] to every value of feature map f"),
-        Mistake("kernel rows and columns swapped", _conv_transposed_kernel,
-                "w[f, c, m, l]: m runs over rows (kh), l over columns (kw)"),
-    ],
+    mistakes=[_conv_flipped, _conv_one_side, _conv_ceil, _conv_no_bias, _conv_transposed_kernel],
 )
 
 
+@mistake("dx by correlation with the unflipped filters",
+         "The backward of a correlation is a (full) convolution: each window's dout is spread back with "
+         "w[m, l] at input position (S·i + m, S·j + l)")
 def _conv_b_unflipped(dout, cache):
     _, dw, db = _conv_backward(dout, cache)
     flipped = dict(cache, w=_f(cache["w"])[:, :, ::-1, ::-1])
@@ -947,12 +917,15 @@ def _conv_b_unflipped(dout, cache):
     return dx, dw, db
 
 
+@mistake("padding not cropped from dx", "dx must have x's shape: drop the P rows and columns of padding on every side")
 def _conv_b_padding_kept(dout, cache):
     dx, dw, db = _conv_backward(dout, cache)
     p = cache["padding"]
     return np.pad(dx, ((0, 0), (0, 0), (p, p), (p, p))), dw, db
 
 
+@mistake("stride ignored in the backward",
+         "Output (i, j) came from the window starting at (S·i, S·j): spread its gradient there")
 def _conv_b_stride_ignored(dout, cache):
     """Window (i, j) spread back at (i, j) instead of (S·i, S·j)."""
     _, dw, db = _conv_backward(dout, cache)
@@ -969,11 +942,13 @@ def _conv_b_stride_ignored(dout, cache):
     return dxp[:, :, p:p + h, p:p + width], dw, db
 
 
+@mistake("db averaged instead of summed", "db[f] = dout[:, f].sum(): every output value adds the bias once")
 def _conv_b_db_mean(dout, cache):
     dx, dw, _ = _conv_backward(dout, cache)
     return dx, dw, _f(dout).mean(axis=(0, 2, 3))
 
 
+@mistake("dw divided by the batch size", "dw sums over the batch; a mean loss already put 1/N into dout")
 def _conv_b_dw_mean(dout, cache):
     dx, dw, db = _conv_backward(dout, cache)
     return dx, dw / len(cache["x"]), db
@@ -988,19 +963,7 @@ conv2d_backward = Check(
     public=_conv_backward_cases(_CONV_PUBLIC, None),
     hidden=lambda rng: _conv_backward_cases(_conv_hidden(rng), rng),
     compare=Nested(_SUMS, names=("dx", "dw", "db")),
-    mistakes=[
-        Mistake("dx by correlation with the unflipped filters", _conv_b_unflipped,
-                "The backward of a correlation is a (full) convolution: each window's dout is spread back with "
-                "w[m, l] at input position (S·i + m, S·j + l)"),
-        Mistake("padding not cropped from dx", _conv_b_padding_kept,
-                "dx must have x's shape: drop the P rows and columns of padding on every side"),
-        Mistake("stride ignored in the backward", _conv_b_stride_ignored,
-                "Output (i, j) came from the window starting at (S·i, S·j): spread its gradient there"),
-        Mistake("db averaged instead of summed", _conv_b_db_mean,
-                "db[f] = dout[:, f].sum(): every output value adds the bias once"),
-        Mistake("dw divided by the batch size", _conv_b_dw_mean,
-                "dw sums over the batch; a mean loss already put 1/N into dout"),
-    ],
+    mistakes=[_conv_b_unflipped, _conv_b_padding_kept, _conv_b_stride_ignored, _conv_b_db_mean, _conv_b_dw_mean],
 )
 
 
@@ -1013,16 +976,21 @@ def _pool_views(x, size, stride):
     return x, v.reshape(v.shape[:4] + (size * size,))
 
 
+@mistake("average instead of max", "Max pooling keeps the largest value of each window")
 def _pool_average(x, size=2, stride=2):
     x, v = _pool_views(x, size, stride)
     return v.mean(axis=-1), {"x": x, "size": size, "stride": stride}
 
 
+@mistake("windows step by their size (stride ignored)",
+         "Windows start every `stride` pixels; with stride < size they overlap")
 def _pool_stride_is_size(x, size=2, stride=2):
     x, v = _pool_views(x, size, size)
     return v.max(axis=-1), {"x": x, "size": size, "stride": stride}
 
 
+@mistake("partial windows at the border kept (ceil)",
+         "Only windows entirely inside the input: Ho = (H − size) // stride + 1")
 def _pool_ceil(x, size=2, stride=2):
     x = _f(x)
     h, w = x.shape[2:]
@@ -1032,6 +1000,7 @@ def _pool_ceil(x, size=2, stride=2):
     return v.max(axis=-1), {"x": x, "size": size, "stride": stride}
 
 
+@mistake("no cache returned (out only)", "Return (out, cache) with cache = {'x': x, 'size': size, 'stride': stride}")
 def _pool_no_cache(x, size=2, stride=2):
     return _pool_forward(x, size, stride)[0]
 
@@ -1076,15 +1045,7 @@ maxpool2d_forward = Check(
     hidden=_pool_hidden,
     compare=_forward_compare(_TIGHT),
     call=call_maxpool2d_forward,
-    mistakes=[
-        Mistake("average instead of max", _pool_average, "Max pooling keeps the largest value of each window"),
-        Mistake("windows step by their size (stride ignored)", _pool_stride_is_size,
-                "Windows start every `stride` pixels; with stride < size they overlap"),
-        Mistake("partial windows at the border kept (ceil)", _pool_ceil,
-                "Only windows entirely inside the input: Ho = (H − size) // stride + 1"),
-        Mistake("no cache returned (out only)", _pool_no_cache,
-                "Return (out, cache) with cache = {'x': x, 'size': size, 'stride': stride}"),
-    ],
+    mistakes=[_pool_average, _pool_stride_is_size, _pool_ceil, _pool_no_cache],
 )
 
 
@@ -1125,26 +1086,36 @@ def _pool_scatter(cache, weights, dout, add=True):
     return dx
 
 
+@mistake("gradient sent to every element of the window",
+         "Only the maximum influenced the output: route dout to the arg-max of each window, 0 elsewhere")
 def _pool_b_everywhere(dout, cache):
     _, w = _pool_winners(cache, "every")
     return _pool_scatter(cache, w.astype(float), dout)
 
 
+@mistake("gradient split evenly over the window (average pooling's)",
+         "That is average pooling's gradient; max pooling routes the whole dout to the maximum")
 def _pool_b_average(dout, cache):
     _, w = _pool_winners(cache, "every")
     return _pool_scatter(cache, w.astype(float) / (cache["size"] ** 2), dout)
 
 
+@mistake("every tied maximum gets the gradient",
+         "On ties only the first maximum in row-major order (np.argmax's rule) gets dout")
 def _pool_b_all_ties(dout, cache):
     _, w = _pool_winners(cache, "all_ties")
     return _pool_scatter(cache, w.astype(float), dout)
 
 
+@mistake("last maximum instead of the first on ties",
+         "np.argmax over the flattened window picks the first maximum in row-major order")
 def _pool_b_last(dout, cache):
     _, w = _pool_winners(cache, "last")
     return _pool_scatter(cache, w.astype(float), dout)
 
 
+@mistake("overlapping windows overwrite instead of adding",
+         "When one element is the maximum of several windows, their gradients add up (+=)")
 def _pool_b_overwrite(dout, cache):
     _, w = _pool_winners(cache, "first")
     return _pool_scatter(cache, w.astype(float), dout, add=False)
@@ -1165,37 +1136,31 @@ maxpool2d_backward = Check(
     public=_pool_backward_cases(_POOL_PUBLIC, None),
     hidden=lambda rng: _pool_backward_cases(_pool_hidden(rng), rng),
     compare=_TIGHT,
-    mistakes=[
-        Mistake("gradient sent to every element of the window", _pool_b_everywhere,
-                "Only the maximum influenced the output: route dout to the arg-max of each window, 0 elsewhere"),
-        Mistake("gradient split evenly over the window (average pooling's)", _pool_b_average,
-                "That is average pooling's gradient; max pooling routes the whole dout to the maximum"),
-        Mistake("every tied maximum gets the gradient", _pool_b_all_ties,
-                "On ties only the first maximum in row-major order (np.argmax's rule) gets dout"),
-        Mistake("last maximum instead of the first on ties", _pool_b_last,
-                "np.argmax over the flattened window picks the first maximum in row-major order"),
-        Mistake("overlapping windows overwrite instead of adding", _pool_b_overwrite,
-                "When one element is the maximum of several windows, their gradients add up (+=)"),
-    ],
+    mistakes=[_pool_b_everywhere, _pool_b_average, _pool_b_all_ties, _pool_b_last, _pool_b_overwrite],
 )
 
 
 # --- global average pooling -------------------------------------------------------------------
+@mistake("sum instead of mean", "Average: divide the sum of each map by H·W (x.mean(axis=(2, 3)))")
 def _gap_sum(x):
     x = _f(x)
     return x.sum(axis=(2, 3)), {"x": x}
 
 
+@mistake("maximum instead of mean (global max pooling)", "Global *average* pooling: the mean")
 def _gap_max(x):
     x = _f(x)
     return x.max(axis=(2, 3)), {"x": x}
 
 
+@mistake("(N, C, 1, 1) kept instead of (N, C)", "Return one vector per sample, shape (N, C), ready for a linear layer")
 def _gap_keepdims(x):
     x = _f(x)
     return x.mean(axis=(2, 3), keepdims=True), {"x": x}
 
 
+@mistake("mean over the channels instead of the positions",
+         "Average over the spatial axes H and W (axis=(2, 3)), one value per channel")
 def _gap_channels(x):
     x = _f(x)
     return x.mean(axis=1), {"x": x}
@@ -1224,28 +1189,25 @@ global_avg_pool_forward = Check(
     hidden=_gap_hidden,
     compare=_forward_compare(_TIGHT),
     call=call_global_avg_pool_forward,
-    mistakes=[
-        Mistake("sum instead of mean", _gap_sum, "Average: divide the sum of each map by H·W (x.mean(axis=(2, 3)))"),
-        Mistake("maximum instead of mean (global max pooling)", _gap_max, "Global *average* pooling: the mean"),
-        Mistake("(N, C, 1, 1) kept instead of (N, C)", _gap_keepdims,
-                "Return one vector per sample, shape (N, C), ready for a linear layer"),
-        Mistake("mean over the channels instead of the positions", _gap_channels,
-                "Average over the spatial axes H and W (axis=(2, 3)), one value per channel"),
-    ],
+    mistakes=[_gap_sum, _gap_max, _gap_keepdims, _gap_channels],
 )
 
 
+@mistake("not divided by H·W", "Each position contributed 1/(H·W) of the mean: dx = dout / (H·W) at every position")
 def _gap_b_not_divided(dout, cache):
     x = _f(cache["x"])
     return np.broadcast_to(_f(dout)[:, :, None, None], x.shape).copy()
 
 
+@mistake("divided by N·H·W", "The mean is per sample and channel: divide by H·W only")
 def _gap_b_divided_by_batch(dout, cache):
     x = _f(cache["x"])
     n, _, h, w = x.shape
     return np.broadcast_to(_f(dout)[:, :, None, None] / (n * h * w), x.shape).copy()
 
 
+@mistake("gradient only at one position",
+         "Every position of the map took part in the mean: spread dout over all of them")
 def _gap_b_one_position(dout, cache):
     x = _f(cache["x"])
     dx = np.zeros(x.shape)
@@ -1253,6 +1215,7 @@ def _gap_b_one_position(dout, cache):
     return dx
 
 
+@mistake("divided by H only", "Divide by the number of positions H·W")
 def _gap_b_divided_by_h(dout, cache):
     x = _f(cache["x"])
     return np.broadcast_to(_f(dout)[:, :, None, None] / x.shape[2], x.shape).copy()
@@ -1270,15 +1233,7 @@ global_avg_pool_backward = Check(
         [c for c in _gap_hidden(rng) if c.label != "1×1 maps (GAP is the identity)"]
         + [Case((np.zeros((2, 3, 2, 5)),), {}, "2×5 maps"), Case((np.zeros((1, 1, 3, 3)),), {}, "3×3 map")], rng),
     compare=_TIGHT,
-    mistakes=[
-        Mistake("not divided by H·W", _gap_b_not_divided,
-                "Each position contributed 1/(H·W) of the mean: dx = dout / (H·W) at every position"),
-        Mistake("divided by N·H·W", _gap_b_divided_by_batch,
-                "The mean is per sample and channel: divide by H·W only"),
-        Mistake("gradient only at one position", _gap_b_one_position,
-                "Every position of the map took part in the mean: spread dout over all of them"),
-        Mistake("divided by H only", _gap_b_divided_by_h, "Divide by the number of positions H·W"),
-    ],
+    mistakes=[_gap_b_not_divided, _gap_b_divided_by_batch, _gap_b_one_position, _gap_b_divided_by_h],
 )
 
 
@@ -1318,34 +1273,49 @@ def _bn_variant(x, gamma, beta, running_mean, running_var, training, momentum=0.
     return out, cache
 
 
+@mistake("running statistics used while training",
+         "In training normalise with the mean and variance of this batch (per channel over N, H, W)")
 def _bn_running_in_training(*a, **k):
     return _bn_variant(*a, **k, norm_stats="running")
 
 
+@mistake("unbiased variance used to normalise",
+         "Normalise with the biased batch variance (divide by n = N·H·W, np.var's default)")
 def _bn_unbiased_norm(*a, **k):
     return _bn_variant(*a, **k, norm_ddof=1)
 
 
+@mistake("biased variance in the running average",
+         "The running variance is updated with the unbiased variance (× n/(n − 1)), as PyTorch does")
 def _bn_biased_running(*a, **k):
     return _bn_variant(*a, **k, run_ddof=0)
 
 
+@mistake("momentum weights swapped: m·old + (1 − m)·batch",
+         "new = (1 − momentum)·old + momentum·batch: momentum is the weight of the current batch")
 def _bn_swapped_momentum(*a, **k):
     return _bn_variant(*a, **k, swap_momentum=True)
 
 
+@mistake("statistics over all channels together",
+         "One mean and one variance per channel: reduce over axes (0, 2, 3) only")
 def _bn_all_channels(*a, **k):
     return _bn_variant(*a, **k, all_channels=True)
 
 
+@mistake("ε added to the standard deviation", "Divide by sqrt(var + eps), with ε inside the square root")
 def _bn_eps_outside(*a, **k):
     return _bn_variant(*a, **k, eps_outside=True)
 
 
+@mistake("running statistics not updated",
+         "In training put (1 − m)·old + m·batch into cache['running_mean'] and cache['running_var']")
 def _bn_not_updated(*a, **k):
     return _bn_variant(*a, **k, update=False)
 
 
+@mistake("batch statistics used in evaluation",
+         "With training=False normalise with running_mean and running_var (and leave them unchanged)")
 def _bn_batch_in_eval(*a, **k):
     return _bn_variant(*a, **k, eval_stats="batch")
 
@@ -1403,24 +1373,8 @@ batchnorm2d_forward = Check(
     hidden=_bn_hidden,
     compare=_forward_compare(_SUMS),
     call=call_batchnorm2d_forward,
-    mistakes=[
-        Mistake("running statistics used while training", _bn_running_in_training,
-                "In training normalise with the mean and variance of this batch (per channel over N, H, W)"),
-        Mistake("unbiased variance used to normalise", _bn_unbiased_norm,
-                "Normalise with the biased batch variance (divide by n = N·H·W, np.var's default)"),
-        Mistake("biased variance in the running average", _bn_biased_running,
-                "The running variance is updated with the unbiased variance (× n/(n − 1)), as PyTorch does"),
-        Mistake("momentum weights swapped: m·old + (1 − m)·batch", _bn_swapped_momentum,
-                "new = (1 − momentum)·old + momentum·batch: momentum is the weight of the current batch"),
-        Mistake("statistics over all channels together", _bn_all_channels,
-                "One mean and one variance per channel: reduce over axes (0, 2, 3) only"),
-        Mistake("ε added to the standard deviation", _bn_eps_outside,
-                "Divide by sqrt(var + eps), with ε inside the square root"),
-        Mistake("running statistics not updated", _bn_not_updated,
-                "In training put (1 − m)·old + m·batch into cache['running_mean'] and cache['running_var']"),
-        Mistake("batch statistics used in evaluation", _bn_batch_in_eval,
-                "With training=False normalise with running_mean and running_var (and leave them unchanged)"),
-    ],
+    mistakes=[_bn_running_in_training, _bn_unbiased_norm, _bn_biased_running, _bn_swapped_momentum, _bn_all_channels,
+              _bn_eps_outside, _bn_not_updated, _bn_batch_in_eval],
 )
 
 
@@ -1567,11 +1521,15 @@ class DropoutStatistics(Comparator):
         return None
 
 
+@mistake("kept units multiplied by p_keep instead of divided",
+         "Inverted dropout divides the kept units by p_keep, so that the expected output equals x")
 def _dropout_scaled_by_p(x, p_keep, training, rng=None):
     out, cache = _dropout_forward(x, p_keep, training, rng)
     return (out * p_keep * p_keep if training else out), cache
 
 
+@mistake("p_keep used as the drop probability",
+         "p_keep is the probability of *keeping* a unit: mask = rng.random(x.shape) < p_keep")
 def _dropout_p_is_drop(x, p_keep, training, rng=None):
     x = _f(x)
     g = np.random.default_rng(rng)
@@ -1581,15 +1539,20 @@ def _dropout_p_is_drop(x, p_keep, training, rng=None):
     return np.where(mask, x / p_keep, 0.0), {"x": x, "p_keep": p_keep, "training": training, "mask": mask}
 
 
+@mistake("kept units not rescaled",
+         "Divide the kept units by p_keep in training (inverted dropout); evaluation is then the identity")
 def _dropout_not_scaled(x, p_keep, training, rng=None):
     out, cache = _dropout_forward(x, p_keep, training, rng)
     return (out * p_keep if training else out), cache
 
 
+@mistake("dropout also applied in evaluation", "With training=False return x unchanged (and no random draw is needed)")
 def _dropout_in_eval(x, p_keep, training, rng=None):
     return _dropout_forward(x, p_keep, True, rng)
 
 
+@mistake("evaluation output scaled by p_keep",
+         "With inverted dropout the scaling happens in training; evaluation returns x as it is")
 def _dropout_scaled_in_eval(x, p_keep, training, rng=None):
     out, cache = _dropout_forward(x, p_keep, training, rng)
     return (out if training else out * p_keep), cache
@@ -1630,29 +1593,21 @@ dropout_forward = Check(
     compare=DropoutStatistics(),
     call=call_dropout_forward,
     seeded=True,
-    mistakes=[
-        Mistake("kept units multiplied by p_keep instead of divided", _dropout_scaled_by_p,
-                "Inverted dropout divides the kept units by p_keep, so that the expected output equals x"),
-        Mistake("p_keep used as the drop probability", _dropout_p_is_drop,
-                "p_keep is the probability of *keeping* a unit: mask = rng.random(x.shape) < p_keep"),
-        Mistake("kept units not rescaled", _dropout_not_scaled,
-                "Divide the kept units by p_keep in training (inverted dropout); evaluation is then the identity"),
-        Mistake("dropout also applied in evaluation", _dropout_in_eval,
-                "With training=False return x unchanged (and no random draw is needed)"),
-        Mistake("evaluation output scaled by p_keep", _dropout_scaled_in_eval,
-                "With inverted dropout the scaling happens in training; evaluation returns x as it is"),
-    ],
+    mistakes=[_dropout_scaled_by_p, _dropout_p_is_drop, _dropout_not_scaled, _dropout_in_eval, _dropout_scaled_in_eval],
 )
 
 
+@mistake("mask not rescaled (dout·mask)", "The forward divided the kept units by p_keep: dx = dout·mask / p_keep")
 def _dropout_b_not_scaled(dout, cache):
     return np.where(cache["mask"], _f(dout), 0.0) if cache["training"] else _f(dout).copy()
 
 
+@mistake("kept gradients multiplied by p_keep", "Divide by p_keep, as the forward did")
 def _dropout_b_times_p(dout, cache):
     return np.where(cache["mask"], _f(dout) * cache["p_keep"], 0.0) if cache["training"] else _f(dout).copy()
 
 
+@mistake("a mask applied in evaluation", "With training=False the layer is the identity: dx = dout")
 def _dropout_b_in_eval(dout, cache):
     mask = np.asarray(cache["mask"])
     if not cache["training"]:
@@ -1660,6 +1615,7 @@ def _dropout_b_in_eval(dout, cache):
     return np.where(mask, _f(dout) / cache["p_keep"], 0.0)
 
 
+@mistake("mask inverted (dropped units get the gradient)", "Only the kept units (mask True) pass the gradient")
 def _dropout_b_inverted(dout, cache):
     if not cache["training"]:
         return _f(dout).copy()
@@ -1684,16 +1640,7 @@ dropout_backward = Check(
     ], None),
     hidden=_dropout_backward_hidden,
     compare=_TIGHT,
-    mistakes=[
-        Mistake("mask not rescaled (dout·mask)", _dropout_b_not_scaled,
-                "The forward divided the kept units by p_keep: dx = dout·mask / p_keep"),
-        Mistake("kept gradients multiplied by p_keep", _dropout_b_times_p,
-                "Divide by p_keep, as the forward did"),
-        Mistake("a mask applied in evaluation", _dropout_b_in_eval,
-                "With training=False the layer is the identity: dx = dout"),
-        Mistake("mask inverted (dropped units get the gradient)", _dropout_b_inverted,
-                "Only the kept units (mask True) pass the gradient"),
-    ],
+    mistakes=[_dropout_b_not_scaled, _dropout_b_times_p, _dropout_b_in_eval, _dropout_b_inverted],
 )
 
 
@@ -1975,6 +1922,7 @@ class SpecAccounting(Comparator):
         return self.inner(mine, spec_summary(expected, name), case)
 
 
+@mistake("VGG convolutions without bias", "VGG's convolutions have a bias (there is no batch norm in VGG-16)")
 def _spec_vgg_no_bias(name, num_classes=1000):
     spec = _arch.architecture_spec(name, num_classes)
     if name.startswith("vgg"):
@@ -1984,6 +1932,9 @@ def _spec_vgg_no_bias(name, num_classes=1000):
     return spec
 
 
+@mistake("ResNet-50 with the stride in the first 1×1 (v1, not v1.5)",
+         "torchvision's ResNet-50 (v1.5 = ResNet-B) puts the stride 2 of a downsampling bottleneck in its 3×3 "
+         "convolution; same parameters, more FLOPs")
 def _spec_resnet50_v1(name, num_classes=1000):
     return _arch.architecture_spec("resnet50_v1" if name == "resnet50" else name, num_classes)
 
@@ -1999,6 +1950,8 @@ def _walk_layers(spec, fn):
                 _walk_layers(branch, fn)
 
 
+@mistake("projection shortcuts without batch norm",
+         "A projection shortcut is a 1×1 convolution with stride, followed by batch norm")
 def _spec_projection_no_bn(name, num_classes=1000):
     spec = _arch.architecture_spec(name, num_classes)
 
@@ -2009,6 +1962,7 @@ def _spec_projection_no_bn(name, num_classes=1000):
     return spec
 
 
+@mistake("ResNet convolutions with bias", "ResNet's convolutions have no bias (the batch norm after them has β)")
 def _spec_resnet_conv_bias(name, num_classes=1000):
     spec = _arch.architecture_spec(name, num_classes)
     if name.startswith("resnet"):
@@ -2019,6 +1973,9 @@ def _spec_resnet_conv_bias(name, num_classes=1000):
     return spec
 
 
+@mistake("Inception 3a without the 1×1 reductions (the naive module)",
+         "Put 1×1 convolutions (96 and 16 channels) before the 3×3 and 5×5 branches, and a 1×1 (32) after "
+         "the pooling")
 def _spec_inception_naive(name, num_classes=1000):
     return _arch.architecture_spec("inception_3a_naive" if name == "inception_3a" else name, num_classes)
 
@@ -2041,20 +1998,8 @@ architecture_spec = Check(
     public=[Case((name,), {}, name) for name in _SPEC_NAMES],
     hidden=_spec_hidden,
     compare=SpecAccounting(),
-    mistakes=[
-        Mistake("VGG convolutions without bias", _spec_vgg_no_bias,
-                "VGG's convolutions have a bias (there is no batch norm in VGG-16)"),
-        Mistake("ResNet-50 with the stride in the first 1×1 (v1, not v1.5)", _spec_resnet50_v1,
-                "torchvision's ResNet-50 (v1.5 = ResNet-B) puts the stride 2 of a downsampling bottleneck in its 3×3 "
-                "convolution; same parameters, more FLOPs"),
-        Mistake("projection shortcuts without batch norm", _spec_projection_no_bn,
-                "A projection shortcut is a 1×1 convolution with stride, followed by batch norm"),
-        Mistake("ResNet convolutions with bias", _spec_resnet_conv_bias,
-                "ResNet's convolutions have no bias (the batch norm after them has β)"),
-        Mistake("Inception 3a without the 1×1 reductions (the naive module)", _spec_inception_naive,
-                "Put 1×1 convolutions (96 and 16 channels) before the 3×3 and 5×5 branches, and a 1×1 (32) after "
-                "the pooling"),
-    ],
+    mistakes=[_spec_vgg_no_bias, _spec_resnet50_v1, _spec_projection_no_bn, _spec_resnet_conv_bias,
+              _spec_inception_naive],
 )
 
 

@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from ..grading import Case, Check, Mistake, Statistics
+from ..grading import Case, Check, Mistake, Statistics, mistake
 from ..grading.casekit import argument as _arg
 from ..grading.casekit import seed as _seed
 from ..grading.casekit import size as _size
@@ -79,26 +79,35 @@ def _gaussian_tolerance(case):
     return tol
 
 
+@mistake("σ used as variance",
+         "σ is the standard deviation: noise = σ·rng.standard_normal(shape), not σ²·rng.standard_normal(shape)")
 def _g_variance(image, sigma, rng=None):
     img = np.asarray(image, dtype=np.float64)
     return img + sigma ** 2 * np.random.default_rng(rng).standard_normal(img.shape)
 
 
+@mistake("clipped to [0, 1]",
+         "Return image + noise as it is: the model I + n is not clipped (and images need not be in [0, 1])")
 def _g_clipped(image, sigma, rng=None):
     img = np.asarray(image, dtype=np.float64)
     return np.clip(img + sigma * np.random.default_rng(rng).standard_normal(img.shape), 0.0, 1.0)
 
 
+@mistake("uniform noise", "Draw from a normal distribution N(0, σ²): rng.normal(0, sigma, shape)")
 def _g_uniform(image, sigma, rng=None):
     img = np.asarray(image, dtype=np.float64)
     return img + np.random.default_rng(rng).uniform(-sigma, sigma, img.shape)
 
 
+@mistake("one noise value for the whole image",
+         "Draw an independent value for every pixel: pass the image's shape to the generator")
 def _g_one_value(image, sigma, rng=None):
     img = np.asarray(image, dtype=np.float64)
     return img + sigma * np.random.default_rng(rng).standard_normal()
 
 
+@mistake("same noise in every colour channel",
+         "Draw the noise with the image's full shape (H, W, 3): every channel gets its own value")
 def _g_same_for_channels(image, sigma, rng=None):
     img = np.asarray(image, dtype=np.float64)
     noise = sigma * np.random.default_rng(rng).standard_normal(img.shape[:2])
@@ -143,18 +152,7 @@ add_gaussian = Check(
     ],
     hidden=_gaussian_hidden,
     compare=Statistics(statistics=_gaussian_statistics, tolerance=_gaussian_tolerance, dtype_kind="f"),
-    mistakes=[
-        Mistake("σ used as variance", _g_variance,
-                "σ is the standard deviation: noise = σ·rng.standard_normal(shape), not σ²·rng.standard_normal(shape)"),
-        Mistake("clipped to [0, 1]", _g_clipped,
-                "Return image + noise as it is: the model I + n is not clipped (and images need not be in [0, 1])"),
-        Mistake("uniform noise", _g_uniform,
-                "Draw from a normal distribution N(0, σ²): rng.normal(0, sigma, shape)"),
-        Mistake("one noise value for the whole image", _g_one_value,
-                "Draw an independent value for every pixel: pass the image's shape to the generator"),
-        Mistake("same noise in every colour channel", _g_same_for_channels,
-                "Draw the noise with the image's full shape (H, W, 3): every channel gets its own value"),
-    ],
+    mistakes=[_g_variance, _g_clipped, _g_uniform, _g_one_value, _g_same_for_channels],
     seeded=True,
 )
 
@@ -216,6 +214,8 @@ def _sp_setup(image, amount, rng):
     return img, n_pixels, int(round(amount * n_pixels)), np.random.default_rng(rng)
 
 
+@mistake("salt and pepper each with fraction amount (twice too many)",
+         "Replace round(amount·H·W) pixels in total, each by high or low with probability 1/2")
 def _sp_twice(image, amount, rng=None, low=0.0, high=1.0):
     img, n_pixels, count, gen = _sp_setup(image, amount, rng)
     flat = img.reshape(n_pixels, -1)
@@ -224,12 +224,15 @@ def _sp_twice(image, amount, rng=None, low=0.0, high=1.0):
     return img
 
 
+@mistake("only salt", "Each replaced pixel gets high or low with probability 1/2 (salt AND pepper)")
 def _sp_only_salt(image, amount, rng=None, low=0.0, high=1.0):
     img, n_pixels, count, gen = _sp_setup(image, amount, rng)
     img.reshape(n_pixels, -1)[gen.choice(n_pixels, count, replace=False)] = high
     return img
 
 
+@mistake("channels replaced independently",
+         "Choose whole pixels: a replaced pixel gets low (or high) in all three channels")
 def _sp_per_channel(image, amount, rng=None, low=0.0, high=1.0):
     img, _, _, gen = _sp_setup(image, amount, rng)
     flat = img.reshape(-1)
@@ -239,6 +242,7 @@ def _sp_per_channel(image, amount, rng=None, low=0.0, high=1.0):
     return img
 
 
+@mistake("low and high ignored (always 0 and 1)", "Use the `low` and `high` arguments (0 and 255 for a uint8 image)")
 def _sp_fixed_values(image, amount, rng=None, low=0.0, high=1.0):
     img, n_pixels, count, gen = _sp_setup(image, amount, rng)
     chosen = gen.choice(n_pixels, count, replace=False)
@@ -246,6 +250,8 @@ def _sp_fixed_values(image, amount, rng=None, low=0.0, high=1.0):
     return img
 
 
+@mistake("pixels drawn with replacement (too few replaced)",
+         "Draw distinct pixels: rng.choice(H * W, size=count, replace=False)")
 def _sp_with_replacement(image, amount, rng=None, low=0.0, high=1.0):
     img, n_pixels, count, gen = _sp_setup(image, amount, rng)
     rows = gen.integers(0, img.shape[0], count)
@@ -295,17 +301,6 @@ add_salt_and_pepper = Check(
     ],
     hidden=_sp_hidden,
     compare=Statistics(statistics=_sp_statistics, tolerance=_sp_tolerance, dtype_kind="f"),
-    mistakes=[
-        Mistake("salt and pepper each with fraction amount (twice too many)", _sp_twice,
-                "Replace round(amount·H·W) pixels in total, each by high or low with probability 1/2"),
-        Mistake("only salt", _sp_only_salt,
-                "Each replaced pixel gets high or low with probability 1/2 (salt AND pepper)"),
-        Mistake("channels replaced independently", _sp_per_channel,
-                "Choose whole pixels: a replaced pixel gets low (or high) in all three channels"),
-        Mistake("low and high ignored (always 0 and 1)", _sp_fixed_values,
-                "Use the `low` and `high` arguments (0 and 255 for a uint8 image)"),
-        Mistake("pixels drawn with replacement (too few replaced)", _sp_with_replacement,
-                "Draw distinct pixels: rng.choice(H * W, size=count, replace=False)"),
-    ],
+    mistakes=[_sp_twice, _sp_only_salt, _sp_per_channel, _sp_fixed_values, _sp_with_replacement],
     seeded=True,
 )

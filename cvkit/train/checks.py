@@ -38,7 +38,7 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
-from ..grading import Case, Check, Comparator, Mismatch, Mistake, Statistics, close
+from ..grading import Case, Check, Comparator, Mismatch, Mistake, Statistics, close, mistake
 from ..grading.casekit import variant
 from ..grading.casekit import argument as _arg
 from ..grading.casekit import seed as _seed
@@ -144,6 +144,8 @@ _sd_continuous = _step_with(lambda e, every: e / every)
 _sd_every_epoch = _step_with(lambda e, every: e)
 
 
+@mistake("divides by drop instead of multiplying",
+         "drop is a factor < 1 that multiplies the rate: lr0 · drop ** k (0.1 divides the rate by ten)")
 def _sd_divides(epoch, lr0, drop=0.1, every=30):
     e, scalar = _as_times(epoch)
     return _scalar_or_array(lr0 / drop ** np.floor(e / every), scalar)
@@ -215,8 +217,7 @@ step_decay = Check(
                 "Step decay is piecewise constant: lr0 · drop ** (epoch // every), with an integer exponent"),
         Mistake("drop applied at every epoch (every ignored)", _sd_every_epoch,
                 "The exponent counts stages, not epochs: epoch // every"),
-        Mistake("divides by drop instead of multiplying", _sd_divides,
-                "drop is a factor < 1 that multiplies the rate: lr0 · drop ** k (0.1 divides the rate by ten)"),
+        _sd_divides,
     ],
 )
 
@@ -228,27 +229,36 @@ def _cosine(e, E, lr0, lr_final):
     return lr_final + 0.5 * (lr0 - lr_final) * (1 + np.cos(e * np.pi / E))
 
 
+@mistake("E − 1 in the denominator (off by one epoch)",
+         "The cosine runs over E epochs: cos(e·π/E) with e = 0 … E, so that epoch E gives lr_final")
 def _cd_off_by_one(epoch, epochs, lr0, lr_final=0.0):
     e, scalar = _as_times(epoch)
     with np.errstate(all="ignore"):
         return _scalar_or_array(_cosine(e, epochs - 1, lr0, lr_final), scalar)
 
 
+@mistake("epochs counted from 1 (e + 1)",
+         "Epoch 0 must give lr0: use cos(e·π/E) with the epoch as given, counted from 0")
 def _cd_from_one(epoch, epochs, lr0, lr_final=0.0):
     e, scalar = _as_times(epoch)
     return _scalar_or_array(_cosine(e + 1, epochs, lr0, lr_final), scalar)
 
 
+@mistake("decays to 0 (lr_final ignored)", "The schedule ends at lr_final: lr_E + ½(lr0 − lr_E)(1 + cos(eπ/E))")
 def _cd_to_zero(epoch, epochs, lr0, lr_final=0.0):
     e, scalar = _as_times(epoch)
     return _scalar_or_array(_cosine(e, epochs, lr0, 0.0), scalar)
 
 
+@mistake("lr_final added instead of blended",
+         "Interpolate between the two rates: lr_E + ½(lr0 − lr_E)(1 + cos(eπ/E)) — the half-cosine multiplies (lr0 − lr_E)")
 def _cd_added(epoch, epochs, lr0, lr_final=0.0):
     e, scalar = _as_times(epoch)
     return _scalar_or_array(lr_final + 0.5 * lr0 * (1 + np.cos(e * np.pi / epochs)), scalar)
 
 
+@mistake("cos instead of ½(1 + cos)",
+         "A plain cosine goes from +1 to −1 and ends below lr_final; ½(1 + cos(eπ/E)) goes from 1 to 0")
 def _cd_plain_cos(epoch, epochs, lr0, lr_final=0.0):
     e, scalar = _as_times(epoch)
     return _scalar_or_array(lr_final + (lr0 - lr_final) * np.cos(e * np.pi / epochs), scalar)
@@ -296,18 +306,7 @@ cosine_decay = Check(
     ],
     hidden=_cosine_hidden,
     compare=_SCHEDULE,
-    mistakes=[
-        Mistake("E − 1 in the denominator (off by one epoch)", _cd_off_by_one,
-                "The cosine runs over E epochs: cos(e·π/E) with e = 0 … E, so that epoch E gives lr_final"),
-        Mistake("epochs counted from 1 (e + 1)", _cd_from_one,
-                "Epoch 0 must give lr0: use cos(e·π/E) with the epoch as given, counted from 0"),
-        Mistake("decays to 0 (lr_final ignored)", _cd_to_zero,
-                "The schedule ends at lr_final: lr_E + ½(lr0 − lr_E)(1 + cos(eπ/E))"),
-        Mistake("lr_final added instead of blended", _cd_added,
-                "Interpolate between the two rates: lr_E + ½(lr0 − lr_E)(1 + cos(eπ/E)) — the half-cosine multiplies (lr0 − lr_E)"),
-        Mistake("cos instead of ½(1 + cos)", _cd_plain_cos,
-                "A plain cosine goes from +1 to −1 and ends below lr_final; ½(1 + cos(eπ/E)) goes from 1 to 0"),
-    ],
+    mistakes=[_cd_off_by_one, _cd_from_one, _cd_to_zero, _cd_added, _cd_plain_cos],
 )
 
 
@@ -327,6 +326,8 @@ _wu_no_clamp = _warm_with(lambda t, W: t / W)
 _wu_ahead = _warm_with(lambda t, W: np.minimum(t + 1, W) / W)
 
 
+@mistake("lr_start ignored (ramps up from 0)",
+         "Ramp from lr_start: lr_start + (lr_target − lr_start) · min(step, W) / W")
 def _wu_from_zero(step, warmup_steps, lr_target, lr_start=0.0):
     t, scalar = _as_times(step)
     with np.errstate(all="ignore"):
@@ -383,8 +384,7 @@ warmup = Check(
                 "After W steps the rate stays at lr_target: min(step, W) / W"),
         Mistake("one step ahead ((step + 1) / W)", _wu_ahead,
                 "Step 0 must give lr_start: the fraction is min(step, W) / W with steps counted from 0"),
-        Mistake("lr_start ignored (ramps up from 0)", _wu_from_zero,
-                "Ramp from lr_start: lr_start + (lr_target − lr_start) · min(step, W) / W"),
+        _wu_from_zero,
     ],
 )
 
@@ -495,22 +495,31 @@ def _apply(params, grads, rule):
     return rule(np.asarray(params, dtype=np.float64), np.asarray(grads, dtype=np.float64))
 
 
+@mistake("weight decay applied after the gradient step",
+         "Decay the OLD parameters: θ_new = (1 − lr·λ)·θ − lr·g, not (1 − lr·λ)·(θ − lr·g)")
 def _wd_after(params, grads, lr, weight_decay):
     return _apply(params, grads, lambda p, g: (1 - lr * weight_decay) * (p - lr * g))
 
 
+@mistake("decay not multiplied by the learning rate",
+         "The shrink factor is (1 − lr·λ): the decay is a gradient step too and scales with lr")
 def _wd_no_lr(params, grads, lr, weight_decay):
     return _apply(params, grads, lambda p, g: (1 - weight_decay) * p - lr * g)
 
 
+@mistake("decay with the wrong sign (1 + lr·λ)",
+         "Weight decay shrinks the parameters towards 0: multiply by (1 − lr·λ)")
 def _wd_sign(params, grads, lr, weight_decay):
     return _apply(params, grads, lambda p, g: (1 + lr * weight_decay) * p - lr * g)
 
 
+@mistake("decay doubled (1 − 2·lr·λ)",
+         "The convention here is the notes' update (1 − lr·λ)θ (the penalty λ/2·‖θ‖²): no factor 2")
 def _wd_twice(params, grads, lr, weight_decay):
     return _apply(params, grads, lambda p, g: (1 - 2 * lr * weight_decay) * p - lr * g)
 
 
+@mistake("gradient added (ascent)", "Step against the gradient: − lr·g")
 def _wd_ascent(params, grads, lr, weight_decay):
     return _apply(params, grads, lambda p, g: (1 - lr * weight_decay) * p + lr * g)
 
@@ -551,18 +560,7 @@ sgd_weight_decay_step = Check(
     ],
     hidden=_sgd_hidden,
     compare=_UPDATE,
-    mistakes=[
-        Mistake("weight decay applied after the gradient step", _wd_after,
-                "Decay the OLD parameters: θ_new = (1 − lr·λ)·θ − lr·g, not (1 − lr·λ)·(θ − lr·g)"),
-        Mistake("decay not multiplied by the learning rate", _wd_no_lr,
-                "The shrink factor is (1 − lr·λ): the decay is a gradient step too and scales with lr"),
-        Mistake("decay with the wrong sign (1 + lr·λ)", _wd_sign,
-                "Weight decay shrinks the parameters towards 0: multiply by (1 − lr·λ)"),
-        Mistake("decay doubled (1 − 2·lr·λ)", _wd_twice,
-                "The convention here is the notes' update (1 − lr·λ)θ (the penalty λ/2·‖θ‖²): no factor 2"),
-        Mistake("gradient added (ascent)", _wd_ascent,
-                "Step against the gradient: − lr·g"),
-    ],
+    mistakes=[_wd_after, _wd_no_lr, _wd_sign, _wd_twice, _wd_ascent],
 )
 
 
@@ -584,6 +582,8 @@ _es_ties = variant(_es_scan, improves=lambda l, b, ls, i: l <= b, stop=lambda i,
 _es_late = variant(_es_scan, improves=lambda l, b, ls, i: l < b, stop=lambda i, b, p, ls: i - b > p)
 
 
+@mistake("counts from the previous epoch, not from the best",
+         "Compare with the best loss so far (argmin of the losses up to i), not with the loss of the epoch before")
 def _es_previous(val_losses, patience):
     """Counts epochs since the loss last went down (from the previous epoch), not since the best."""
     losses = [float(v) for v in np.asarray(val_losses, dtype=np.float64)]
@@ -661,8 +661,7 @@ early_stopping = Check(
                 "Only a strictly lower loss is a new best: argmin returns the FIRST minimum (use <, not <=)"),
         Mistake("stops one epoch late (> patience)", _es_late,
                 "Stop at the first epoch i with i − best ≥ patience (≥, not >)"),
-        Mistake("counts from the previous epoch, not from the best", _es_previous,
-                "Compare with the best loss so far (argmin of the losses up to i), not with the loss of the epoch before"),
+        _es_previous,
         Mistake("returns the best epoch instead of the stopping epoch", _es_best,
                 "Return the epoch i at which training stops; the best epoch argmin(losses[:i+1]) is where to restore the weights from"),
         Mistake("never returns None (the last epoch instead)", _es_never_none,
@@ -681,22 +680,29 @@ def _smooth(y, classes, on, off):
     return out
 
 
+@mistake("PyTorch's convention (ε/C on every class)",
+         "The notes put 1 − ε on the true class and ε/(C − 1) on each OTHER class (PyTorch spreads ε over all C)")
 def _ls_torch(y, classes, eps):
     return _smooth(y, classes, 1 - eps + eps / classes, eps / classes)
 
 
+@mistake("ε/C on the other classes (rows sum to less than 1)",
+         "The mass ε is shared by the C − 1 other classes: ε/(C − 1) each, so that every row sums to 1")
 def _ls_over_c(y, classes, eps):
     return _smooth(y, classes, 1 - eps, eps / classes)
 
 
+@mistake("ε on every other class (not divided)", "Divide ε among the C − 1 other classes: ε/(C − 1)")
 def _ls_not_divided(y, classes, eps):
     return _smooth(y, classes, 1 - eps, eps)
 
 
+@mistake("true class left at 1", "The true class gets 1 − ε (the mass given to the others comes from it)")
 def _ls_true_one(y, classes, eps):
     return _smooth(y, classes, 1.0, eps / (classes - 1))
 
 
+@mistake("1 − ε and ε swapped", "The true class keeps most of the mass, 1 − ε; the others share ε")
 def _ls_swapped(y, classes, eps):
     return _smooth(y, classes, eps, (1 - eps) / (classes - 1))
 
@@ -736,18 +742,7 @@ smooth_labels = Check(
     ],
     hidden=_ls_hidden,
     compare=close(rtol=1e-12, atol=1e-15, kind="f"),
-    mistakes=[
-        Mistake("PyTorch's convention (ε/C on every class)", _ls_torch,
-                "The notes put 1 − ε on the true class and ε/(C − 1) on each OTHER class (PyTorch spreads ε over all C)"),
-        Mistake("ε/C on the other classes (rows sum to less than 1)", _ls_over_c,
-                "The mass ε is shared by the C − 1 other classes: ε/(C − 1) each, so that every row sums to 1"),
-        Mistake("ε on every other class (not divided)", _ls_not_divided,
-                "Divide ε among the C − 1 other classes: ε/(C − 1)"),
-        Mistake("true class left at 1", _ls_true_one,
-                "The true class gets 1 − ε (the mass given to the others comes from it)"),
-        Mistake("1 − ε and ε swapped", _ls_swapped,
-                "The true class keeps most of the mass, 1 − ε; the others share ε"),
-    ],
+    mistakes=[_ls_torch, _ls_over_c, _ls_not_divided, _ls_true_one, _ls_swapped],
 )
 
 
@@ -1661,24 +1656,31 @@ def _stack(logits_list):
         else np.asarray(logits_list, dtype=np.float64)
 
 
+@mistake("summed instead of averaged",
+         "Average the logits: divide the sum by the number of models (np.mean(..., axis=0))")
 def _ep_sum(logits_list):
     return _stack(logits_list).sum(axis=0)
 
 
+@mistake("averaged softmax probabilities instead of logits",
+         "This ensemble averages the LOGITS (scores before the softmax)")
 def _ep_probs(logits_list):
     s = _stack(logits_list)
     e = np.exp(s - s.max(axis=-1, keepdims=True))
     return (e / e.sum(axis=-1, keepdims=True)).mean(axis=0)
 
 
+@mistake("only the first model", "Average over all the models of the list")
 def _ep_first(logits_list):
     return _stack(logits_list)[0]
 
 
+@mistake("maximum over the models", "Average the models' logits, do not take their maximum")
 def _ep_max(logits_list):
     return _stack(logits_list).max(axis=0)
 
 
+@mistake("median over the models", "Use the mean of the logits, not their median")
 def _ep_median(logits_list):
     return np.median(_stack(logits_list), axis=0)
 
@@ -1720,15 +1722,7 @@ ensemble_predict = Check(
     ],
     hidden=_ep_hidden,
     compare=close(rtol=1e-9, atol=1e-12, kind="f", scaled=True),
-    mistakes=[
-        Mistake("summed instead of averaged", _ep_sum,
-                "Average the logits: divide the sum by the number of models (np.mean(..., axis=0))"),
-        Mistake("averaged softmax probabilities instead of logits", _ep_probs,
-                "This ensemble averages the LOGITS (scores before the softmax)"),
-        Mistake("only the first model", _ep_first, "Average over all the models of the list"),
-        Mistake("maximum over the models", _ep_max, "Average the models' logits, do not take their maximum"),
-        Mistake("median over the models", _ep_median, "Use the mean of the logits, not their median"),
-    ],
+    mistakes=[_ep_sum, _ep_probs, _ep_first, _ep_max, _ep_median],
 )
 
 
@@ -1742,18 +1736,23 @@ def _ema_apply(ema_params, params, rule):
     return rule(np.asarray(ema_params, dtype=np.float64), np.asarray(params, dtype=np.float64))
 
 
+@mistake("decay applied inverted ((1 − β)·ema + β·params)",
+         "β weighs the PAST: ema_new = β·ema + (1 − β)·params (β = 0.999 moves the average slowly)")
 def _ema_inverted(ema_params, params, decay=0.999):
     return _ema_apply(ema_params, params, lambda a, p: (1 - decay) * a + decay * p)
 
 
+@mistake("plain mean of the two (decay ignored)", "Weigh the two by the decay: β·ema + (1 − β)·params")
 def _ema_plain_mean(ema_params, params, decay=0.999):
     return _ema_apply(ema_params, params, lambda a, p: 0.5 * (a + p))
 
 
+@mistake("current weights not scaled by (1 − β)", "The two weights must sum to 1: β·ema + (1 − β)·params")
 def _ema_no_complement(ema_params, params, decay=0.999):
     return _ema_apply(ema_params, params, lambda a, p: decay * a + p)
 
 
+@mistake("returns the current weights (no averaging)", "Return the new running average, not the current weights")
 def _ema_params_only(ema_params, params, decay=0.999):
     return _ema_apply(ema_params, params, lambda a, p: p.copy())
 
@@ -1790,14 +1789,5 @@ ema_update = Check(
     ],
     hidden=_ema_hidden,
     compare=_UPDATE,
-    mistakes=[
-        Mistake("decay applied inverted ((1 − β)·ema + β·params)", _ema_inverted,
-                "β weighs the PAST: ema_new = β·ema + (1 − β)·params (β = 0.999 moves the average slowly)"),
-        Mistake("plain mean of the two (decay ignored)", _ema_plain_mean,
-                "Weigh the two by the decay: β·ema + (1 − β)·params"),
-        Mistake("current weights not scaled by (1 − β)", _ema_no_complement,
-                "The two weights must sum to 1: β·ema + (1 − β)·params"),
-        Mistake("returns the current weights (no averaging)", _ema_params_only,
-                "Return the new running average, not the current weights"),
-    ],
+    mistakes=[_ema_inverted, _ema_plain_mean, _ema_no_complement, _ema_params_only],
 )

@@ -23,7 +23,7 @@ from ..camera import distort as _distort
 from ..camera import rotation_matrix as _rotation_matrix
 from ..camera import undistort_points as _undistort_points
 from ..camera.checks import FloatClose
-from ..grading import Case, Check, Close, Comparator, Mistake
+from ..grading import Case, Check, Close, Comparator, Mistake, mistake
 from ..grading.casekit import argument as _argument
 from ..grading.casekit import uniform as _u
 from ._sampling import bilinear_sample as _bilinear_sample
@@ -132,6 +132,8 @@ def _texture(rng, rows, cols, color=False, dtype="float"):
 # --------------------------------------------------------------------------------------------
 # warp.bilinear_sample (§8.4.2)
 # --------------------------------------------------------------------------------------------
+@mistake("bilinear weights swapped (a on the left pixel)",
+         "With a = x − x0 the RIGHT pixel (x0 + 1) gets weight a and the left one 1 − a (same for b in y)")
 def _bs_swapped_weights(image, x, y, fill=0.0):
     img = np.asarray(image, dtype=np.float64)
     H, W = img.shape[:2]
@@ -150,10 +152,13 @@ def _bs_swapped_weights(image, x, y, fill=0.0):
     return np.where(inside, out, float(fill))
 
 
+@mistake("x and y swapped (image[x, y])", "Images are indexed [row, col] = [y, x]: read image[y0, x0]")
 def _bs_xy_swapped(image, x, y, fill=0.0):
     return _bilinear_sample(image, y, x, fill)
 
 
+@mistake("outside positions clamped to the border (fill ignored)",
+         "Positions with x < 0, x > W − 1, y < 0 or y > H − 1 (and NaN) get `fill`, not the border value")
 def _bs_clamped(image, x, y, fill=0.0):
     img = np.asarray(image)
     H, W = img.shape[:2]
@@ -162,6 +167,8 @@ def _bs_clamped(image, x, y, fill=0.0):
     return _bilinear_sample(image, x, y, fill)
 
 
+@mistake("last row and column treated as outside",
+         "x = W − 1 and y = H − 1 are inside: use ≤, and clip x0 to W − 2 so that x0 + 1 stays in the image")
 def _bs_last_outside(image, x, y, fill=0.0):
     img = np.asarray(image)
     H, W = img.shape[:2]
@@ -175,12 +182,15 @@ def _bs_last_outside(image, x, y, fill=0.0):
     return np.where(edge, float(fill), out)
 
 
+@mistake("nearest neighbour instead of bilinear",
+         "Interpolate between the four neighbours, weighted by the areas (1 − a)(1 − b), a(1 − b), (1 − a)b, ab")
 def _bs_nearest(image, x, y, fill=0.0):
     with np.errstate(invalid="ignore"):
         return _bilinear_sample(image, np.round(np.asarray(x, dtype=np.float64)),
                                 np.round(np.asarray(y, dtype=np.float64)), fill)
 
 
+@mistake("fill ignored (0 outside)", "Use the `fill` argument for positions outside the image")
 def _bs_fill_zero(image, x, y, fill=0.0):
     return _bilinear_sample(image, x, y, 0.0)
 
@@ -242,25 +252,15 @@ bilinear_sample = Check(
     public=_bs_public,
     hidden=_bs_hidden,
     compare=FloatClose(rtol=1e-10, atol=1e-10),
-    mistakes=[
-        Mistake("bilinear weights swapped (a on the left pixel)", _bs_swapped_weights,
-                "With a = x − x0 the RIGHT pixel (x0 + 1) gets weight a and the left one 1 − a (same for b in y)"),
-        Mistake("x and y swapped (image[x, y])", _bs_xy_swapped,
-                "Images are indexed [row, col] = [y, x]: read image[y0, x0]"),
-        Mistake("outside positions clamped to the border (fill ignored)", _bs_clamped,
-                "Positions with x < 0, x > W − 1, y < 0 or y > H − 1 (and NaN) get `fill`, not the border value"),
-        Mistake("last row and column treated as outside", _bs_last_outside,
-                "x = W − 1 and y = H − 1 are inside: use ≤, and clip x0 to W − 2 so that x0 + 1 stays in the image"),
-        Mistake("nearest neighbour instead of bilinear", _bs_nearest,
-                "Interpolate between the four neighbours, weighted by the areas (1 − a)(1 − b), a(1 − b), (1 − a)b, ab"),
-        Mistake("fill ignored (0 outside)", _bs_fill_zero, "Use the `fill` argument for positions outside the image"),
-    ],
+    mistakes=[_bs_swapped_weights, _bs_xy_swapped, _bs_clamped, _bs_last_outside, _bs_nearest, _bs_fill_zero],
 )
 
 
 # --------------------------------------------------------------------------------------------
 # warp.warp_homography (§8.4.2)
 # --------------------------------------------------------------------------------------------
+@mistake("forward mapping (input pixels pushed through H)",
+         "Map BACKWARD: for every output pixel (x', y') read the input at H⁻¹·(x', y', 1) — no holes, no folds")
 def _wh_forward(image, H, output_shape, fill=0.0):
     img = np.asarray(image, dtype=np.float64)
     H = np.asarray(H, dtype=np.float64)
@@ -275,14 +275,19 @@ def _wh_forward(image, H, output_shape, fill=0.0):
     return out
 
 
+@mistake("H used instead of H⁻¹ (inverted the wrong way)",
+         "H maps input to output, so an output pixel comes from H⁻¹·(x', y', 1)")
 def _wh_not_inverted(image, H, output_shape, fill=0.0):
     return _warp_homography(image, np.linalg.inv(np.asarray(H, dtype=np.float64)), output_shape, fill)
 
 
+@mistake("output_shape read as (width, height)", "output_shape is (rows, cols), like image.shape")
 def _wh_shape_swapped(image, H, output_shape, fill=0.0):
     return _warp_homography(image, H, (output_shape[1], output_shape[0]), fill)
 
 
+@mistake("no division by w (only the affine part)",
+         "Divide by the third coordinate: (x, y) = (x̃/w, ỹ/w) with (x̃, ỹ, w) = H⁻¹·(x', y', 1)")
 def _wh_affine(image, H, output_shape, fill=0.0):
     H = np.asarray(H, dtype=np.float64)
     A = H / H[2, 2]
@@ -290,6 +295,8 @@ def _wh_affine(image, H, output_shape, fill=0.0):
     return _warp_homography(image, A, output_shape, fill)
 
 
+@mistake("nearest neighbour instead of bilinear",
+         "Sample the input bilinearly at the real-valued source position (do not round it)")
 def _wh_nearest(image, H, output_shape, fill=0.0):
     rows, cols = int(output_shape[0]), int(output_shape[1])
     inv = np.linalg.inv(np.asarray(H, dtype=np.float64))
@@ -300,6 +307,8 @@ def _wh_nearest(image, H, output_shape, fill=0.0):
     return _bilinear_sample(image, np.round(x), np.round(y), fill)
 
 
+@mistake("x and y of the output grid swapped",
+         "x' runs along the columns and y' along the rows: np.meshgrid(np.arange(cols), np.arange(rows))")
 def _wh_grid_swapped(image, H, output_shape, fill=0.0):
     rows, cols = int(output_shape[0]), int(output_shape[1])
     inv = np.linalg.inv(np.asarray(H, dtype=np.float64))
@@ -358,20 +367,7 @@ warp_homography = Check(
     public=_wh_public,
     hidden=_wh_hidden,
     compare=WarpClose(sources=_warp_sources),
-    mistakes=[
-        Mistake("forward mapping (input pixels pushed through H)", _wh_forward,
-                "Map BACKWARD: for every output pixel (x', y') read the input at H⁻¹·(x', y', 1) — no holes, no folds"),
-        Mistake("H used instead of H⁻¹ (inverted the wrong way)", _wh_not_inverted,
-                "H maps input to output, so an output pixel comes from H⁻¹·(x', y', 1)"),
-        Mistake("output_shape read as (width, height)", _wh_shape_swapped,
-                "output_shape is (rows, cols), like image.shape"),
-        Mistake("no division by w (only the affine part)", _wh_affine,
-                "Divide by the third coordinate: (x, y) = (x̃/w, ỹ/w) with (x̃, ỹ, w) = H⁻¹·(x', y', 1)"),
-        Mistake("nearest neighbour instead of bilinear", _wh_nearest,
-                "Sample the input bilinearly at the real-valued source position (do not round it)"),
-        Mistake("x and y of the output grid swapped", _wh_grid_swapped,
-                "x' runs along the columns and y' along the rows: np.meshgrid(np.arange(cols), np.arange(rows))"),
-    ],
+    mistakes=[_wh_forward, _wh_not_inverted, _wh_shape_swapped, _wh_affine, _wh_nearest, _wh_grid_swapped],
     allowed=("warp.bilinear_sample",),
 )
 
@@ -402,11 +398,16 @@ def _ui_to_pixels(A, xy):
     return A[0, 0] * xy[:, 0] + A[0, 1] * xy[:, 1] + A[0, 2], A[1, 1] * xy[:, 1] + A[1, 2]
 
 
+@mistake("distortion inverted (undistort_points used for the source)",
+         "Map backward: an output (ideal) pixel's source is where the lens MOVES it, A·distort(A⁻¹·(u, v, 1)) "
+         "— no inversion of the distortion is needed")
 def _ui_inverted(image, A, k, p=(0.0, 0.0)):
     A, xy = _ui_grid(image, A)
     return _ui_sample(image, A, *_ui_to_pixels(A, _undistort_points(xy, k, p)))
 
 
+@mistake("distortion about the image centre (principal point ignored)",
+         "Normalise with A⁻¹: x = (u − u0 − s·y)/fu, y = (v − v0)/fv, with the principal point (u0, v0) of A")
 def _ui_image_centre(image, A, k, p=(0.0, 0.0)):
     rows, cols = np.asarray(image).shape[:2]
     A = np.array(A, dtype=np.float64)
@@ -415,15 +416,20 @@ def _ui_image_centre(image, A, k, p=(0.0, 0.0)):
     return _undistort_image(image, A, k, p)
 
 
+@mistake("tangential terms ignored", "Pass p to the distortion model as well")
 def _ui_no_tangential(image, A, k, p=(0.0, 0.0)):
     return _undistort_image(image, A, k, (0.0, 0.0))
 
 
+@mistake("outside samples clamped to the border (no black)", "Pixels whose source is outside the input must be 0")
 def _ui_clamped(image, A, k, p=(0.0, 0.0)):
     A, xy = _ui_grid(image, A)
     return _ui_sample(image, A, *_ui_to_pixels(A, _distort(xy, k, p)), clamp=True)
 
 
+@mistake("distortion in pixel units (not normalised by fu, fv)",
+         "Distortion acts on normalised coordinates x = (u − u0)/fu, y = (v − v0)/fv (apply A⁻¹), not on "
+         "pixels scaled otherwise")
 def _ui_pixels(image, A, k, p=(0.0, 0.0)):
     """Distortion applied to pixel offsets from the principal point divided by the image width."""
     rows, cols = np.asarray(image).shape[:2]
@@ -479,19 +485,7 @@ undistort_image = Check(
     public=_ui_public,
     hidden=_ui_hidden,
     compare=WarpClose(sources=_undistort_sources),
-    mistakes=[
-        Mistake("distortion inverted (undistort_points used for the source)", _ui_inverted,
-                "Map backward: an output (ideal) pixel's source is where the lens MOVES it, A·distort(A⁻¹·(u, v, 1)) "
-                "— no inversion of the distortion is needed"),
-        Mistake("distortion about the image centre (principal point ignored)", _ui_image_centre,
-                "Normalise with A⁻¹: x = (u − u0 − s·y)/fu, y = (v − v0)/fv, with the principal point (u0, v0) of A"),
-        Mistake("tangential terms ignored", _ui_no_tangential, "Pass p to the distortion model as well"),
-        Mistake("outside samples clamped to the border (no black)", _ui_clamped,
-                "Pixels whose source is outside the input must be 0"),
-        Mistake("distortion in pixel units (not normalised by fu, fv)", _ui_pixels,
-                "Distortion acts on normalised coordinates x = (u − u0)/fu, y = (v − v0)/fv (apply A⁻¹), not on "
-                "pixels scaled otherwise"),
-    ],
+    mistakes=[_ui_inverted, _ui_image_centre, _ui_no_tangential, _ui_clamped, _ui_pixels],
     allowed=("warp.bilinear_sample", "camera.distort"),
 )
 
@@ -506,21 +500,26 @@ def _rot_probes(case):
     return np.column_stack([A[0, 2] + offsets[:, 0] * A[0, 0], A[1, 2] + offsets[:, 1] * A[1, 1]])
 
 
+@mistake("A⁻¹·R·A (inverted the wrong way)",
+         "A pixel m is back-projected by A⁻¹, rotated by R, re-projected by A: H = A·R·A⁻¹")
 def _rh_wrong_way(A, R):
     A = np.asarray(A, dtype=np.float64)
     H = np.linalg.inv(A) @ np.asarray(R, dtype=np.float64) @ A
     return H / H[2, 2]
 
 
+@mistake("Rᵀ used (the opposite rotation)", "Use R itself: M_C′ = R·M_C")
 def _rh_transposed(A, R):
     return _rotation_homography(A, np.asarray(R, dtype=np.float64).T)
 
 
+@mistake("not scaled to H[2, 2] = 1", "Divide H by H[2, 2]")
 def _rh_not_scaled(A, R):
     A = np.asarray(A, dtype=np.float64)
     return A @ np.asarray(R, dtype=np.float64) @ np.linalg.inv(A)
 
 
+@mistake("A⁻¹ missing (H = A·R)", "First go back from pixels to rays with A⁻¹: H = A·R·A⁻¹")
 def _rh_no_inverse(A, R):
     H = np.asarray(A, dtype=np.float64) @ np.asarray(R, dtype=np.float64)
     return H / H[2, 2]
@@ -564,14 +563,7 @@ rotation_homography = Check(
     public=_roh_public,
     hidden=_roh_hidden,
     compare=HomographyClose(atol=1e-6, rtol=1e-9, probes=_rot_probes),
-    mistakes=[
-        Mistake("A⁻¹·R·A (inverted the wrong way)", _rh_wrong_way,
-                "A pixel m is back-projected by A⁻¹, rotated by R, re-projected by A: H = A·R·A⁻¹"),
-        Mistake("Rᵀ used (the opposite rotation)", _rh_transposed, "Use R itself: M_C′ = R·M_C"),
-        Mistake("not scaled to H[2, 2] = 1", _rh_not_scaled, "Divide H by H[2, 2]"),
-        Mistake("A⁻¹ missing (H = A·R)", _rh_no_inverse,
-                "First go back from pixels to rays with A⁻¹: H = A·R·A⁻¹"),
-    ],
+    mistakes=[_rh_wrong_way, _rh_transposed, _rh_not_scaled, _rh_no_inverse],
 )
 
 
@@ -590,23 +582,30 @@ def _be_exact(src, dst):
     return np.append(np.linalg.solve(np.array(M), np.array(b)), 1.0).reshape(3, 3)
 
 
+@mistake("pixels_per_unit ignored", "The destination of image point i is ground_points[i]·pixels_per_unit")
 def _be_no_scale(image_points, ground_points, pixels_per_unit):
     return _be_exact(image_points, ground_points)
 
 
+@mistake("direction inverted (ground → image)",
+         "H maps image points to the bird's-eye view: src = image_points, dst = ground_points·scale")
 def _be_inverted(image_points, ground_points, pixels_per_unit):
     return _be_exact(np.asarray(ground_points, dtype=np.float64) * float(pixels_per_unit), image_points)
 
 
+@mistake("ground x and y swapped", "Keep the ground points' (x, y) order")
 def _be_xy_swapped(image_points, ground_points, pixels_per_unit):
     return _be_exact(image_points, np.asarray(ground_points, dtype=np.float64)[:, ::-1] * float(pixels_per_unit))
 
 
+@mistake("not scaled to H[2, 2] = 1", "Divide H by H[2, 2]")
 def _be_not_scaled(image_points, ground_points, pixels_per_unit):
     H = _birds_eye_homography(image_points, ground_points, pixels_per_unit)
     return H / np.linalg.norm(H)
 
 
+@mistake("scale applied to the image points",
+         "Scale the GROUND points (metres → pixels of the bird's-eye image), not the image points")
 def _be_scale_on_image(image_points, ground_points, pixels_per_unit):
     return _be_exact(np.asarray(image_points, dtype=np.float64) * float(pixels_per_unit), ground_points)
 
@@ -660,15 +659,6 @@ birds_eye_homography = Check(
     public=_be_public,
     hidden=_be_hidden,
     compare=HomographyClose(atol=1e-6, rtol=1e-9),
-    mistakes=[
-        Mistake("pixels_per_unit ignored", _be_no_scale,
-                "The destination of image point i is ground_points[i]·pixels_per_unit"),
-        Mistake("direction inverted (ground → image)", _be_inverted,
-                "H maps image points to the bird's-eye view: src = image_points, dst = ground_points·scale"),
-        Mistake("ground x and y swapped", _be_xy_swapped, "Keep the ground points' (x, y) order"),
-        Mistake("not scaled to H[2, 2] = 1", _be_not_scaled, "Divide H by H[2, 2]"),
-        Mistake("scale applied to the image points", _be_scale_on_image,
-                "Scale the GROUND points (metres → pixels of the bird's-eye image), not the image points"),
-    ],
+    mistakes=[_be_no_scale, _be_inverted, _be_xy_swapped, _be_not_scaled, _be_scale_on_image],
     allowed=("calibration.homography_dlt",),
 )
