@@ -84,7 +84,7 @@ from __future__ import annotations
 import numpy as np
 
 import cvkit
-from cvkit.grading import Case, Check, Mistake, close
+from cvkit.grading import Case, Check, close, mistake
 
 
 def _public() -> list[Case]:
@@ -99,6 +99,7 @@ def _hidden(rng: np.random.Generator) -> list[Case]:
             for i in range(4)]
 
 
+@mistake("TODO name of the mistake", "TODO: the advice that fixes it")
 def _todo_mistake(image):
     """TODO: a typical wrong version of {name} (e.g. the formula with a factor missing)."""
     raise NotImplementedError("write the wrong version students typically write")
@@ -108,7 +109,7 @@ CHECK = Check(
     public=_public,
     hidden=_hidden,
     compare=close(rtol=1e-10, atol=1e-12),
-    mistakes=[Mistake("TODO name of the mistake", _todo_mistake, hint="TODO: the advice that fixes it")],
+    mistakes=[_todo_mistake],  # the bank, in the order the feedback tries them
     allowed=(),  # ids of building blocks students may call, e.g. ("filters.pad",)
 )
 

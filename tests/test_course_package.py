@@ -93,7 +93,7 @@ def test_scaffold_writes_the_files_the_how_to_shows(tmp_path, monkeypatch, capsy
     module = (package / "mycourse" / "gamma_correction.py").read_text()
     compile(module, "gamma_correction.py", "exec")
     assert '@cvkit.algorithm("mycourse.gamma_correction", section="2.12", check=CHECK)' in module
-    assert "Mistake(" in module and "def _hidden(rng" in module and "def _public()" in module
+    assert "@mistake(" in module and "mistakes=[_todo_mistake]" in module and "def _hidden(rng" in module and "def _public()" in module
     # the example package is what the scaffold writes, filled in
     for name in ("pyproject.toml", "mycourse/__init__.py"):
         assert (package / name).read_text() == (EXAMPLE / name).read_text(), name

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 import cvkit
-from cvkit.grading import Case, Check, Mistake, close
+from cvkit.grading import Case, Check, close, mistake
 
 
 def _public() -> list[Case]:
@@ -30,14 +30,18 @@ def _hidden(rng: np.random.Generator) -> list[Case]:
     return cases
 
 
+@mistake("1/gamma instead of gamma",
+         "The exponent is gamma itself: (I / vmax) ** gamma; 1 / gamma undoes the correction")
 def _inverse_gamma(image, gamma, vmax=1.0):
     return vmax * (np.asarray(image, dtype=np.float64) / vmax) ** (1.0 / gamma)
 
 
+@mistake("gamma applied as multiplication", "Gamma is an exponent, not a gain: raise I / vmax to the power gamma")
 def _times_gamma(image, gamma, vmax=1.0):
     return np.asarray(image, dtype=np.float64) * gamma
 
 
+@mistake("vmax ignored", "Divide by vmax before raising to the power gamma, and multiply by vmax after")
 def _not_normalised(image, gamma, vmax=1.0):
     return np.asarray(image, dtype=np.float64) ** gamma
 
@@ -46,14 +50,7 @@ CHECK = Check(
     public=_public,
     hidden=_hidden,
     compare=close(rtol=1e-9, atol=1e-12),
-    mistakes=[
-        Mistake("1/gamma instead of gamma", _inverse_gamma,
-                hint="The exponent is gamma itself: (I / vmax) ** gamma; 1 / gamma undoes the correction"),
-        Mistake("gamma applied as multiplication", _times_gamma,
-                hint="Gamma is an exponent, not a gain: raise I / vmax to the power gamma"),
-        Mistake("vmax ignored", _not_normalised,
-                hint="Divide by vmax before raising to the power gamma, and multiply by vmax after"),
-    ],
+    mistakes=[_inverse_gamma, _times_gamma, _not_normalised],
 )
 
 
