@@ -1,11 +1,15 @@
 """The execution step of autograding (cvkit.grading.execute): nbgrader's sanitizing rules,
 then a run that records errors, goes on after them and interrupts a cell past its limit."""
 import copy
+import itertools
 import json
 import subprocess
 import sys
 
 from cvkit.grading.execute import TIMEOUT_ERROR, execute, prepare
+
+
+_IDS = itertools.count()
 
 
 def _cell(source, grade_id=None, *, solution=False, grade=False, locked=False, outputs=None):
@@ -15,8 +19,8 @@ def _cell(source, grade_id=None, *, solution=False, grade=False, locked=False, o
                             "schema_version": 3}
         if grade:
             meta["nbgrader"]["points"] = 1
-    return {"cell_type": "code", "source": source, "metadata": meta, "execution_count": 3 if outputs else None,
-            "outputs": outputs or []}
+    return {"cell_type": "code", "id": f"cell-{next(_IDS)}", "source": source,
+            "metadata": meta, "execution_count": 3 if outputs else None, "outputs": outputs or []}
 
 
 FAKE_PASS = [{"output_type": "stream", "name": "stdout", "text": "all tests passed\n"}]
