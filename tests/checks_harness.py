@@ -19,7 +19,7 @@ from unittest import mock
 import numpy as np
 
 from cvkit import registry
-from cvkit.grading import engine, evaluate
+from cvkit.grading import Check, engine, evaluate
 
 BORDERS = frozenset({"zero", "replicate", "reflect", "reflect101"})
 
@@ -114,11 +114,40 @@ class _Outputs:
 _OUTPUTS = _Outputs()
 
 
+class _Draws:
+    """The hidden cases of a check by (case generator, starting state of the generator's
+    random numbers), for this test process: every mistake of a bank is graded on the same
+    seeds, and drawing some cases is slow (the calibration chapter renders chessboards). A
+    draw is a deterministic function of the two, so a kept draw is the same cases; each use
+    gets its own deep copy. Only draws that took at least ``SLOW`` seconds are kept."""
+
+    SLOW = 0.02
+
+    def __init__(self):
+        self.kept = {}
+        self.draw = Check.hidden_cases
+
+    def __call__(self, spec, rng):
+        key = (spec.hidden, repr(rng.bit_generator.state))
+        if key in self.kept:
+            return copy.deepcopy(self.kept[key])
+        start = time.perf_counter()
+        cases = self.draw(spec, rng)
+        if time.perf_counter() - start >= self.SLOW:
+            self.kept[key] = copy.deepcopy(cases)
+        return cases
+
+
+_DRAWS = _Draws()
+
+
 @contextlib.contextmanager
 def reusing_known_outputs():
-    """Within: the engine reuses the reference's and the mistakes' slow outputs (:class:`_Outputs`)."""
+    """Within: the engine reuses the reference's and the mistakes' slow outputs (:class:`_Outputs`)
+    and the slow draws of hidden cases (:class:`_Draws`)."""
     with mock.patch.object(engine, "_reference_output", _OUTPUTS.reference), \
-            mock.patch.object(engine, "_mistake_output", _OUTPUTS.mistake):
+            mock.patch.object(engine, "_mistake_output", _OUTPUTS.mistake), \
+            mock.patch.object(Check, "hidden_cases", lambda spec, rng: _DRAWS(spec, rng)):
         yield
 
 

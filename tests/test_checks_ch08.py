@@ -161,6 +161,21 @@ def test_every_algorithm_has_an_alternative():
     assert set(alt.ALTERNATIVES) == set(CH08)
 
 
+def test_the_harness_keeps_a_draw_as_the_same_cases():
+    """The tests reuse slow draws of hidden cases (checks_harness._Draws): a kept draw is the
+    same cases as a fresh one, and each use gets its own copy."""
+    import pickle
+
+    spec = registry.get("calibration.find_chessboard_corners").check
+    fresh = spec.hidden_cases(np.random.default_rng(101))
+    with harness.reusing_known_outputs():
+        first = spec.hidden_cases(np.random.default_rng(101))
+        again = spec.hidden_cases(np.random.default_rng(101))
+        other = spec.hidden_cases(np.random.default_rng(102))
+    assert pickle.dumps(fresh) == pickle.dumps(first) == pickle.dumps(again) != pickle.dumps(other)
+    assert again is not first and again[0].args[0] is not first[0].args[0]
+
+
 def test_alternative_detector_passes_many_seeds():
     """The detector's cases are images: a different correct detector must pass on many draws."""
     for seed in range(4):
