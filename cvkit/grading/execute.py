@@ -76,7 +76,10 @@ def execute_in_sandbox(files: dict, name: str, wall_seconds: float = EXECUTION_W
             env[CELL_TIMEOUT_VARIABLE] = os.environ[CELL_TIMEOUT_VARIABLE]
         inside = "/submission" if sandboxed else str(folder)
         mounts = isolation.Mounts(read_only=[(package, package)], writable=[(str(folder), inside)], chdir=inside)
-        fonts = matplotlib_font_list() if sandboxed else None
+        try:
+            fonts = matplotlib_font_list() if sandboxed else None
+        except Exception:  # noqa: BLE001 - the list only saves time: never a reason not to run a notebook
+            fonts = None
         if fonts is not None:
             mounts.read_only_in_tmp.append((fonts[0], f"{SANDBOX_ENV['MPLCONFIGDIR']}/{fonts[1]}"))
         limits = isolation.Limits(memory_mb=EXECUTION_MEMORY_MB, cpu_seconds=int(wall_seconds), processes=64,
@@ -137,9 +140,9 @@ def matplotlib_font_list() -> tuple[str, str] | None:
     key = hashlib.sha256(repr((version, sys.prefix, sys.base_prefix, fonts)).encode()).hexdigest()[:16]
     if key in _font_lists:
         return _font_lists[key]
-    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "cvkit" / f"matplotlib-{key}"
     found = None
     try:
+        cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "cvkit" / f"matplotlib-{key}"
         made = sorted(cache.glob("fontlist-*.json")) if cache.is_dir() else []
         if not made:
             cache.parent.mkdir(parents=True, exist_ok=True)
@@ -171,7 +174,7 @@ def matplotlib_font_list() -> tuple[str, str] | None:
             made = sorted(cache.glob("fontlist-*.json"))
         if len(made) == 1:
             found = (str(made[0]), made[0].name)
-    except (OSError, ValueError, isolation.SandboxUnavailable):
+    except (OSError, ValueError, RuntimeError, isolation.SandboxUnavailable):  # no home, no sandbox: no list
         found = None
     _font_lists[key] = found
     return found
