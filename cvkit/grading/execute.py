@@ -43,6 +43,13 @@ TIMEOUT_ERROR = {
 SANDBOX_ENV = {"HOME": "/tmp", "TMPDIR": "/tmp", "JUPYTER_RUNTIME_DIR": "/tmp/.jupyter", "IPYTHONDIR": "/tmp/.ipython",
                "MPLCONFIGDIR": "/tmp/.mpl", "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
                "MKL_NUM_THREADS": "1", "PYTHONDONTWRITEBYTECODE": "1", "LANG": "C.UTF-8"}
+#: the grading run's IPython kernel: no history file, and inline figures written with zlib
+#: level 3 instead of 6 (the same pixels, about 30 ms less per figure: 0.6 s of ch03's run)
+PYTHON_KERNEL_ARGUMENTS = [
+    "--HistoryManager.hist_file=:memory:",
+    "--InlineBackend.print_figure_kwargs={'bbox_inches': 'tight', 'pil_kwargs': {'compress_level': 3}}",
+]
+
 EXECUTION_MEMORY_MB = 6144      # address space of each process of the executing sandbox
 EXECUTION_WALL_SECONDS = 900    # a whole notebook, kept outside; a cell has CVKIT_CELL_TIMEOUT (180 s)
 EXECUTED_MAX_BYTES = 64 << 20   # an executed notebook larger than this is not read back
@@ -232,13 +239,6 @@ def execute(notebook: dict, folder: str, timeout: int | None = None) -> dict:
     client.execute()
     return json.loads(nbformat.writes(nb))
 
-
-#: the grading run's IPython kernel: no history file, and inline figures written with zlib
-#: level 3 instead of 6 (the same pixels, about 30 ms less per figure: 0.6 s of ch03's run)
-PYTHON_KERNEL_ARGUMENTS = [
-    "--HistoryManager.hist_file=:memory:",
-    "--InlineBackend.print_figure_kwargs={'bbox_inches': 'tight', 'pil_kwargs': {'compress_level': 3}}",
-]
 
 MAX_TEXT = 100_000        # characters of one text output kept for the feedback
 MAX_OUTPUTS_BYTES = 16 << 20   # all outputs of a notebook
