@@ -34,3 +34,32 @@ def grading_sandbox():
     yield isolation.probe() or None
     if log and not shutil.which("bwrap"):  # pragma: no cover - reported by the grading tests themselves
         print(f"apt-get could not install bubblewrap:\n{log}")
+
+
+# The files that keep one worker busy longest, in seconds (one idle 2-core run, 2026-11-27).
+# ``scripts/test`` hands files to the workers in collection order (``--no-loadscope-reorder``),
+# and this order puts the long ones first: a long file started last (the browser test, which has
+# few tests and so came last in pytest-xdist's own order by test count) would keep one worker
+# running while the other sits idle. Files not listed follow in their collection order.
+LONGEST_FILES = {
+    "tests/test_hidden_cases_reference.py": 490,
+    "tests/test_browser.py": 160,
+    "tests/test_notebooks.py": 150,
+    "tests/test_release.py": 145,
+    "tests/test_sandbox_attacks.py": 115,
+    "tests/test_course_scaling.py": 100,
+    "tests/test_checks_ch08.py": 95,
+    "tests/test_course.py": 75,
+    "tests/test_checks_ch05.py": 70,
+    "tests/test_trusted.py": 50,
+    "tests/test_checks_ch09.py": 45,
+    "tests/test_course_plan.py": 45,
+    "tests/test_course_package.py": 35,
+    "tests/test_checks_ch03.py": 30,
+}
+
+
+def pytest_collection_modifyitems(config, items):
+    """Longest files first (stable: the tests of a file keep their order)."""
+    ranked = sorted(range(len(items)), key=lambda i: (-LONGEST_FILES.get(items[i].nodeid.split("::")[0], 0), i))
+    items[:] = [items[i] for i in ranked]

@@ -482,6 +482,13 @@ chessboard_points = Check(
 # --------------------------------------------------------------------------------------------
 def _board_image(rng, cols, rows, size=(100, 136), tilt=0.5, spin=0.3, flip=False, noise=0.008, color=False,
                  dtype="float", k=None, square_fill=(0.6, 0.8)):
+    """A rendered view of a random board for the detection checks.
+
+    Rendered with 4 × 4 samples per edge pixel rather than the default 8 × 8: the area
+    quantisation (1/16 of the contrast, about the size of the added sensor noise) does not
+    matter to a check that compares a student's answer with the reference's on the same
+    pixels, and drawing is 2.5 times faster; grading draws these images for every student.
+    """
     from ..data import random_board_poses, render_chessboard
 
     H, W = size
@@ -491,7 +498,8 @@ def _board_image(rng, cols, rows, size=(100, 136), tilt=0.5, spin=0.3, flip=Fals
     k = (_u(rng, -0.25, 0.05), _u(rng, 0.0, 0.05)) if k is None else k
     R, t = random_board_poses(1, A, size, cols, rows, 10.0, k, rng=rng, tilt=tilt, spin=spin, fill=square_fill,
                               border=4.0, flip=flip)
-    image = render_chessboard(A, R[0], t[0], cols, rows, 10.0, size, k, noise=noise, rng=rng, color=color)
+    image = render_chessboard(A, R[0], t[0], cols, rows, 10.0, size, k, noise=noise, rng=rng, color=color,
+                              supersample=4)
     if dtype == "uint8":
         image = np.round(image * 255).astype(np.uint8)
     elif dtype == "scaled":

@@ -1,0 +1,27 @@
+"""The suite's own schedule (tests/conftest.py): long files go to the workers first."""
+from pathlib import Path
+from types import SimpleNamespace
+
+import conftest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_every_listed_long_file_exists():
+    missing = [name for name in conftest.LONGEST_FILES if not (ROOT / name).is_file()]
+    assert not missing, f"tests/conftest.py LONGEST_FILES names files that are gone: {missing}"
+
+
+def test_long_files_come_first_and_each_file_keeps_its_order():
+    names = ["tests/test_a.py::one", "tests/test_browser.py::first", "tests/test_a.py::two",
+             "tests/test_hidden_cases_reference.py::x", "tests/test_browser.py::second", "tests/test_b.py::one"]
+    items = [SimpleNamespace(nodeid=name) for name in names]
+    conftest.pytest_collection_modifyitems(None, items)
+    assert [item.nodeid for item in items] == [
+        "tests/test_hidden_cases_reference.py::x", "tests/test_browser.py::first", "tests/test_browser.py::second",
+        "tests/test_a.py::one", "tests/test_a.py::two", "tests/test_b.py::one"]
+
+
+def test_the_test_command_keeps_that_order():
+    """pytest-xdist would otherwise hand out the files with the most tests first."""
+    assert "--no-loadscope-reorder" in (ROOT / "scripts" / "test").read_text()
