@@ -151,6 +151,32 @@ def check_padded(shape: tuple[int, ...], radius: int, name: str) -> tuple[int, .
     return check_allocation(grown, name, what="a padded image")
 
 
+def as_labels(y, name: str, n: int | None = None, classes: int | None = None, *,
+              integral_floats: bool = False) -> np.ndarray:
+    """Integer class labels ``0..classes−1`` as an int64 vector (of length ``n`` when given).
+
+    ``integral_floats`` also takes floats that hold whole numbers (``[2.0, 0.0]``), as targets
+    often arrive; fractional or non-finite values are then a ``ValueError``.
+    """
+    if isinstance(y, (str, bytes)) or y is None:
+        raise TypeError(f"{name} must be an integer array of class labels, got {type(y).__name__}")
+    arr = np.asarray(y)
+    kinds = "iuf" if integral_floats else "iu"
+    if arr.dtype == bool or arr.dtype.kind not in kinds:
+        raise TypeError(f"{name} must be an integer array of class labels 0..C-1, got dtype {arr.dtype}")
+    if arr.ndim != 1:
+        raise ValueError(f"{name} must be a 1-D array of labels, got shape {arr.shape}")
+    if arr.dtype.kind == "f" and (not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr))):
+        raise ValueError(f"{name} must hold integer class labels (found non-integer values)")
+    if n is not None and arr.shape[0] != n:
+        raise ValueError(f"{name} must have one label per row ({n}), got {arr.shape[0]}")
+    if arr.size and arr.min() < 0:
+        raise ValueError(f"{name} must contain labels >= 0, got {int(arr.min())}")
+    if classes is not None and arr.size and arr.max() >= classes:
+        raise ValueError(f"{name} must contain labels < {classes} (the number of classes), got {int(arr.max())}")
+    return arr.astype(np.int64)
+
+
 class AttributeDict(dict):
     """A dict whose keys are also attributes (``result.rms`` is ``result["rms"]``): the base of
     results with many named parts, such as :class:`cvkit.calibration.CalibrationResult`.

@@ -13,16 +13,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._docstrings import IMAGE_BORDER, filler
-from .._validation import (
-    Border,
-    as_float_array,
-    as_image,
-    check_allocation,
-    check_border,
-    check_int,
-    check_padded,
-    check_real,
-)
+from .._validation import (Border, as_float_array, as_image, check_allocation, check_border, check_int,
+                           check_padded, check_real)
 from ..registry import algorithm, implementation
 
 __all__ = ["laplacian", "log_kernel", "log", "zero_crossings", "dog"]

@@ -14,17 +14,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._docstrings import IMAGE_BORDER, filler
-from .._validation import (
-    Border,
-    as_float_array,
-    as_image,
-    check_allocation,
-    check_border,
-    check_padded,
-    check_int,
-    check_real,
-    check_work,
-)
+from .._validation import (Border, as_float_array, as_image, check_allocation, check_border, check_padded,
+                           check_int, check_real, check_work)
 from ..registry import algorithm, implementation
 
 __all__ = ["temporal_mean", "correlate", "convolve", "mean_kernel", "mean", "gaussian_kernel", "gaussian"]

@@ -39,16 +39,8 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import ArrayLike
 
-from .._validation import (
-    Border,
-    as_image,
-    check_allocation,
-    check_border,
-    check_int,
-    check_padded,
-    check_real,
-    check_work,
-)
+from .._validation import (Border, as_image, check_allocation, check_border, check_int, check_padded, check_real,
+                           check_work)
 from ..registry import algorithm, implementation
 
 __all__ = ["median", "bilateral", "nl_means"]

@@ -1,28 +1,10 @@
-"""Argument checks and small helpers shared by the learning algorithms of Chapters 9–10."""
+"""Distance helpers shared by the learning algorithms of Chapters 9–10 (their labels are checked
+by :func:`cvkit._validation.as_labels`)."""
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 _CHUNK_ELEMENTS = 1 << 22  # elements of a (rows, others, D) difference block: 32 MB of float64
-
-
-def as_labels(y: ArrayLike, name: str, n: int | None = None, classes: int | None = None) -> np.ndarray:
-    """Integer class labels ``0..classes−1`` as an int64 vector of length ``n``."""
-    if isinstance(y, (str, bytes)) or y is None:
-        raise TypeError(f"{name} must be an integer array of class labels, got {type(y).__name__}")
-    arr = np.asarray(y)
-    if arr.dtype == bool or arr.dtype.kind not in "iu":
-        raise TypeError(f"{name} must be an integer array of class labels 0..C-1, got dtype {arr.dtype}")
-    if arr.ndim != 1:
-        raise ValueError(f"{name} must be a 1-D array of labels, got shape {arr.shape}")
-    if n is not None and arr.shape[0] != n:
-        raise ValueError(f"{name} must have one label per row ({n}), got {arr.shape[0]}")
-    if arr.size and arr.min() < 0:
-        raise ValueError(f"{name} must contain labels >= 0, got {int(arr.min())}")
-    if classes is not None and arr.size and arr.max() >= classes:
-        raise ValueError(f"{name} must contain labels < {classes} (the number of classes), got {int(arr.max())}")
-    return arr.astype(np.int64)
 
 
 def exact_squared_distances(points: np.ndarray, others: np.ndarray) -> np.ndarray:

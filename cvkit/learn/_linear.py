@@ -13,9 +13,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, as_rng, check_allocation, check_int, check_real, check_size
+from .._validation import as_float_array, as_labels, as_rng, check_allocation, check_int, check_real, check_size
 from ..registry import algorithm, implementation
-from ._common import as_labels
 
 __all__ = [
     "linear_scores", "softmax", "cross_entropy", "linear_loss_and_grad", "numerical_gradient",

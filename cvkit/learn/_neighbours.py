@@ -6,15 +6,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, check_allocation, check_int
+from .._validation import as_float_array, as_labels, check_allocation, check_int
 from ..registry import algorithm
-from ._common import (
-    _CHUNK_ELEMENTS,
-    as_labels,
-    exact_l1_distances,
-    exact_squared_distances,
-    expanded_squared_distances,
-)
+from ._common import _CHUNK_ELEMENTS, exact_l1_distances, exact_squared_distances, expanded_squared_distances
 
 __all__ = ["knn_predict"]
 

@@ -57,6 +57,7 @@ from ._clustering import kmeans as _kmeans
 from ._common import exact_l1_distances, exact_squared_distances
 from ._linear import cross_entropy as _cross_entropy
 from ._linear import linear_loss_and_grad as _loss_and_grad
+from ._linear import numerical_gradient as _numerical_gradient
 from ._linear import softmax as _softmax
 
 __all__ = [
@@ -467,29 +468,29 @@ def _ng_forward(f, x, eps=1e-5):
     return grad
 
 
-def _ng_central(f, x, eps=1e-5, denominator_factor=2.0, as_float=True):
-    x = np.array(x, dtype=np.float64) if as_float else np.array(x)
+@mistake("divided by h instead of 2h", "The two evaluation points are 2h apart: divide f(x+h) − f(x−h) by 2*eps")
+def _ng_half_step(f, x, eps=1e-5):
+    return 2.0 * _numerical_gradient(f, x, eps)
+
+
+@mistake("eps ignored (fixed step)", "Use the step the caller passes as eps")
+def _ng_eps_ignored(f, x, eps=1e-5):
+    return _numerical_gradient(f, x, 1e-5)
+
+
+@mistake("integer x not converted to float (the step is lost)",
+         "Work on a float copy: x = np.array(x, dtype=float); adding 1e-5 to an integer entry changes nothing")
+def _ng_integer_x(f, x, eps=1e-5):
+    x = np.array(x)  # keeps an integer dtype: old ± eps is truncated back to old
     grad = np.empty(x.shape)
     for i in np.ndindex(x.shape):
         old = x[i]
         x[i] = old + eps
         plus = f(x)
         x[i] = old - eps
-        minus = f(x)
+        grad[i] = (plus - f(x)) / (2 * eps)
         x[i] = old
-        grad[i] = (plus - minus) / (denominator_factor * eps)
     return grad
-
-
-_ng_half_step = variant(_ng_central, denominator_factor=1.0)
-
-
-@mistake("eps ignored (fixed step)", "Use the step the caller passes as eps")
-def _ng_eps_ignored(f, x, eps=1e-5):
-    return _ng_central(f, x, 1e-5)
-
-
-_ng_integer_x = variant(_ng_central, as_float=False)
 
 
 @mistake("all coordinates moved at once",
@@ -540,12 +541,9 @@ numerical_gradient = Check(
     arg_names=("function", "table", "x"),
     mistakes=[
         _ng_forward,
-        Mistake("divided by h instead of 2h", _ng_half_step,
-                "The two evaluation points are 2h apart: divide f(x+h) − f(x−h) by 2*eps"),
+        _ng_half_step,
         _ng_eps_ignored,
-        Mistake("integer x not converted to float (the step is lost)", _ng_integer_x,
-                "Work on a float copy: x = np.array(x, dtype=float); adding 1e-5 to an integer entry "
-                "changes nothing"),
+        _ng_integer_x,
         _ng_all_at_once,
     ],
 )

@@ -9,7 +9,7 @@ from typing import TypeAlias
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._validation import as_float_array, as_rng, check_allocation, check_bool, check_int, check_real
+from .._validation import as_float_array, as_labels, as_rng, check_allocation, check_bool, check_int, check_real
 from ..registry import algorithm
 
 __all__ = ["sgd_weight_decay_step", "early_stopping", "smooth_labels", "stochastic_depth"]
@@ -163,21 +163,8 @@ def early_stopping(val_losses: ArrayLike, patience: int) -> int | None:
 # §12.3.5 label smoothing
 # --------------------------------------------------------------------------------------------
 def _labels(y: ArrayLike, classes: int) -> tuple[np.ndarray, int]:
-    if isinstance(y, (str, bytes)) or y is None:
-        raise TypeError(f"y must be an array of integer class labels, got {type(y).__name__}")
-    labels = np.asarray(y)
-    if labels.dtype == bool or labels.dtype.kind not in "iuf":
-        raise TypeError(f"y must hold integer class labels, got dtype {labels.dtype}")
-    if labels.ndim != 1:
-        raise ValueError(f"y must be a 1-D array of N labels, got shape {labels.shape}")
-    if labels.dtype.kind == "f":
-        if not np.all(np.isfinite(labels)) or np.any(labels != np.round(labels)):
-            raise ValueError("y must hold integer class labels (found non-integer values)")
-    labels = labels.astype(np.int64)
     classes = check_int(classes, "classes", minimum=2)
-    if labels.size and (labels.min() < 0 or labels.max() >= classes):
-        raise ValueError(f"y must hold labels in 0 … classes − 1 = 0 … {classes - 1}, got {labels.min()} … {labels.max()}")
-    return labels, classes
+    return as_labels(y, "y", classes=classes, integral_floats=True), classes
 
 
 @algorithm("train.smooth_labels", section="12.3.5", check="cvkit.train.checks:smooth_labels")
