@@ -375,12 +375,12 @@ def test_report_is_readable_in_the_dark_theme(browser, student_folder):
             element = failed.locator(part).first
             ratio = _contrast(page, element)
             assert ratio >= 4.5, f"{part}: contrast {ratio:.2f} with the dark background is below WCAG AA (4.5)"
-        passed_page = _run_notebook(browser, url, token, "correct.ipynb", "dark-correct")
-        summary = _report(passed_page, ALGORITHM).locator(".cvkit-summary")
-        assert _contrast(passed_page, summary) >= 4.5
+        # the exercises before the failing one passed: their reports are the passed style
+        passed = page.locator("section.cvkit-report.cvkit-passed")
+        assert passed.count() >= 5
+        assert _contrast(page, passed.first.locator(".cvkit-summary")) >= 4.5
         failed.screenshot(path=str(ARTEFACTS / "dark-wrong-report.png"))
         page.close()
-        passed_page.close()
 
 
 def test_formgrader_lists_the_autograded_samples(browser, course):
