@@ -183,6 +183,53 @@ def test_the_pose_samplers_projection_is_project_full_bit_for_bit():
         np.testing.assert_array_equal(_project(points, A, R, t, k, p), expected)
 
 
+def _poses_one_try_at_a_time(n, A, size, cols, rows, s, k, rng, tilt, spin, fill, margin, border, flip):
+    """random_board_poses written plainly (the test's oracle): one rejection-sampling try after
+    another, each projected with camera.project_full."""
+    H, W = size
+    paper = np.array([[-s * (1 + margin), -s * (1 + margin), 0.0], [s * (cols + margin), -s * (1 + margin), 0.0],
+                      [s * (cols + margin), s * (rows + margin), 0.0], [-s * (1 + margin), s * (rows + margin), 0.0]])
+    outline = np.concatenate([paper[i] + np.linspace(0, 1, 9)[:, None] * (paper[(i + 1) % 4] - paper[i])
+                              for i in range(4)])
+    centre = np.array([(cols - 1) * s / 2, (rows - 1) * s / 2, 0.0])
+    width = float(np.hypot((cols + 1 + 2 * margin) * s, (rows + 1 + 2 * margin) * s))
+    poses, tries = [], 0
+    while len(poses) < n:
+        tries += 1
+        yaw = rng.uniform(-spin, spin) + (np.pi if flip and rng.random() < 0.5 else 0.0)
+        R = camera.rotation_matrix(rng.uniform(-tilt, tilt), rng.uniform(-tilt, tilt), yaw)
+        depth = A[0, 0] * width / (float(np.hypot(H, W)) * rng.uniform(*fill) * 0.97 ** (tries // 50))
+        t = np.array([rng.uniform(-0.25, 0.25) * W / A[0, 0], rng.uniform(-0.25, 0.25) * H / A[1, 1], 1.0]) * depth
+        t = t - R @ centre
+        if R[2, 2] <= 0.2:
+            continue
+        uv = camera.project_full(outline, A, R, t, k)
+        if np.all((outline @ R.T + t)[:, 2] > 0) and np.all(uv >= border - 0.5) \
+                and np.all(uv[:, 0] <= W - 0.5 - border) and np.all(uv[:, 1] <= H - 0.5 - border):
+            poses.append((R, t))
+    return poses
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_the_pose_sampler_draws_as_one_try_after_another(seed):
+    """random_board_poses is the plain rejection sampler: its poses, bit for bit, and the state it
+    leaves rng in are those of trying one pose after the other with project_full (a guard for
+    any faster way of drawing them: the hidden cases of the chessboard checks depend on it)."""
+    options = np.random.default_rng(seed)
+    H, W = int(options.integers(50, 200)), int(options.integers(60, 260))
+    A = np.array([[options.uniform(0.8, 1.3) * W, 0.0, W / 2], [0.0, W, H / 2], [0.0, 0.0, 1.0]])
+    cols, rows, n = int(options.integers(2, 7)), int(options.integers(2, 6)), int(options.integers(1, 5))
+    k = (options.uniform(-0.3, 0.05), options.uniform(0.0, 0.05))
+    kw = dict(tilt=options.uniform(0.2, 1.0), spin=options.uniform(0.0, 0.6), fill=(0.5, options.uniform(0.6, 0.9)),
+              margin=options.uniform(0.2, 1.0), border=options.uniform(0.0, 6.0), flip=bool(seed % 2))
+    sampled, plain = np.random.default_rng(1000 + seed), np.random.default_rng(1000 + seed)
+    R, t = data.random_board_poses(n, A, (H, W), cols, rows, 10.0, k, rng=sampled, **kw)
+    expected = _poses_one_try_at_a_time(n, A, (H, W), cols, rows, 10.0, k, plain, **kw)
+    assert R.tobytes() == np.array([r for r, _ in expected]).tobytes()
+    assert t.tobytes() == np.array([v for _, v in expected]).tobytes()
+    assert sampled.random(4).tobytes() == plain.random(4).tobytes(), "rng left in another state"
+
+
 def test_project_full_and_the_refinement_use_a_providers_lens(monkeypatch):
     """project_full runs the active provider's camera.distort; calibrate's refinement skips the
     argument checks only with the reference lens: under a provider whose distort is the
