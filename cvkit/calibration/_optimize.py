@@ -27,6 +27,32 @@ def _residual_vector(residuals: Callable[[np.ndarray], ArrayLike], x: np.ndarray
     return r
 
 
+def _normal_equations(J: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The gradient Jᵀr of ½‖r‖² and the Gauss–Newton matrix JᵀJ."""
+    return J.T @ r, J.T @ J
+
+
+def _damped_step(JTJ: np.ndarray, g: np.ndarray, mu: float) -> np.ndarray:
+    """The solution δ of (JᵀJ + μ·diag(JᵀJ)) δ = −g, with a zero diagonal entry raised to
+    1e-12 of the largest (to 1 if all are 0). Raises ``numpy.linalg.LinAlgError`` when the
+    system is singular."""
+    diagonal = np.diag(JTJ).copy()
+    top = float(diagonal.max()) if diagonal.size else 0.0
+    diagonal = np.maximum(diagonal, 1e-12 * top if top > 0 else 1.0)
+    return np.linalg.solve(JTJ + mu * np.diag(diagonal), -g)
+
+
+def _trial_step(residuals: Callable[[np.ndarray], ArrayLike], x: np.ndarray, step: np.ndarray, size: int,
+                tol: float) -> tuple[bool, np.ndarray, np.ndarray, float]:
+    """``(tiny, x + step, its residuals, its cost)``: the step is tiny when ‖δ‖ ≤ tol·(‖x‖ + tol);
+    the cost is ½‖r‖², infinite when the residual vector's length is not ``size``."""
+    tiny = bool(np.linalg.norm(step) <= tol * (np.linalg.norm(x) + tol))
+    trial = x + step
+    r_trial = _residual_vector(residuals, trial, "x")
+    cost_trial = 0.5 * float(r_trial @ r_trial) if r_trial.size == size else np.inf
+    return tiny, trial, r_trial, cost_trial
+
+
 def _forward_jacobian(residuals: Callable[[np.ndarray], ArrayLike], x: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Forward differences: column j is (r(x + h_j e_j) − r(x)) / h_j, h_j = √ε·max(1, |x_j|)."""
     J = np.empty((r.size, x.size))
@@ -132,26 +158,18 @@ def levenberg_marquardt(residuals: Callable[[np.ndarray], ArrayLike], x0: ArrayL
         return J
 
     cost = 0.5 * float(r @ r)
-    J = jac(x, r)
-    g = J.T @ r
-    JTJ = J.T @ J
+    g, JTJ = _normal_equations(jac(x, r), r)
     mu = 1e-3
     iterations = 0
     converged = bool(np.max(np.abs(g)) <= tol) if np.all(np.isfinite(g)) else False
     while not converged and iterations < max_iter and mu <= 1e16:
         iterations += 1
-        diagonal = np.diag(JTJ).copy()
-        top = float(diagonal.max()) if diagonal.size else 0.0
-        diagonal = np.maximum(diagonal, 1e-12 * top if top > 0 else 1.0)
         try:
-            step = np.linalg.solve(JTJ + mu * np.diag(diagonal), -g)
+            step = _damped_step(JTJ, g, mu)
         except np.linalg.LinAlgError:
             mu *= 10.0
             continue
-        tiny = np.linalg.norm(step) <= tol * (np.linalg.norm(x) + tol)
-        trial = x + step
-        r_trial = _residual_vector(residuals, trial, "x")
-        cost_trial = 0.5 * float(r_trial @ r_trial) if r_trial.size == r.size else np.inf
+        tiny, trial, r_trial, cost_trial = _trial_step(residuals, x, step, r.size, tol)
         if np.isfinite(cost_trial) and cost_trial < cost:
             decrease = (cost - cost_trial) / cost
             x, r, cost = trial, r_trial, cost_trial
@@ -159,9 +177,7 @@ def levenberg_marquardt(residuals: Callable[[np.ndarray], ArrayLike], x0: ArrayL
             if decrease < tol or tiny:
                 converged = True
                 break
-            J = jac(x, r)
-            g = J.T @ r
-            JTJ = J.T @ J
+            g, JTJ = _normal_equations(jac(x, r), r)
             if np.max(np.abs(g)) <= tol:
                 converged = True
         else:

@@ -1451,7 +1451,7 @@ homography_dlt = Check(
 def _lm_core(residuals, x0, jacobian=None, max_iter=100, tol=1e-10, damping=True, accept_uphill=False,
              inverted=False, sign=1.0, jacobian_once=False, full_cost=False):
     """The reference algorithm with switches that turn it into the bank's mistakes."""
-    from ._optimize import _forward_jacobian, _residual_vector
+    from ._optimize import _damped_step, _forward_jacobian, _normal_equations, _residual_vector, _trial_step
 
     x = np.asarray(x0, dtype=np.float64).ravel().copy()
     r = _residual_vector(residuals, x, "x0")
@@ -1461,18 +1461,15 @@ def _lm_core(residuals, x0, jacobian=None, max_iter=100, tol=1e-10, damping=True
 
     cost = 0.5 * float(r @ r)
     J = jac(x, r)
-    g, JTJ = J.T @ r, J.T @ J
+    g, JTJ = _normal_equations(J, r)
     mu = 1e-3 if damping else 0.0
     iterations = 0
     converged = bool(np.max(np.abs(g)) <= tol)
     with np.errstate(all="ignore"):
         while not converged and iterations < max_iter and mu <= 1e16:
             iterations += 1
-            diagonal = np.diag(JTJ).copy()
-            top = float(diagonal.max()) if np.isfinite(diagonal).all() else np.inf
-            diagonal = np.maximum(diagonal, 1e-12 * top if top > 0 else 1.0)
             try:
-                step = sign * np.linalg.solve(JTJ + mu * np.diag(diagonal), -g)
+                step = sign * _damped_step(JTJ, g, mu)
             except np.linalg.LinAlgError:
                 if not damping:
                     break
@@ -1480,10 +1477,7 @@ def _lm_core(residuals, x0, jacobian=None, max_iter=100, tol=1e-10, damping=True
                 continue
             if not np.all(np.isfinite(step)):
                 break
-            tiny = np.linalg.norm(step) <= tol * (np.linalg.norm(x) + tol)
-            trial = x + step
-            r_trial = _residual_vector(residuals, trial, "x")
-            cost_trial = 0.5 * float(r_trial @ r_trial)
+            tiny, trial, r_trial, cost_trial = _trial_step(residuals, x, step, r.size, tol)
             better = np.isfinite(cost_trial) and cost_trial < cost
             if better or accept_uphill or not damping:
                 decrease = (cost - cost_trial) / cost if cost > 0 else 0.0
@@ -1497,8 +1491,7 @@ def _lm_core(residuals, x0, jacobian=None, max_iter=100, tol=1e-10, damping=True
                     break
                 if not jacobian_once:
                     J = jac(x, r)
-                    JTJ = J.T @ J
-                g = J.T @ r
+                g, JTJ = _normal_equations(J, r)
                 if np.max(np.abs(g)) <= tol:
                     converged = True
             else:

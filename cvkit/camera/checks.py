@@ -770,6 +770,11 @@ decompose_projection = Check(
 # --------------------------------------------------------------------------------------------
 # camera.distort (§7.7.2)
 # --------------------------------------------------------------------------------------------
+#: the tangential mistake shared by distort, undistort_points and project_full, with OpenCV's order
+_P_SWAPPED = "p1 and p2 swapped"
+_P_ORDER = "Δx = 2·p1·x·y + p2·(r² + 2x²), Δy = p1·(r² + 2y²) + 2·p2·x·y (OpenCV's order)"
+
+
 def _distort_variant(xy_normalized, k=(0.0, 0.0, 0.0), p=(0.0, 0.0), *, swap_p=False, r2_power=1,
                      radial_on_tangential=False, tangential_xy_swapped=False, drop_k3=False):
     xy = np.asarray(xy_normalized, dtype=np.float64)
@@ -830,8 +835,7 @@ distort = Check(
     hidden=_distort_hidden,
     compare=FloatClose(rtol=1e-9, atol=1e-12),
     mistakes=[
-        Mistake("p1 and p2 swapped", _dist(swap_p=True),
-                "x gets 2·p1·x·y + p2·(r² + 2x²), y gets p1·(r² + 2y²) + 2·p2·x·y (OpenCV's order)"),
+        Mistake(_P_SWAPPED, _dist(swap_p=True), _P_ORDER),
         Mistake("r² squared again (k1·r⁴ + k2·r⁸ + k3·r¹²)", _dist(r2_power=2),
                 "With r2 = x² + y² the radial factor is 1 + k1·r2 + k2·r2² + k3·r2³"),
         Mistake("radial factor applied to the tangential terms too", _dist(radial_on_tangential=True),
@@ -876,7 +880,7 @@ def _ud_no_tangential(xy_distorted, k, p, iterations=20):
     return x
 
 
-@mistake("p1 and p2 swapped", "Δx = 2·p1·x·y + p2·(r² + 2x²), Δy = p1·(r² + 2y²) + 2·p2·x·y")
+@mistake(_P_SWAPPED, _P_ORDER)
 def _ud_p_swapped(xy_distorted, k, p, iterations=20):
     return _undistort_points(xy_distorted, k, tuple(np.asarray(p, dtype=float)[::-1]), iterations)
 
@@ -1001,8 +1005,7 @@ project_full = Check(
                 "Step 2 is the canonical projection: x = x_C / z_C, y = y_C / z_C"),
         Mistake("distortion applied in pixel instead of normalised coordinates", _pf(pixel_distortion=True),
                 "Distort (x_C/z_C, y_C/z_C) BEFORE applying A; the coefficients are meant for normalised coordinates"),
-        Mistake("p1 and p2 swapped", _pf(swap_p=True),
-                "x gets 2·p1·x·y + p2·(r² + 2x²), y gets p1·(r² + 2y²) + 2·p2·x·y"),
+        Mistake(_P_SWAPPED, _pf(swap_p=True), _P_ORDER),
         Mistake("R transposed", _pf(transpose_r=True), "Step 1 is M_C = R·M_W + t (for row vectors: X @ R.T + t)"),
         Mistake("skew ignored", _pf(skew=False), "Step 4 uses all of A: u = fu·x_d + s·y_d + u0"),
         Mistake("distortion left out", _pf(distortion=False),

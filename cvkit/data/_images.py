@@ -9,6 +9,8 @@ extra: without it they raise ``ImportError`` saying ``pip install "cvkit[data]"`
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -32,44 +34,25 @@ def image(name: str) -> np.ndarray:
     return raw.astype(np.float64) / 255.0
 
 
-def camera() -> np.ndarray:
-    """The 512×512 grayscale 'cameraman' image."""
-    return image("camera")
+def _bundled(name: str, description: str) -> Callable[[], np.ndarray]:
+    """A loader ``name()`` of the bundled image ``name`` (see :func:`image`)."""
+
+    def load() -> np.ndarray:
+        return image(name)
+
+    load.__name__ = load.__qualname__ = name
+    load.__doc__ = description
+    return load
 
 
-def astronaut() -> np.ndarray:
-    """A 512×512 RGB portrait (Eileen Collins)."""
-    return image("astronaut")
-
-
-def coins() -> np.ndarray:
-    """303×384 grayscale coins on a textured background."""
-    return image("coins")
-
-
-def moon() -> np.ndarray:
-    """512×512 grayscale lunar surface."""
-    return image("moon")
-
-
-def text() -> np.ndarray:
-    """172×448 grayscale handwritten text."""
-    return image("text")
-
-
-def brick() -> np.ndarray:
-    """512×512 grayscale brick wall texture."""
-    return image("brick")
-
-
-def coffee() -> np.ndarray:
-    """400×600 RGB cup of coffee."""
-    return image("coffee")
-
-
-def chelsea() -> np.ndarray:
-    """300×451 RGB cat."""
-    return image("chelsea")
+camera = _bundled("camera", "The 512×512 grayscale 'cameraman' image.")
+astronaut = _bundled("astronaut", "A 512×512 RGB portrait (Eileen Collins).")
+coins = _bundled("coins", "303×384 grayscale coins on a textured background.")
+moon = _bundled("moon", "512×512 grayscale lunar surface.")
+text = _bundled("text", "172×448 grayscale handwritten text.")
+brick = _bundled("brick", "512×512 grayscale brick wall texture.")
+coffee = _bundled("coffee", "400×600 RGB cup of coffee.")
+chelsea = _bundled("chelsea", "300×451 RGB cat.")
 
 
 def resize_half(img: ArrayLike) -> np.ndarray:

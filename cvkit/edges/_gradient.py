@@ -227,6 +227,7 @@ def prewitt(image: ArrayLike, border: Border = "reflect101") -> tuple[np.ndarray
     Returns
     -------
     (gx, gy) : tuple of two float64 ndarrays, each the shape of ``image``
+        Unnormalised: a ramp rising by 1 per pixel gives 6 (divide by 6 for the slope).
 
     Notes
     -----
@@ -269,6 +270,7 @@ def sobel(image: ArrayLike, border: Border = "reflect101") -> tuple[np.ndarray, 
     Returns
     -------
     (gx, gy) : tuple of two float64 ndarrays, each the shape of ``image``
+        Unnormalised: a ramp rising by 1 per pixel gives 8 (divide by 8 for the slope).
 
     Notes
     -----

@@ -35,6 +35,7 @@ def laplacian(image: ArrayLike, border: Border = "reflect101") -> np.ndarray:
     Returns
     -------
     float64 ndarray, the shape of ``image``
+        ``Ixx + Iyy`` at every pixel: 0 on flat areas and, away from the border, on linear ramps.
 
     Notes
     -----
@@ -245,6 +246,7 @@ def dog(image: ArrayLike, sigma: float, k: float = 1.6, border: Border = "reflec
     Returns
     -------
     float64 ndarray, the shape of ``image``
+        The band-pass response: ≈ (k − 1)σ² times the Laplacian of the image smoothed by σ.
 
     Notes
     -----

@@ -42,6 +42,16 @@ def _check_output(output: str) -> str:
     return output
 
 
+def _image_and_kernel(image: ArrayLike, kernel: ArrayLike, border: str, output: str) -> tuple[np.ndarray, np.ndarray]:
+    """The checked arguments of :func:`correlate` and :func:`convolve`: the image and the
+    kernel as float64 arrays (``border`` and ``output`` are checked by name)."""
+    img = as_image(image)
+    k = as_float_array(kernel, "kernel", ndim=2)
+    check_border(border)
+    _check_output(output)
+    return img, k
+
+
 def _block_rows(row_elements: int) -> int:
     return max(8, _BLOCK_ELEMENTS // max(1, row_elements))
 
@@ -257,10 +267,7 @@ def correlate(image: ArrayLike, kernel: ArrayLike, border: Border = "reflect101"
     >>> correlate(np.array([[0, 1, 2, 3]]), np.array([[1, 1]]), output="valid")
     array([[1., 3., 5.]])
     """
-    img = as_image(image)
-    k = as_float_array(kernel, "kernel", ndim=2)
-    check_border(border)
-    _check_output(output)
+    img, k = _image_and_kernel(image, kernel, border, output)
     kh, kw = k.shape
     return _correlate(img, k, (kh // 2, kw // 2), border, output)
 
@@ -310,10 +317,7 @@ def convolve(image: ArrayLike, kernel: ArrayLike, border: Border = "reflect101",
     >>> convolve(np.array([[0, 0, 1, 0, 0]]), np.array([[1, 2, 3]]), border="zero")
     array([[0., 1., 2., 3., 0.]])
     """
-    img = as_image(image)
-    k = as_float_array(kernel, "kernel", ndim=2)
-    check_border(border)
-    _check_output(output)
+    img, k = _image_and_kernel(image, kernel, border, output)
     kh, kw = k.shape
     anchor = (kh - 1 - kh // 2, kw - 1 - kw // 2)
     return _correlate(img, np.ascontiguousarray(k[::-1, ::-1]), anchor, border, output)

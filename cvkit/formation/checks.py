@@ -667,15 +667,29 @@ def _patterns(rng):
     return [str(p) for p in rng.permutation(PATTERNS)]
 
 
-def _mosaic_hidden(rng):
+def _each_pattern(rng, make, rows, cols, odd, what, default_size=None):
+    """Two random orders ``(p, q)`` of the four patterns, and five cases: ``p``'s patterns on
+    ``make(rng, h, w[, kind])`` images of ``rows`` × ``cols`` (drawn ranges), the third by
+    keyword, the fourth on a uint8 image of the odd size ``odd``; then the default pattern (on
+    ``default_size`` ranges, ``(rows, cols)`` if None). The caller adds cases with ``q``."""
     p = _patterns(rng)
     q = _patterns(rng)
-    return [
-        Case((_rgb(rng, _size(rng, 4, 8), _size(rng, 5, 9)), p[0]), {}, f"pattern {p[0]}"),
-        Case((_rgb(rng, _size(rng, 4, 8), _size(rng, 5, 9)), p[1]), {}, f"pattern {p[1]}"),
-        Case((_rgb(rng, _size(rng, 4, 8), _size(rng, 5, 9)),), {"pattern": p[2]}, f"pattern {p[2]} by keyword"),
-        Case((_rgb(rng, 5, 7, "uint8"), p[3]), {}, f"uint8 image, odd size 5×7, {p[3]}"),
-        Case((_rgb(rng, _size(rng, 4, 8), _size(rng, 5, 9)),), {}, "default pattern (RGGB)"),
+
+    def drawn(size=(rows, cols)):
+        return make(rng, _size(rng, *size[0]), _size(rng, *size[1]))
+
+    return q, [
+        Case((drawn(), p[0]), {}, f"pattern {p[0]}"),
+        Case((drawn(), p[1]), {}, f"pattern {p[1]}"),
+        Case((drawn(),), {"pattern": p[2]}, f"pattern {p[2]} by keyword"),
+        Case((make(rng, *odd, "uint8"), p[3]), {}, f"uint8 {what}, odd size {odd[0]}×{odd[1]}, {p[3]}"),
+        Case((drawn(default_size or (rows, cols)),), {}, "default pattern (RGGB)"),
+    ]
+
+
+def _mosaic_hidden(rng):
+    q, cases = _each_pattern(rng, _rgb, (4, 8), (5, 9), (5, 7), "image")
+    return cases + [
         Case((_rgb(rng, 1, _size(rng, 5, 9)), q[0]), {}, f"a single row, {q[0]}"),
         Case((_rgb(rng, _size(rng, 5, 9), 1), q[1]), {}, f"a single column, {q[1]}"),
         Case((_rgb(rng, 2, 2), q[2]), {}, f"one Bayer block, {q[2]}"),
@@ -776,14 +790,8 @@ def _raw(rng, h, w, kind="unit"):
 
 
 def _demosaic_hidden(rng):
-    p = _patterns(rng)
-    q = _patterns(rng)
-    return [
-        Case((_raw(rng, _size(rng, 5, 9), _size(rng, 6, 10)), p[0]), {}, f"pattern {p[0]}"),
-        Case((_raw(rng, _size(rng, 5, 9), _size(rng, 6, 10)), p[1]), {}, f"pattern {p[1]}"),
-        Case((_raw(rng, _size(rng, 5, 9), _size(rng, 6, 10)),), {"pattern": p[2]}, f"pattern {p[2]} by keyword"),
-        Case((_raw(rng, 7, 9, "uint8"), p[3]), {}, f"uint8 raw image, odd size 7×9, {p[3]}"),
-        Case((_raw(rng, _size(rng, 5, 8), _size(rng, 5, 8)),), {}, "default pattern (RGGB)"),
+    q, cases = _each_pattern(rng, _raw, (5, 9), (6, 10), (7, 9), "raw image", default_size=((5, 8), (5, 8)))
+    return cases + [
         Case((_raw(rng, 2, 2), q[0]), {}, f"one Bayer block (2×2), {q[0]}"),
         Case((_raw(rng, 2, _size(rng, 5, 9)), q[1]), {}, f"two rows, {q[1]}"),
         Case((_raw(rng, _size(rng, 5, 9), 3, "uint16"), q[2]), {}, f"uint16 raw, 3 columns, {q[2]}"),

@@ -35,18 +35,14 @@ class CaseResult:
     details: str = ""                 # the technical part of the message (tolerances), shown on demand
     diagnosis: str | None = None      # what the wrong output looks like, or why the code crashed
 
+    #: what :meth:`to_dict` keeps (the report's JSON in notebooks and the course's results);
+    #: the input, the outputs and the traceback stay out of it
+    WIRE_FIELDS = ("index", "label", "passed", "message", "details", "diagnosis", "mistake", "elapsed", "warnings")
+
     def to_dict(self) -> dict:
-        return {
-            "index": self.index,
-            "label": self.label,
-            "passed": self.passed,
-            "message": self.message,
-            "details": self.details,
-            "diagnosis": self.diagnosis,
-            "mistake": self.mistake,
-            "elapsed": round(self.elapsed, 4),
-            "warnings": self.warnings,
-        }
+        data = {name: getattr(self, name) for name in self.WIRE_FIELDS}
+        data["elapsed"] = round(self.elapsed, 4)
+        return data
 
 
 @dataclass
@@ -204,23 +200,15 @@ class Report:
             "problem": found[1] if found and found[0] == "problem" else None,
         }
 
+    #: what :meth:`to_dict` keeps, in this order (the cases as :meth:`CaseResult.to_dict`)
+    WIRE_FIELDS = ("algorithm", "section", "hidden", "seed", "passed", "score", "mistake", "hint", "diagnosis",
+                   "problem", "cases", "dropped", "fallback", "cascade")
+
     def to_dict(self) -> dict:
-        return {
-            "algorithm": self.algorithm,
-            "section": self.section,
-            "hidden": self.hidden,
-            "seed": self.seed,
-            "passed": self.passed,
-            "score": self.score,
-            "mistake": self.mistake,
-            "hint": self.hint,
-            "diagnosis": self.diagnosis,
-            "problem": self.problem,
-            "cases": [c.to_dict() for c in self.cases],
-            "dropped": [str(d) for d in self.dropped],
-            "fallback": self.fallback,
-            "cascade": self.cascade,
-        }
+        data = {name: getattr(self, name) for name in self.WIRE_FIELDS}
+        data["cases"] = [c.to_dict() for c in self.cases]
+        data["dropped"] = [str(d) for d in self.dropped]
+        return data
 
     # ---------------------------------------------------------------- HTML for JupyterLab
     def _repr_html_(self) -> str:

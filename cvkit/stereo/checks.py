@@ -274,27 +274,22 @@ def _hidden(rng):
     def add(pair, max_disparity, label, **kwargs):
         cases.append(Case((pair[0], pair[1], max_disparity), kwargs, label))
 
-    d = size(3, 5)
-    add(_pair(rng, size(9, 12), size(14, 20), d, flat_rows=4), d, "SAD, 3×3 blocks, flat band on top",
-        block_size=3, cost="sad")
-    d = size(3, 6)
-    add(_pair(rng, size(8, 12), size(14, 20), d, kind="uint8"), d, "SAD on uint8 images, 5×5 blocks",
-        block_size=5, cost="sad")
-    d = size(4, 6)
-    add(_pair(rng, size(8, 12), size(14, 20), d), d, "SSD, 5×5 blocks", block_size=5, cost="ssd")
-    d = size(3, 5)
-    add(_pair(rng, size(8, 11), size(12, 18), d, kind="uint8", flat_rows=4), d,
-        "SSD on uint8 images, flat band", block_size=3, cost="ssd")
+    def textured(label, block_size, cost, disparities, rows, cols, **options):
+        """A pair of ``rows`` × ``cols`` (drawn ranges) whose largest disparity, drawn from
+        ``disparities``, is also the search range."""
+        d = size(*disparities)
+        add(_pair(rng, size(*rows), size(*cols), d, **options), d, label, block_size=block_size, cost=cost)
+
+    textured("SAD, 3×3 blocks, flat band on top", 3, "sad", (3, 5), (9, 12), (14, 20), flat_rows=4)
+    textured("SAD on uint8 images, 5×5 blocks", 5, "sad", (3, 6), (8, 12), (14, 20), kind="uint8")
+    textured("SSD, 5×5 blocks", 5, "ssd", (4, 6), (8, 12), (14, 20))
+    textured("SSD on uint8 images, flat band", 3, "ssd", (3, 5), (8, 11), (12, 18), kind="uint8", flat_rows=4)
     d = size(3, 6)
     add(_pair(rng, size(9, 12), size(14, 20), d, gain=_u(rng, 0.5, 0.8, 2),
               offset=_u(rng, 0.1, 0.3, 2)), d,
         "ZNCC, 5×5 blocks, right view darker and offset", block_size=5, cost="zncc")
-    d = size(3, 5)
-    add(_pair(rng, size(9, 12), size(12, 18), d, flat_rows=4), d, "ZNCC, 3×3 blocks, flat band on top",
-        block_size=3, cost="zncc")
-    d = size(3, 5)
-    add(_pair(rng, size(6, 9), size(12, 16), d, kind="int"), d, "SAD of single pixels (block 1), values 0..9",
-        block_size=1, cost="sad")
+    textured("ZNCC, 3×3 blocks, flat band on top", 3, "zncc", (3, 5), (9, 12), (12, 18), flat_rows=4)
+    textured("SAD of single pixels (block 1), values 0..9", 1, "sad", (3, 5), (6, 9), (12, 16), kind="int")
     add(_pair(rng, size(6, 9), size(10, 14), 3, kind="big"), 0, "max_disparity = 0", block_size=3, cost="ssd")
     add(_pair(rng, 5, 6, 4, kind="int", flat_rows=0), size(7, 10), "max_disparity larger than the width",
         block_size=3, cost="sad")
@@ -302,12 +297,8 @@ def _hidden(rng):
     level = _u(rng, 0.2, 0.8, 1)
     add((np.full((5, 9), level), np.full((5, 9), level)), size(3, 6), "constant images (all candidates tie)",
         block_size=3, cost="zncc")
-    d = size(3, 4)
-    add(_pair(rng, size(14, 16), size(7, 9), d, gain=1.2, offset=-0.2), d, "tall image, 7×7 blocks, ZNCC",
-        block_size=7, cost="zncc")
-    d = size(3, 5)
-    add(_pair(rng, size(9, 12), size(16, 22), d, kind="big"), d, "integer values 0..1000, SSD, 5×5 blocks",
-        block_size=5, cost="ssd")
+    textured("tall image, 7×7 blocks, ZNCC", 7, "zncc", (3, 4), (14, 16), (7, 9), gain=1.2, offset=-0.2)
+    textured("integer values 0..1000, SSD, 5×5 blocks", 5, "ssd", (3, 5), (9, 12), (16, 22), kind="big")
     d = size(3, 5)
     cases.append(Case(_pair(rng, size(9, 12), size(16, 22), d) + (d,), {}, "default block_size 7 and cost 'sad'"))
     return cases

@@ -157,23 +157,25 @@ def _bs_xy_swapped(image, x, y, fill=0.0):
     return _bilinear_sample(image, y, x, fill)
 
 
+def _size_and_positions(image, x, y):
+    """``(H, W, x, y)``: the image's size and the positions as float64 arrays."""
+    H, W = np.shape(image)[:2]
+    return H, W, np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+
+
 @mistake("outside positions clamped to the border (fill ignored)",
          "Positions with x < 0, x > W − 1, y < 0 or y > H − 1 (and NaN) get `fill`, not the border value")
 def _bs_clamped(image, x, y, fill=0.0):
-    img = np.asarray(image)
-    H, W = img.shape[:2]
-    x = np.clip(np.nan_to_num(np.asarray(x, dtype=np.float64), nan=0.0), 0, W - 1)
-    y = np.clip(np.nan_to_num(np.asarray(y, dtype=np.float64), nan=0.0), 0, H - 1)
+    H, W, x, y = _size_and_positions(image, x, y)
+    x = np.clip(np.nan_to_num(x, nan=0.0), 0, W - 1)
+    y = np.clip(np.nan_to_num(y, nan=0.0), 0, H - 1)
     return _bilinear_sample(image, x, y, fill)
 
 
 @mistake("last row and column treated as outside",
          "x = W − 1 and y = H − 1 are inside: use ≤, and clip x0 to W − 2 so that x0 + 1 stays in the image")
 def _bs_last_outside(image, x, y, fill=0.0):
-    img = np.asarray(image)
-    H, W = img.shape[:2]
-    x = np.asarray(x, dtype=np.float64)
-    y = np.asarray(y, dtype=np.float64)
+    H, W, x, y = _size_and_positions(image, x, y)
     out = _bilinear_sample(image, x, y, fill)
     with np.errstate(invalid="ignore"):
         edge = (x == W - 1) | (y == H - 1)

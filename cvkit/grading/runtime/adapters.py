@@ -13,7 +13,9 @@ from typing import Callable
 from .problems import least_squares_call
 
 __all__ = ["bind_call", "instance_call", "least_squares_call", "call_with_test_function", "TestFunction", "TEST_FUNCTIONS",
-           "CACHE_KEYS", 'call_relu_forward', 'call_sigmoid_forward', 'call_leaky_relu_forward', 'call_linear_forward', 'call_conv2d_forward', 'call_maxpool2d_forward', 'call_global_avg_pool_forward', 'call_batchnorm2d_forward', 'call_dropout_forward', 'call_residual_block_forward']
+           "CACHE_KEYS", "call_relu_forward", "call_sigmoid_forward", "call_leaky_relu_forward", "call_linear_forward",
+           "call_conv2d_forward", "call_maxpool2d_forward", "call_global_avg_pool_forward", "call_batchnorm2d_forward",
+           "call_dropout_forward", "call_residual_block_forward"]
 
 
 def bind_call(call: Callable | None, candidate: Callable) -> Callable:
@@ -115,42 +117,27 @@ def _select(result, layer: str):
     return result
 
 
-def call_relu_forward(candidate, *args, **kwargs):
-    """``(out, cache with the named entries)`` of a ReLU forward (a :attr:`Check.call`)."""
-    return _select(candidate(*args, **kwargs), "relu")
+def _forward_call(layer: str) -> Callable:
+    """The :attr:`Check.call` of ``layer``'s forward: ``(out, cache with the entries
+    CACHE_KEYS[layer] names)``. It carries a module-level name (``call_<layer>_forward``,
+    assigned below) so that the trusted grader can send that name to the sandbox."""
+
+    def call(candidate, *args, **kwargs):
+        return _select(candidate(*args, **kwargs), layer)
+
+    call.__name__ = call.__qualname__ = f"call_{layer}_forward"
+    call.__doc__ = (f"``(out, cache)`` of a {layer} forward, the cache cut to its entries "
+                    f"{', '.join(CACHE_KEYS[layer])} (a :attr:`Check.call`).")
+    return call
 
 
-def call_sigmoid_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "sigmoid")
-
-
-def call_leaky_relu_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "leaky_relu")
-
-
-def call_linear_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "linear")
-
-
-def call_conv2d_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "conv2d")
-
-
-def call_maxpool2d_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "maxpool2d")
-
-
-def call_global_avg_pool_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "global_avg_pool")
-
-
-def call_batchnorm2d_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "batchnorm2d")
-
-
-def call_dropout_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "dropout")
-
-
-def call_residual_block_forward(candidate, *args, **kwargs):
-    return _select(candidate(*args, **kwargs), "residual_block")
+call_relu_forward = _forward_call("relu")
+call_sigmoid_forward = _forward_call("sigmoid")
+call_leaky_relu_forward = _forward_call("leaky_relu")
+call_linear_forward = _forward_call("linear")
+call_conv2d_forward = _forward_call("conv2d")
+call_maxpool2d_forward = _forward_call("maxpool2d")
+call_global_avg_pool_forward = _forward_call("global_avg_pool")
+call_batchnorm2d_forward = _forward_call("batchnorm2d")
+call_dropout_forward = _forward_call("dropout")
+call_residual_block_forward = _forward_call("residual_block")
