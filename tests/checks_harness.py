@@ -80,7 +80,7 @@ class _Outputs:
     the candidate is compared with are reused — the candidate itself always runs — and only
     calls that took at least ``SLOW`` seconds are kept (the rest are cheaper to repeat)."""
 
-    SLOW = 0.02
+    SLOW = 0.002
 
     def __init__(self):
         self.kept = {}
@@ -121,7 +121,7 @@ class _Draws:
     draw is a deterministic function of the two, so a kept draw is the same cases; each use
     gets its own deep copy. Only draws that took at least ``SLOW`` seconds are kept."""
 
-    SLOW = 0.02
+    SLOW = 0.002
 
     def __init__(self):
         self.kept = {}

@@ -238,11 +238,18 @@ class _CallWatcher:
         self.own_module: str | None = None  # module name of the candidate's code (``__main__`` in notebooks)
         self.enabled = True
         self.builtins = _forbidden_builtins(self.libraries) if self.libraries else {}
+        # verdicts on what was seen and found harmless, by id, each entry holding its object
+        # (so that an id is not reused while it is cached): Python code with the globals it
+        # ran in, and C functions of modules (never bound methods, which hold their instance)
+        self._harmless_code: dict[int, tuple] = {}
+        self._harmless_c: dict[int, Any] = {}
+        self.profile = self._profile_function()
 
     def refresh(self) -> None:
         """Recognise the C functions of forbidden modules imported since the watch began."""
         if self.libraries:
             self.builtins = _forbidden_builtins(self.libraries)
+            self._harmless_c.clear()
 
     def _module_of(self, frame) -> str:
         name = frame.f_globals.get("__name__", "")
@@ -269,7 +276,37 @@ class _CallWatcher:
         if what not in self.calls:
             self.calls.append(what)
 
+    def _profile_function(self) -> Callable:
+        """The ``sys.setprofile`` function of this watch: the checks of :meth:`__call__`, in a
+        plain function (cheaper to call than this object) that skips what it has already found
+        harmless. It runs on every call and return of the candidate and of the libraries it
+        uses, so its cost multiplies the candidate's running time."""
+        harmless_code, harmless_c = self._harmless_code, self._harmless_c
+        check = self.__call__
+        module_type = types.ModuleType
+
+        def profile(frame, event, arg):
+            if event == "call":
+                code = frame.f_code
+                seen = harmless_code.get(id(code))
+                if seen is not None and seen[0] is code and seen[1] is frame.f_globals:
+                    return
+                if check(frame, event, arg) is _HARMLESS:
+                    harmless_code[id(code)] = (code, frame.f_globals)
+            elif event == "c_call":
+                if harmless_c.get(id(arg)) is arg:
+                    return
+                if check(frame, event, arg) is _HARMLESS:
+                    owner = getattr(arg, "__self__", None)
+                    if owner is None or type(owner) is module_type:
+                        harmless_c[id(arg)] = arg
+
+        return profile
+
     def __call__(self, frame, event, arg):
+        """Check one profile event; returns :data:`_HARMLESS` for a call that is neither
+        forbidden nor watched, whoever makes it (so that the same call need not be looked at
+        again)."""
         if not self.enabled:
             return
         if event == "call":
@@ -286,9 +323,13 @@ class _CallWatcher:
                 if not self._nested(frame):
                     self._record(f"{module}.{code.co_name}")
                 return
+            watched = False
             for prefix, name in self.functions:
-                if code.co_name == name and module.startswith(prefix) and not self._nested(frame):
-                    self._record(f"{prefix}.{name}")
+                if code.co_name == name and module.startswith(prefix):
+                    watched = True
+                    if not self._nested(frame):
+                        self._record(f"{prefix}.{name}")
+            return None if watched else _HARMLESS
         elif event == "c_call":
             tampering = self.TAMPERING.get(id(arg))
             if tampering is not None:
@@ -303,8 +344,15 @@ class _CallWatcher:
             module = getattr(arg, "__module__", None)
             if type(module) is not str:  # None, or (some extensions) the module object itself
                 module = _module_name(module) if module is not None else ""
-            if self.libraries and module.startswith(self.libraries) and not self._nested(frame):
-                self._record(f"{module}.{getattr(arg, '__name__', '?')}")
+            if self.libraries and module.startswith(self.libraries):
+                if not self._nested(frame):
+                    self._record(f"{module}.{getattr(arg, '__name__', '?')}")
+                return
+            return _HARMLESS
+
+
+#: what :meth:`_CallWatcher.__call__` says of a call that is neither forbidden nor watched
+_HARMLESS = object()
 
 
 #: while the time is up but the candidate is inside an import (or inside the guard's own code),
@@ -438,7 +486,7 @@ def _find_and_load(name, *args, **kwargs):
     clock, watcher = session.clock, session.watcher
     if clock is not None:
         clock.pause()
-    watching = watcher is not None and sys.getprofile() is watcher
+    watching = watcher is not None and sys.getprofile() is watcher.profile
     if watching:
         sys.setprofile(None)
     before = set(sys.modules)
@@ -454,7 +502,7 @@ def _find_and_load(name, *args, **kwargs):
                 if len(sys.modules) != len(before):
                     watcher.refresh()
                 if sys.getprofile() is None:
-                    sys.setprofile(watcher)
+                    sys.setprofile(watcher.profile)
         finally:
             session.loading = False
             if clock is not None:
@@ -498,7 +546,7 @@ def _begin(session: _Session) -> None:
     if session.clock is not None:
         session.clock.start()
     if session.watcher is not None:
-        sys.setprofile(session.watcher)
+        sys.setprofile(session.watcher.profile)
 
 
 def _end(session: _Session, previous_profile) -> None:
@@ -510,7 +558,7 @@ def _end(session: _Session, previous_profile) -> None:
         watcher = session.watcher
         if watcher is not None:
             watcher.enabled = False
-            if sys.getprofile() is not watcher:
+            if sys.getprofile() is not watcher.profile:
                 watcher._record("sys.setprofile (switching off the grader's watch)")
         sys.setprofile(previous_profile)
         if session in _sessions:
@@ -520,7 +568,16 @@ def _end(session: _Session, previous_profile) -> None:
 
 
 def _code_ids(*objects) -> set:
+    """The ids of the code of these functions and of the classes' methods, with the code of
+    the functions defined inside them (such as the call watch's profile function)."""
     codes = set()
+
+    def add(code) -> None:
+        codes.add(id(code))
+        for constant in code.co_consts:
+            if isinstance(constant, types.CodeType):
+                add(constant)
+
     for item in objects:
         members = vars(item).values() if isinstance(item, type) else (item,)
         for member in members:
@@ -528,7 +585,7 @@ def _code_ids(*objects) -> set:
             member = getattr(member, "__wrapped__", member)
             code = getattr(member, "__code__", None)
             if code is not None:
-                codes.add(id(code))
+                add(code)
     return codes
 
 
