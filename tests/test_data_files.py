@@ -181,6 +181,23 @@ def test_cifar_reader_refuses_other_pickles(tmp_path):
 
 
 # --------------------------------------------------------------------------------------------
+# scikit-image's bundled images
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", ["camera", "astronaut", "coins", "moon", "text", "brick", "coffee", "chelsea",
+                                  "grass", "gravel"])
+def test_bundled_images_are_scikit_images_own(name):
+    """cvkit reads the PNG files itself (faster than skimage.io's first import): the same pixels."""
+    import skimage.data
+
+    expected = getattr(skimage.data, name)()
+    got = data.image(name)
+    assert got.dtype == np.float64 and got.shape == expected.shape
+    assert np.array_equal(got, expected / 255.0)
+    if hasattr(data, name):
+        assert np.array_equal(getattr(data, name)(), got)
+
+
+# --------------------------------------------------------------------------------------------
 # textures
 # --------------------------------------------------------------------------------------------
 def test_textures_split_and_patches():

@@ -10,6 +10,7 @@ extra: without it they raise ``ImportError`` saying ``pip install "cvkit[data]"`
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -30,8 +31,24 @@ def image(name: str) -> np.ndarray:
     """One of scikit-image's bundled images by name, as float64 in [0, 1]."""
     if not isinstance(name, str) or name not in _NAMES:
         raise ValueError(f"name must be one of {', '.join(_NAMES)}, got {name!r}")
-    raw = getattr(skimage_data(), name)()
-    return raw.astype(np.float64) / 255.0
+    return _bundled_pixels(name).astype(np.float64) / 255.0
+
+
+def _bundled_pixels(name: str) -> np.ndarray:
+    """The uint8 pixels of the bundled image ``name``: its PNG file in scikit-image's data
+    folder read with Pillow (scikit-image's own loader goes through ``skimage.io``, whose first
+    import costs about 0.3 s in every notebook that shows a picture), or scikit-image's loader
+    where the file is not there or not plain grey or RGB."""
+    module = skimage_data()
+    try:
+        from PIL import Image
+
+        with Image.open(Path(str(module.__file__)).parent / f"{name}.png") as picture:
+            if picture.mode in ("L", "RGB"):
+                return np.asarray(picture)
+    except (ImportError, OSError):
+        pass
+    return getattr(module, name)()
 
 
 def _bundled(name: str, description: str) -> Callable[[], np.ndarray]:
