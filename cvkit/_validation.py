@@ -14,14 +14,31 @@ import numpy as np
 BORDERS = ("zero", "replicate", "reflect", "reflect101")
 
 
+_NUMERIC: dict[np.dtype, str] = {}  # dtype -> "real", "complex" or "other", worked out once per dtype
+
+
+def _numeric_kind(dtype: np.dtype) -> str:
+    kind = _NUMERIC.get(dtype)
+    if kind is None:
+        if dtype == object or not (np.issubdtype(dtype, np.number) or dtype == bool):
+            kind = "other"
+        elif np.issubdtype(dtype, np.complexfloating):
+            kind = "complex"
+        else:
+            kind = "real"
+        _NUMERIC[dtype] = kind
+    return kind
+
+
 def as_float_array(value, name: str, *, ndim=None, finite: bool = True, allow_empty: bool = False) -> np.ndarray:
     """``value`` as a float64 array (a new array only when conversion needs one)."""
     if isinstance(value, (str, bytes)) or value is None:
         raise TypeError(f"{name} must be a numeric array, got {type(value).__name__}")
     array = np.asarray(value)
-    if array.dtype == object or not (np.issubdtype(array.dtype, np.number) or array.dtype == bool):
+    kind = _numeric_kind(array.dtype)
+    if kind == "other":
         raise TypeError(f"{name} must be a real numeric array, got dtype {array.dtype}")
-    if np.issubdtype(array.dtype, np.complexfloating):
+    if kind == "complex":
         raise TypeError(f"{name} must be real, got complex dtype {array.dtype}")
     if ndim is not None:
         allowed = (ndim,) if isinstance(ndim, int) else tuple(ndim)
@@ -30,8 +47,10 @@ def as_float_array(value, name: str, *, ndim=None, finite: bool = True, allow_em
             raise ValueError(f"{name} must have {want} dimensions, got shape {array.shape}")
     if not allow_empty and array.size == 0:
         raise ValueError(f"{name} must not be empty, got shape {array.shape}")
+    # integers and booleans are finite in float64 as well: only floating input needs a look
+    floating = array.dtype.kind not in "biu"
     array = array.astype(np.float64, copy=False)
-    if finite and not np.all(np.isfinite(array)):
+    if finite and floating and not np.isfinite(array).all():
         raise ValueError(f"{name} must contain only finite values (found NaN or inf)")
     return array
 
