@@ -368,11 +368,14 @@ def project_checked(points: np.ndarray, A: np.ndarray, R: np.ndarray, t: np.ndar
     camera = points @ R.T + t                                     # 1. world -> camera frame
     with np.errstate(divide="ignore", invalid="ignore"):
         normalized = camera[:, :2] / camera[:, 2:]                # 2. canonical projection
-    finite = np.all(np.isfinite(normalized), axis=1)
-    distorted = np.array(normalized)                              # 3. lens distortion
-    if finite.any():
-        inside = normalized[finite]
-        distorted[finite] = _distorted(inside, k, p) if lens is None else lens(inside)
+    finite = np.isfinite(normalized).all(axis=1)
+    if lens is None and finite.all():                             # 3. lens distortion
+        distorted = _distorted(normalized, k, p)
+    else:                                                         # points at infinity stay there
+        distorted = np.array(normalized)
+        if finite.any():
+            inside = normalized[finite]
+            distorted[finite] = _distorted(inside, k, p) if lens is None else lens(inside)
     a = A / A[2, 2]                                               # 4. intrinsics
     with np.errstate(invalid="ignore"):  # a point at infinity: inf - inf is nan, without a warning
         u = a[0, 0] * distorted[:, 0] + a[0, 2]
