@@ -60,6 +60,11 @@ def run(program: str, *args: str, extras: str = "test") -> int:
     bin_dir = ensure(extras)
     env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}", VIRTUAL_ENV=str(VENV))
     env.setdefault("MPLBACKEND", "Agg")
+    # Python's bytecode caches (git-ignored) are kept even where PYTHONDONTWRITEBYTECODE is set:
+    # the test suite and the demo start hundreds of Python processes (kernels, sandboxed runs,
+    # workers), and without the caches each one compiles cvkit again (about 0.5 s of CPU), and
+    # every pytest worker rewrites the asserts of every test module again (about 6 s)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     return subprocess.call([str(bin_dir / program), *args], cwd=ROOT, env=env)
 
 
