@@ -18,6 +18,9 @@ _NUMERIC: dict[np.dtype, str] = {}  # dtype -> "real", "complex" or "other", wor
 
 
 def _numeric_kind(dtype: np.dtype) -> str:
+    """``"real"`` (bool, integers, floats, timedeltas), ``"complex"`` or ``"other"``: what
+    :func:`as_float_array` accepts, with ``np.issubdtype``'s rules, looked up once per dtype
+    (the check runs on every argument of every call)."""
     kind = _NUMERIC.get(dtype)
     if kind is None:
         if dtype == object or not (np.issubdtype(dtype, np.number) or dtype == bool):
