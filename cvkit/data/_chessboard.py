@@ -353,6 +353,91 @@ def _project(points: np.ndarray, A: np.ndarray, R: np.ndarray, t: np.ndarray, k:
     return project_checked(points, A, R, t, np.array(k, dtype=np.float64), np.array(p, dtype=np.float64))
 
 
+def _rotations(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """:func:`cvkit.camera.rotation_matrix` for arrays of angles, ``(K, 3, 3)`` (equal up to
+    rounding: the sines of arrays may round differently from those of scalars)."""
+    ca, sa, cb, sb = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
+    cc, sc = np.cos(yaw), np.sin(yaw)
+    return np.stack([cc * cb, cc * sb * sa - sc * ca, cc * sb * ca + sc * sa,
+                     sc * cb, sc * sb * sa + cc * ca, sc * sb * ca - cc * sa,
+                     0.0 - sb, cb * sa, cb * ca], axis=-1).reshape(-1, 3, 3)
+
+
+class _PoseTries:
+    """The tries of :func:`random_board_poses`' rejection sampler, a block at a time.
+
+    A try takes ``m`` uniforms of ``rng`` — the yaw, (whether to flip, when ``flip``), roll,
+    pitch, the fill and the board centre's two offsets — and keeps the pose when the board faces
+    the camera (``R[2, 2] > 0.2``) and every point of the paper's outline lies in front of the
+    camera and ``border`` pixels inside the image. :meth:`exact` makes one try exactly so.
+    :meth:`hopeless` rules out, for a whole block of tries at once, those that fail by a clear
+    margin (:attr:`MARGIN`, far above rounding), so that only the few others need :meth:`exact`:
+    the poses are those of trying one after the other, bit for bit, at a fraction of the cost
+    (most tries fail: tens per pose for the chessboard checks' small images).
+    """
+
+    MARGIN = 1e-6
+
+    def __init__(self, A, H, W, outline, centre, board_width, diagonal, spin, tilt, lo, hi, border, flip, kk, pp):
+        self.A, self.H, self.W, self.outline, self.centre = A, H, W, outline, centre
+        self.board_width, self.diagonal = board_width, diagonal
+        self.spin, self.tilt, self.lo, self.hi, self.border, self.flip = spin, tilt, lo, hi, border, flip
+        self.kk, self.pp = kk, pp
+        self.m = 7 if flip else 6
+
+    def _draws(self, u: np.ndarray):
+        """yaw, roll, pitch, fill and the offsets (x, y) from the uniforms, as ``rng.uniform``
+        makes them (``low + (high - low) · u``)."""
+        spin, tilt, f = self.spin, self.tilt, 2 if self.flip else 1
+        yaw = -spin + (spin - -spin) * u[..., 0] + np.where(self.flip & (u[..., 1] < 0.5), np.pi, 0.0)
+        roll = -tilt + (tilt - -tilt) * u[..., f]
+        pitch = -tilt + (tilt - -tilt) * u[..., f + 1]
+        fill = self.lo + (self.hi - self.lo) * u[..., f + 2]
+        return yaw, roll, pitch, fill, -0.25 + 0.5 * u[..., f + 3], -0.25 + 0.5 * u[..., f + 4]
+
+    def _pose(self, R, fill, ox, oy, shrink):
+        A, W, H = self.A, self.W, self.H
+        depth = A[0, 0] * self.board_width / (self.diagonal * fill * shrink)
+        target = np.stack([ox * W / A[0, 0], oy * H / A[1, 1], np.ones_like(ox)], axis=-1) * np.expand_dims(depth, -1)
+        return target - R @ self.centre
+
+    def exact(self, u: np.ndarray, number: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """Try ``number`` (counted from 1) on its uniforms ``u``: ``(R, t)`` if kept, else None."""
+        yaw, roll, pitch, fill, ox, oy = (float(v) for v in self._draws(u))
+        R = _rotation(roll, pitch, yaw)
+        shrink = 0.97 ** (number // 50)           # when the board keeps sticking out, try smaller
+        t = self._pose(R, fill, ox, oy, shrink)
+        if R[2, 2] <= 0.2:                        # seen too edge-on (or from behind)
+            return None
+        corners = _project(self.outline, self.A, R, t, self.kk, self.pp)
+        z = (self.outline @ R.T + t)[:, 2]
+        lo, right, bottom = self.border - 0.5, self.W - 0.5 - self.border, self.H - 0.5 - self.border
+        if np.all(z > 0) and np.all(corners[:, 0] >= lo) and np.all(corners[:, 0] <= right) \
+                and np.all(corners[:, 1] >= lo) and np.all(corners[:, 1] <= bottom):
+            return R, t
+        return None
+
+    def hopeless(self, u: np.ndarray, done: int) -> np.ndarray:
+        """``(K,)`` bool: the tries ``done + 1 ..`` on the rows of ``u`` that :meth:`exact` would
+        certainly reject (by more than :attr:`MARGIN`); False does not mean kept."""
+        yaw, roll, pitch, fill, ox, oy = self._draws(u)
+        R = _rotations(roll, pitch, yaw)                                   # (K, 3, 3)
+        shrink = 0.97 ** ((done + 1 + np.arange(len(u))) // 50)
+        t = self._pose(R, fill, ox, oy, shrink)                            # (K, 3)
+        camera = self.outline @ R.transpose(0, 2, 1) + t[:, None, :]       # (K, points, 3)
+        z = camera[..., 2]
+        # project_full's last three steps on the points in the camera frame (R = I, t = 0)
+        corners = _project(camera.reshape(-1, 3), self.A, np.eye(3), np.zeros(3), self.kk, self.pp)
+        x, y = corners[:, 0].reshape(z.shape), corners[:, 1].reshape(z.shape)
+        e = self.MARGIN
+        with np.errstate(invalid="ignore"):
+            ex, ey = e * (1.0 + np.abs(x)), e * (1.0 + np.abs(y))  # relative: rounding grows with size
+            outside = (x < self.border - 0.5 - ex) | (x > self.W - 0.5 - self.border + ex) \
+                | (y < self.border - 0.5 - ey) | (y > self.H - 0.5 - self.border + ey)
+        behind = z < -e * np.abs(camera).max(axis=(1, 2))[:, None]
+        return (R[:, 2, 2] < 0.2 - e) | behind.any(axis=1) | outside.any(axis=1)
+
+
 def random_board_poses(n: int, A: ArrayLike, image_size: tuple[int, int] = (480, 640), cols: int = 9,
                        rows: int = 6, square_size: float = 25.0, k: ArrayLike = (0.0, 0.0, 0.0),
                        p: ArrayLike = (0.0, 0.0), rng: np.random.Generator | int | None = None, tilt: float = 0.7,
@@ -408,29 +493,33 @@ def random_board_poses(n: int, A: ArrayLike, image_size: tuple[int, int] = (480,
     centre = np.array([(cols - 1) * s / 2, (rows - 1) * s / 2, 0.0])
     board_width = float(np.hypot((cols + 1 + 2 * margin) * s, (rows + 1 + 2 * margin) * s))  # the paper
     diagonal = float(np.hypot(H, W))
+    tries = _PoseTries(A, H, W, outline, centre, board_width, diagonal, spin, tilt, lo, hi, border, flip, kk, pp)
     rotations: list[np.ndarray] = []
     translations: list[np.ndarray] = []
-    tries = 0
+    done = 0                                      # tries made
+    block = 16
     while len(rotations) < n:
-        tries += 1
-        if tries > max_tries:
+        if done == max_tries:
             raise ValueError(
                 f"could not place the board inside the image in {max_tries} tries: make the board smaller "
                 "(fill), the tilt smaller or the image larger")
-        yaw = rng.uniform(-spin, spin) + (np.pi if flip and rng.random() < 0.5 else 0.0)
-        R = _rotation(rng.uniform(-tilt, tilt), rng.uniform(-tilt, tilt), yaw)
-        shrink = 0.97 ** (tries // 50)            # when the board keeps sticking out, try smaller
-        depth = A[0, 0] * board_width / (diagonal * rng.uniform(lo, hi) * shrink)
-        target = np.array([rng.uniform(-0.25, 0.25) * W / A[0, 0], rng.uniform(-0.25, 0.25) * H / A[1, 1], 1.0]) * depth
-        t = target - R @ centre
-        if R[2, 2] <= 0.2:  # seen too edge-on (or from behind)
-            continue
-        corners = _project(outline, A, R, t, kk, pp)
-        z = (outline @ R.T + t)[:, 2]
-        if np.all(z > 0) and np.all(corners[:, 0] >= border - 0.5) and np.all(corners[:, 0] <= W - 0.5 - border) \
-                and np.all(corners[:, 1] >= border - 0.5) and np.all(corners[:, 1] <= H - 0.5 - border):
-            rotations.append(R)
-            translations.append(t)
+        size = min(block, max_tries - done)
+        state = rng.bit_generator.state
+        uniforms = rng.random((size, tries.m))    # the uniforms of the next `size` tries, in order
+        used = size
+        for i in np.flatnonzero(~tries.hopeless(uniforms, done)).tolist():
+            pose = tries.exact(uniforms[i], done + i + 1)
+            if pose is not None:
+                rotations.append(pose[0])
+                translations.append(pose[1])
+                if len(rotations) == n:
+                    used = i + 1
+                    break
+        if used < size:                           # leave rng just after the last try made
+            rng.bit_generator.state = state
+            rng.random(used * tries.m)
+        done += used
+        block = min(4 * block, 1024)
     return np.array(rotations).reshape(n, 3, 3), np.array(translations).reshape(n, 3)
 
 
