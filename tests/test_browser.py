@@ -254,6 +254,23 @@ def student_folder(course, tmp_path_factory):
     return folder
 
 
+@pytest.fixture(scope="module")
+def lab(student_folder):
+    """One JupyterLab server on the student's folder, in the light theme, for every student test."""
+    with jupyter_lab(student_folder) as server:
+        yield server
+
+
+@pytest.fixture(scope="module")
+def wrong_run(browser, lab):
+    """``wrong.ipynb`` run once in JupyterLab; its page stays open for the light-theme checks and
+    then the dark-theme ones (the theme is switched on the rendered page, as a student does)."""
+    url, token = lab
+    page = _run_notebook(browser, url, token, "wrong.ipynb", "wrong")
+    yield page
+    page.close()
+
+
 def _expected_mistake() -> str:
     """The mistake the engine names for the wrong median (computed in this process)."""
     import numpy as np
@@ -289,43 +306,42 @@ def _contrast(page, locator) -> float:
 
 
 # ---------------------------------------------------------------------------- tests
-def test_student_sees_passing_and_failing_reports(browser, student_folder):
+def test_student_sees_passing_and_failing_reports(browser, lab, wrong_run):
     mistake = _expected_mistake()
-    with jupyter_lab(student_folder) as (url, token):
-        page = _run_notebook(browser, url, token, "correct.ipynb", "correct")
-        passed = _report(page, ALGORITHM)
-        assert "cvkit-passed" in passed.get_attribute("class")
-        assert "passed" in passed.locator(".cvkit-summary").text_content()
-        assert page.locator("section.cvkit-report.cvkit-failed").count() == 0, "a correct notebook shows no failure"
-        assert page.locator("section.cvkit-report").count() >= 10
-        passed.screenshot(path=str(ARTEFACTS / "correct-report.png"))
-        page.close()
+    url, token = lab
+    page = _run_notebook(browser, url, token, "correct.ipynb", "correct")
+    passed = _report(page, ALGORITHM)
+    assert "cvkit-passed" in passed.get_attribute("class")
+    assert "passed" in passed.locator(".cvkit-summary").text_content()
+    assert page.locator("section.cvkit-report.cvkit-failed").count() == 0, "a correct notebook shows no failure"
+    assert page.locator("section.cvkit-report").count() >= 10
+    passed.screenshot(path=str(ARTEFACTS / "correct-report.png"))
+    page.close()
 
-        page = _run_notebook(browser, url, token, "wrong.ipynb", "wrong")
-        failed = _report(page, ALGORITHM)
-        assert "cvkit-failed" in failed.get_attribute("class")
-        summary = failed.locator(".cvkit-summary").text_content()
-        assert "FAILED" in summary and ALGORITHM in summary
-        assert mistake in failed.locator(".cvkit-mistake").text_content()
-        failed.scroll_into_view_if_needed()
-        page.wait_for_timeout(500)
-        images = failed.locator(".cvkit-images img")
-        assert images.count() == 3
-        for index, start in enumerate(("Your output", "Expected output", "Absolute difference")):
-            assert images.nth(index).get_attribute("alt").startswith(start)
-            box = images.nth(index).bounding_box()
-            assert box and box["width"] >= 32 and box["height"] >= 32, "the image is not drawn"
-        captions = failed.locator("figcaption").all_text_contents()
-        assert captions[:2] == ["yours", "expected"] and captions[2].startswith("|difference|")
-        # the failing visible test stops the run there (an AssertionError, as in any notebook);
-        # every exercise before it passed: the mistake is reported where it is
-        failing = [page.locator("section.cvkit-report.cvkit-failed").nth(i).get_attribute("aria-label")
-                   for i in range(page.locator("section.cvkit-report.cvkit-failed").count())]
-        assert failing and all(label.startswith(ALGORITHM) for label in failing), failing
-        assert page.locator("section.cvkit-report.cvkit-passed").count() >= 5
-        assert "AssertionError" in page.locator(".jp-RenderedText[data-mime-type='application/vnd.jupyter.stderr']").last.text_content()
-        failed.screenshot(path=str(ARTEFACTS / "wrong-report.png"))
-        page.close()
+    page = wrong_run
+    failed = _report(page, ALGORITHM)
+    assert "cvkit-failed" in failed.get_attribute("class")
+    summary = failed.locator(".cvkit-summary").text_content()
+    assert "FAILED" in summary and ALGORITHM in summary
+    assert mistake in failed.locator(".cvkit-mistake").text_content()
+    failed.scroll_into_view_if_needed()
+    page.wait_for_timeout(500)
+    images = failed.locator(".cvkit-images img")
+    assert images.count() == 3
+    for index, start in enumerate(("Your output", "Expected output", "Absolute difference")):
+        assert images.nth(index).get_attribute("alt").startswith(start)
+        box = images.nth(index).bounding_box()
+        assert box and box["width"] >= 32 and box["height"] >= 32, "the image is not drawn"
+    captions = failed.locator("figcaption").all_text_contents()
+    assert captions[:2] == ["yours", "expected"] and captions[2].startswith("|difference|")
+    # the failing visible test stops the run there (an AssertionError, as in any notebook);
+    # every exercise before it passed: the mistake is reported where it is
+    failing = [page.locator("section.cvkit-report.cvkit-failed").nth(i).get_attribute("aria-label")
+               for i in range(page.locator("section.cvkit-report.cvkit-failed").count())]
+    assert failing and all(label.startswith(ALGORITHM) for label in failing), failing
+    assert page.locator("section.cvkit-report.cvkit-passed").count() >= 5
+    assert "AssertionError" in page.locator(".jp-RenderedText[data-mime-type='application/vnd.jupyter.stderr']").last.text_content()
+    failed.screenshot(path=str(ARTEFACTS / "wrong-report.png"))
 
 
 _EXECUTED = """() => {
@@ -343,19 +359,19 @@ _EXECUTED = """() => {
 }"""
 
 
-def test_run_all_on_the_release_reaches_the_end_in_jupyterlab(browser, student_folder):
+def test_run_all_on_the_release_reaches_the_end_in_jupyterlab(browser, lab):
     """JupyterLab's own *Run All* on the released notebook, nothing answered yet: every code cell
     runs (the raises-exception tag lets the run go past an unanswered exercise's test), and the
     only errors are those tests' one-line "not answered yet"."""
-    with jupyter_lab(student_folder) as (url, token):
-        page = _run_notebook(browser, url, token, "blank.ipynb", "release-run-all")
+    url, token = lab
+    page = _run_notebook(browser, url, token, "blank.ipynb", "release-run-all")
+    state = page.evaluate(_EXECUTED)
+    deadline = time.monotonic() + 240  # the run helper stops watching at the first error: wait for the rest
+    while state["unexecuted"] and time.monotonic() < deadline:
+        time.sleep(1.0)
         state = page.evaluate(_EXECUTED)
-        deadline = time.monotonic() + 240  # the run helper stops watching at the first error: wait for the rest
-        while state["unexecuted"] and time.monotonic() < deadline:
-            time.sleep(1.0)
-            state = page.evaluate(_EXECUTED)
-        page.screenshot(path=str(ARTEFACTS / "release-run-all-end.png"))
-        page.close()
+    page.screenshot(path=str(ARTEFACTS / "release-run-all-end.png"))
+    page.close()
     assert state["cells"] > 20 and state["unexecuted"] == [], state["unexecuted"]
     assert state["errors"], "the unanswered exercises' visible tests fail"
     for error in state["errors"]:
@@ -363,24 +379,35 @@ def test_run_all_on_the_release_reaches_the_end_in_jupyterlab(browser, student_f
         assert error["ename"] == "CheckFailed" and "not answered yet" in error["evalue"], error
 
 
-def test_report_is_readable_in_the_dark_theme(browser, student_folder):
-    with jupyter_lab(student_folder, theme="JupyterLab Dark") as (url, token):
-        page = _run_notebook(browser, url, token, "wrong.ipynb", "dark")
-        background = page.evaluate("getComputedStyle(document.querySelector('.jp-Notebook')).backgroundColor")
-        channels = [float(v) for v in background[background.index("(") + 1:-1].split(",")[:3]]
-        assert sum(channels) / 3 < 80, f"the dark theme is not active (background {background})"
-        failed = _report(page, ALGORITHM)
-        for part in (".cvkit-summary", ".cvkit-mistake", "table.cvkit-cases td", "pre.cvkit-message",
-                     "figcaption"):
-            element = failed.locator(part).first
-            ratio = _contrast(page, element)
-            assert ratio >= 4.5, f"{part}: contrast {ratio:.2f} with the dark background is below WCAG AA (4.5)"
-        # the exercises before the failing one passed: their reports are the passed style
-        passed = page.locator("section.cvkit-report.cvkit-passed")
-        assert passed.count() >= 5
-        assert _contrast(page, passed.first.locator(".cvkit-summary")) >= 4.5
-        failed.screenshot(path=str(ARTEFACTS / "dark-wrong-report.png"))
-        page.close()
+_BACKGROUND = "() => getComputedStyle(document.querySelector('.jp-Notebook')).backgroundColor"
+
+
+def _mean_channel(css_colour: str) -> float:
+    channels = [float(v) for v in css_colour[css_colour.index("(") + 1:-1].split(",")[:3]]
+    return sum(channels) / 3
+
+
+def test_report_is_readable_in_the_dark_theme(wrong_run):
+    """The rendered report of the wrong run, after switching JupyterLab to its dark theme (its
+    colours follow the theme's variables: nothing is run again)."""
+    page = wrong_run
+    page.evaluate("() => window.jupyterapp.commands.execute('apputils:change-theme', {theme: 'JupyterLab Dark'})")
+    deadline = time.monotonic() + 60
+    while _mean_channel(page.evaluate(_BACKGROUND)) >= 80 and time.monotonic() < deadline:
+        time.sleep(0.5)
+    background = page.evaluate(_BACKGROUND)
+    assert _mean_channel(background) < 80, f"the dark theme is not active (background {background})"
+    failed = _report(page, ALGORITHM)
+    for part in (".cvkit-summary", ".cvkit-mistake", "table.cvkit-cases td", "pre.cvkit-message",
+                 "figcaption"):
+        element = failed.locator(part).first
+        ratio = _contrast(page, element)
+        assert ratio >= 4.5, f"{part}: contrast {ratio:.2f} with the dark background is below WCAG AA (4.5)"
+    # the exercises before the failing one passed: their reports are the passed style
+    passed = page.locator("section.cvkit-report.cvkit-passed")
+    assert passed.count() >= 5
+    assert _contrast(page, passed.first.locator(".cvkit-summary")) >= 4.5
+    failed.screenshot(path=str(ARTEFACTS / "dark-wrong-report.png"))
 
 
 def test_formgrader_lists_the_autograded_samples(browser, course):
