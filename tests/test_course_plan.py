@@ -19,6 +19,7 @@ import os
 import shutil
 import stat
 import subprocess
+import sys
 from pathlib import Path
 
 import nbformat
@@ -353,3 +354,42 @@ def test_a_changed_due_date_offers_a_regrade_and_regrade_applies_it(graded):
     (course.root / "plan.toml").write_text(PLAN.replace('"per_hour"', '"zero"'))
     changed = Course(course.root, project=course.project).outdated()
     assert changed == {(s, ASSIGNMENT): ["due date", "late policy"] for s in ("ada", "bob", "cyd")}
+
+
+def test_a_new_gradebook_gets_nbgraders_schema_without_the_alembic_process(tmp_path, monkeypatch):
+    """gradebook_of stamps a new database with nbgrader's schema version read in-process, so
+    nbgrader does not start ``alembic heads`` (seconds of CPU for every new course); the result
+    is the database nbgrader makes on its own: the same tables, the same version."""
+    import nbgrader.api
+    from sqlalchemy import create_engine, inspect, text
+
+    from cvkit.course.plan import gradebook_of, nbgrader_schema_version, stamp_new_gradebook
+
+    def contents(url):
+        engine = create_engine(url)
+        try:
+            with engine.connect() as connection:
+                version = connection.execute(text("SELECT version_num FROM alembic_version")).scalars().all()
+            return sorted(inspect(engine).get_table_names()), version
+        finally:
+            engine.dispose()
+
+    # nbgrader alone (the oracle): its Gradebook runs the alembic command of this environment
+    plain = f"sqlite:///{tmp_path / 'plain.db'}"
+    monkeypatch.setenv("PATH", str(Path(sys.executable).parent) + os.pathsep + os.environ.get("PATH", ""))
+    nbgrader.api.Gradebook(plain).close()
+    expected_tables, expected_version = contents(plain)
+    assert expected_version == [nbgrader_schema_version()] and "assignment" in expected_tables
+
+    def no_process():
+        raise AssertionError("nbgrader started the alembic process")
+
+    monkeypatch.setattr(nbgrader.api, "get_alembic_version", no_process)
+    stamped = f"sqlite:///{tmp_path / 'stamped.db'}"
+    with gradebook_of(stamped, "course101") as gradebook:
+        gradebook.add_assignment("ch03_filtering")
+    assert contents(stamped) == (expected_tables, expected_version)
+    # an existing gradebook is left as it is, whatever its tables
+    assert stamp_new_gradebook(stamped) is False and stamp_new_gradebook(plain) is False
+    with gradebook_of(stamped, "course101") as gradebook:
+        assert [a.name for a in gradebook.assignments] == ["ch03_filtering"]

@@ -26,7 +26,6 @@ import datetime as _dt
 import math
 import os
 import re
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Iterator, Mapping
@@ -330,25 +329,56 @@ def sync_due_dates(db_url: str, plan: Plan, assignments: Iterable[str] | None = 
     return changes
 
 
+def nbgrader_schema_version() -> str:
+    """The alembic revision of the gradebook schema of the installed nbgrader (its scripts' head),
+    read in this process: what nbgrader's ``get_alembic_version`` gets from the ``alembic heads``
+    command, a Python process of its own that costs seconds of CPU."""
+    from alembic.script import ScriptDirectory
+    from nbgrader.dbutil import ALEMBIC_DIR
+
+    head = ScriptDirectory(ALEMBIC_DIR).get_current_head()
+    if not head:
+        raise RuntimeError(f"nbgrader's schema scripts in {ALEMBIC_DIR} have no single head revision")
+    return head
+
+
+def stamp_new_gradebook(db_url: str) -> bool:
+    """Give a database without tables the schema version nbgrader would give it (True when it
+    did). nbgrader's ``Gradebook`` stamps a new database with the ``alembic_version`` table
+    itself, but runs the ``alembic`` command to learn the version; a database that already has
+    a table it leaves alone, so the version stamped here spares that process (and nbgrader's
+    tables are created as usual). A database with tables is not touched."""
+    from sqlalchemy import create_engine, inspect, text
+    from sqlalchemy.exc import SQLAlchemyError
+
+    engine = create_engine(db_url, future=True)
+    try:
+        if inspect(engine).get_table_names():
+            return False
+        version = nbgrader_schema_version()
+        try:
+            with engine.begin() as connection:  # the very statements of nbgrader's Gradebook
+                connection.execute(text("CREATE TABLE alembic_version (version_num VARCHAR(32) NOT NULL);"))
+                connection.execute(text("INSERT INTO alembic_version (version_num) VALUES (:version);"),
+                                   {"version": version})
+        except SQLAlchemyError:
+            if "alembic_version" in inspect(engine).get_table_names():
+                return False  # another process made it in the meantime
+            raise
+        return True
+    finally:
+        engine.dispose()
+
+
 @contextlib.contextmanager
 def gradebook_of(db_url: str, course_id: str | None = None) -> Iterator[Any]:
-    """nbgrader's ``Gradebook`` at ``db_url``, made if it does not exist yet: nbgrader then runs
-    the ``alembic`` command, found next to this Python interpreter (a virtual environment's
-    ``bin/``, which need not be on ``PATH``)."""
+    """nbgrader's ``Gradebook`` at ``db_url``, made if it does not exist yet (stamped with the
+    schema version first, :func:`stamp_new_gradebook`, so that nbgrader needs no ``alembic``
+    process)."""
     from nbgrader.api import Gradebook
 
-    saved = os.environ.get("PATH")
-    tools = str(Path(sys.executable).parent)
-    if tools not in (saved or "").split(os.pathsep):
-        os.environ["PATH"] = tools + os.pathsep + (saved or os.defpath)
-    try:
-        gradebook = Gradebook(db_url, **({"course_id": course_id} if course_id else {}))
-    finally:
-        if saved is None:
-            os.environ.pop("PATH", None)
-        else:
-            os.environ["PATH"] = saved
-    with gradebook:
+    stamp_new_gradebook(db_url)
+    with Gradebook(db_url, **({"course_id": course_id} if course_id else {})) as gradebook:
         yield gradebook
 
 
