@@ -206,42 +206,50 @@ def _grow_grid(seed: int, points: np.ndarray, directions: np.ndarray, prune: boo
         return None
     steps = ((1, 0), (-1, 0), (0, 1), (0, -1))
     queue = list(grid)
+    # the nodes' positions as Python floats and a mask of the used candidates: the same
+    # arithmetic as with rows of `points`, without a NumPy call per coordinate
+    xy = points.tolist()
+    xs, ys = points[:, 0], points[:, 1]
+    taken = np.zeros(len(points), dtype=bool)
+    taken[list(used)] = True
     while queue:                                  # a loop over grid nodes (tens), not pixels
         i, j = queue.pop() if visit is None else queue.pop(visit(len(queue)))
         for di, dj in steps:
             target = (i + di, j + dj)
             if target in grid:
                 continue
-            here = points[grid[(i, j)]]
+            hx, hy = xy[grid[(i, j)]]
             if (i - di, j - dj) in grid:                       # continue the line
-                back = points[grid[(i - di, j - dj)]]
-                prediction, step = 2 * here - back, np.hypot(*(here - back))
+                bx, by = xy[grid[(i - di, j - dj)]]
+                px, py, step = 2 * hx - bx, 2 * hy - by, np.hypot(hx - bx, hy - by)
             elif not parallelogram:
                 continue
             else:                                              # complete a parallelogram
-                prediction = None
+                found = False
                 for ei, ej in ((dj, di), (-dj, -di)):
                     side, diagonal = (i + ei, j + ej), (i + di + ei, j + dj + ej)
                     if side in grid and diagonal in grid:
-                        prediction = here + points[grid[diagonal]] - points[grid[side]]
-                        step = np.hypot(*(points[grid[diagonal]] - points[grid[side]]))
+                        (sx, sy), (gx, gy) = xy[grid[side]], xy[grid[diagonal]]
+                        px, py, step = hx + gx - sx, hy + gy - sy, np.hypot(gx - sx, gy - sy)
+                        found = True
                         break
-                if prediction is None:
+                if not found:
                     continue
-            gap = np.hypot(*(points - prediction).T)
-            gap[list(used)] = np.inf
-            best = int(np.argmin(gap))
+            gap = np.hypot(xs - px, ys - py)
+            gap[taken] = np.inf
+            best = int(gap.argmin())
             if gap[best] <= 0.35 * step:
                 grid[target] = best
                 used.add(best)
+                taken[best] = True
                 ti, tj = target
                 queue.append(target)
                 queue.extend(k for k in ((ti + 1, tj), (ti - 1, tj), (ti, tj + 1), (ti, tj - 1)) if k in grid)
     # a stray candidate stuck to the side of the board has a single neighbour: drop such
     # nodes (a true extra row of corners keeps two or more and is not dropped)
     while prune:
-        lonely = [key for key in grid
-                  if sum((key[0] + a, key[1] + b) in grid for a, b in steps) <= 1]
+        lonely = [(i, j) for i, j in grid
+                  if ((i + 1, j) in grid) + ((i - 1, j) in grid) + ((i, j + 1) in grid) + ((i, j - 1) in grid) <= 1]
         if not lonely or len(lonely) == len(grid):
             break
         for key in lonely:
