@@ -384,13 +384,19 @@ def estimate_radial_distortion(A: ArrayLike, world_points: ArrayLike, image_poin
 # --------------------------------------------------------------------------------------------
 # §8.2–8.3.8 the whole calibration
 # --------------------------------------------------------------------------------------------
+def _camera_of(x: np.ndarray, layout: tuple[str, ...], fixed_k: np.ndarray) -> tuple[np.ndarray, tuple[float, ...]]:
+    """``A`` and ``k`` from the head of the parameter vector (see :func:`_unpack`)."""
+    head = dict(zip(layout, x[:len(layout)]))
+    A = np.array([[head["fu"], head.get("skew", 0.0), head["u0"]], [0.0, head["fv"], head["v0"]], [0.0, 0.0, 1.0]])
+    k = (head["k1"], head["k2"]) if "k1" in head else tuple(fixed_k)
+    return A, k
+
+
 def _unpack(x: np.ndarray, n_views: int, layout: tuple[str, ...],
             fixed_k: np.ndarray) -> tuple[np.ndarray, tuple[float, ...], np.ndarray, np.ndarray]:
     """Camera and poses from the parameter vector: ``layout`` names its head (intrinsics and,
     when refined, distortion), then 6 numbers per view (rotation vector, translation)."""
-    head = dict(zip(layout, x[:len(layout)]))
-    A = np.array([[head["fu"], head.get("skew", 0.0), head["u0"]], [0.0, head["fv"], head["v0"]], [0.0, 0.0, 1.0]])
-    k = (head["k1"], head["k2"]) if "k1" in head else tuple(fixed_k)
+    A, k = _camera_of(x, layout, fixed_k)
     poses = x[len(layout):].reshape(n_views, 6)
     return A, k, _rotations(poses[:, :3]), poses[:, 3:]
 
@@ -481,7 +487,7 @@ def _calibrate(world_points: ArrayLike, image_points_list: Sequence[ArrayLike] |
         return np.column_stack([A[0, 0] * xy[:, 0] + A[0, 1] * xy[:, 1] + A[0, 2], A[1, 1] * xy[:, 1] + A[1, 2]])
 
     def split(x):
-        A, k, _, _ = _unpack(x, n_views, layout, k0)
+        A, k = _camera_of(x, layout, k0)
         return A, k, x[n_head:].reshape(n_views, 6)
 
     def predict(x):
