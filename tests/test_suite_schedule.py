@@ -22,6 +22,17 @@ def test_long_files_come_first_and_each_file_keeps_its_order():
         "tests/test_a.py::one", "tests/test_a.py::two", "tests/test_b.py::one"]
 
 
+def test_files_that_mostly_wait_run_beside_the_sweep():
+    names = ["tests/test_a.py::one", "tests/test_browser.py::first", "tests/test_guard.py::g",
+             "tests/test_hidden_cases_reference.py::x", "tests/test_execute.py::e"]
+    items = [SimpleNamespace(nodeid=name) for name in names]
+    conftest.pytest_collection_modifyitems(None, items)
+    assert [item.nodeid for item in items] == [
+        "tests/test_hidden_cases_reference.py::x", "tests/test_guard.py::g", "tests/test_execute.py::e",
+        "tests/test_browser.py::first", "tests/test_a.py::one"]
+    assert all((ROOT / name).is_file() for name in conftest.MOSTLY_WAITING)
+
+
 def test_the_test_command_keeps_that_order():
     """pytest-xdist would otherwise hand out the files with the most tests first."""
     assert "--no-loadscope-reorder" in (ROOT / "scripts" / "test").read_text()
