@@ -18,7 +18,8 @@ vanishing points. ``decompose_projection`` factorises P back into A, R, t, and
 ``undistort_points`` inverts the distortion (it warns with ``ConvergenceWarning`` where it
 cannot). The argument checks ``as_points``, ``as_matrix``, ``as_rotation``, ``as_translation``,
 ``as_intrinsics`` and ``distortion_coefficients``, the lens model's arithmetic
-``radial_tangential`` and ``project_full``'s steps on checked arguments (``project_checked``)
+``radial_tangential``, ``project_full``'s steps on checked arguments (``project_checked``) and
+``rotation_matrix`` for arrays of angles (``rotation_matrices``)
 are public for the topics built on the camera model (not algorithms of the catalog, so not in
 ``__all__``).
 
@@ -43,6 +44,7 @@ from ._projection import (
     intrinsic_matrix,
     project,
     projection_matrix,
+    rotation_matrices,
     rotation_matrix,
 )
 from ._distortion import ConvergenceWarning, distort, project_checked, project_full, undistort_points

@@ -122,18 +122,23 @@ def rotation_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
            [ 1.,  0.,  0.],
            [ 0.,  0.,  1.]])
     """
-    a = check_real(roll, "roll")
-    b = check_real(pitch, "pitch")
-    c = check_real(yaw, "yaw")
-    ca, sa = np.cos(a), np.sin(a)
-    cb, sb = np.cos(b), np.sin(b)
-    cc, sc = np.cos(c), np.sin(c)
-    # Rz(c) @ Ry(b) @ Rx(a), multiplied out
-    return np.array([
-        [cc * cb, cc * sb * sa - sc * ca, cc * sb * ca + sc * sa],
-        [sc * cb, sc * sb * sa + cc * ca, sc * sb * ca - cc * sa],
-        [0.0 - sb, cb * sa, cb * ca],  # 0.0 - sb: +0.0, not -0.0, when pitch = 0
-    ])
+    return rotation_matrices(check_real(roll, "roll"), check_real(pitch, "pitch"), check_real(yaw, "yaw"))[0]
+
+
+def rotation_matrices(roll: ArrayLike, pitch: ArrayLike, yaw: ArrayLike) -> np.ndarray:
+    """:func:`rotation_matrix` for arrays of K angles each, ``(K, 3, 3)``, without argument checks
+    (for topics that build many rotations of their own, such as the chessboard pose sampler).
+    For one angle each, exactly :func:`rotation_matrix`'s numbers; NumPy may round the sines of
+    arrays differently from those of single values, by an ulp."""
+    ca, sa = np.cos(roll), np.sin(roll)
+    cb, sb = np.cos(pitch), np.sin(pitch)
+    cc, sc = np.cos(yaw), np.sin(yaw)
+    # Rz(yaw) @ Ry(pitch) @ Rx(roll), multiplied out
+    return np.stack([
+        cc * cb, cc * sb * sa - sc * ca, cc * sb * ca + sc * sa,
+        sc * cb, sc * sb * sa + cc * ca, sc * sb * ca - cc * sa,
+        0.0 - sb, cb * sa, cb * ca,  # 0.0 - sb: +0.0, not -0.0, when pitch = 0
+    ], axis=-1).reshape(-1, 3, 3)
 
 
 @algorithm("camera.extrinsic_matrix", section="7.5.3", check="cvkit.camera.checks:extrinsic_matrix")

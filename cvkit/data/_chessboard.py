@@ -353,16 +353,6 @@ def _project(points: np.ndarray, A: np.ndarray, R: np.ndarray, t: np.ndarray, k:
     return project_checked(points, A, R, t, np.array(k, dtype=np.float64), np.array(p, dtype=np.float64))
 
 
-def _rotations(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
-    """:func:`cvkit.camera.rotation_matrix` for arrays of angles, ``(K, 3, 3)`` (equal up to
-    rounding: the sines of arrays may round differently from those of scalars)."""
-    ca, sa, cb, sb = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
-    cc, sc = np.cos(yaw), np.sin(yaw)
-    return np.stack([cc * cb, cc * sb * sa - sc * ca, cc * sb * ca + sc * sa,
-                     sc * cb, sc * sb * sa + cc * ca, sc * sb * ca - cc * sa,
-                     0.0 - sb, cb * sa, cb * ca], axis=-1).reshape(-1, 3, 3)
-
-
 class _PoseTries:
     """The tries of :func:`random_board_poses`' rejection sampler, a block at a time.
 
@@ -420,8 +410,10 @@ class _PoseTries:
     def hopeless(self, u: np.ndarray, done: int) -> np.ndarray:
         """``(K,)`` bool: the tries ``done + 1 ..`` on the rows of ``u`` that :meth:`exact` would
         certainly reject (by more than :attr:`MARGIN`); False does not mean kept."""
+        from ..camera import rotation_matrices
+
         yaw, roll, pitch, fill, ox, oy = self._draws(u)
-        R = _rotations(roll, pitch, yaw)                                   # (K, 3, 3)
+        R = rotation_matrices(roll, pitch, yaw)                            # (K, 3, 3)
         shrink = 0.97 ** ((done + 1 + np.arange(len(u))) // 50)
         t = self._pose(R, fill, ox, oy, shrink)                            # (K, 3)
         camera = self.outline @ R.transpose(0, 2, 1) + t[:, None, :]       # (K, points, 3)
