@@ -29,6 +29,15 @@ def _table(headers: Sequence[object], rows: Sequence[Sequence[object]], gap: int
             for row in [headers, *rows]]
 
 
+def _show(text: object = "") -> None:
+    """Print ``text``, which may hold what a student wrote (ids, exception messages, logs), line
+    by line with every control, bidi or invisible character as a visible escape
+    (:func:`cvkit._text.printable`): nothing printed can drive the instructor's terminal."""
+    from ._text import printable
+
+    print("\n".join(printable(line) for line in str(text).split("\n")))
+
+
 def _check_status(row: dict) -> str:
     if row.get("check_error"):
         return "check broken (see below)"
@@ -160,13 +169,13 @@ def _summary(course, jobs) -> list[str]:
 def _print_results(course, results, jobs) -> int:
     failed = [r for r in results if not r.ok]
     for r in failed:
-        print(f"!! autograding {r.student}/{r.assignment} failed after {r.attempts} attempts:\n{r.log[-1500:]}")
+        _show(f"!! autograding {r.student}/{r.assignment} failed after {r.attempts} attempts:\n{r.log[-1500:]}")
     for a in sorted({a for _, a in jobs}):
-        print(f"\n== {a} ==")
-        print(course.table(a))
+        _show(f"\n== {a} ==")
+        _show(course.table(a))
     print()
     for line in _summary(course, jobs):
-        print(line)
+        _show(line)
     print(f"\nfeedback: {course.root / 'feedback'}   grades: {course.root / 'exports' / 'grades.csv'}")
     return 1 if failed else 0
 
@@ -183,6 +192,8 @@ def _cmd_grade(args) -> int:
     jobs = course.submissions(args.assignment or None)
     if not jobs:
         print(f"no submissions in {course.root / 'submitted'}")
+        for key, reason in sorted(course.refused_submissions(args.assignment or None).items()):
+            _show(f"  {key}: not graded: {reason}")
         return 1
     from .grading.isolation import SandboxUnavailable
 
@@ -207,8 +218,8 @@ def _cmd_grade(args) -> int:
 def _cmd_table(args) -> int:
     course = _course(args)
     for a in args.assignment or sorted({a for _, a in course.submissions()}):
-        print(f"== {a} ==")
-        print(course.table(a))
+        _show(f"== {a} ==")
+        _show(course.table(a))
     return 0
 
 
@@ -342,7 +353,10 @@ def main(argv=None) -> int:
         sys.stdout.flush()  # here, so that a closed pipe is handled below and not at exit
         return status
     except (FileNotFoundError, FileExistsError, RuntimeError, KeyError, ValueError) as exc:
-        print(f"cvkit: error: {exc.args[0] if isinstance(exc, KeyError) and exc.args else exc}", file=sys.stderr)
+        from ._text import printable
+
+        message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+        print(f"cvkit: error: {printable(message, newlines=True)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # `cvkit list | head`: the reader has gone
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -6,6 +6,7 @@ import ast
 from cvkit import registry
 from cvkit.grading import evaluate, hidden_seed
 from cvkit.grading.nbgrader_plugins import is_answer_cell, is_test_cell
+from cvkit.grading.trusted import submission_version
 
 
 def _source(cell: dict) -> str:
@@ -16,7 +17,8 @@ def predict_scores(notebook: dict, student: str, salt: str, source: dict | None 
     """What nbgrader should record for each test cell of a (trusted) notebook.
 
     Runs the setup cell and the answer cells in this process, then grades every
-    ``check(...)`` call of the test cells with the seeds the kernel would use. As nbgrader's
+    ``check(...)`` call of the test cells with the seeds grading uses (salt, student, algorithm and
+    the version of the student's code, :func:`~cvkit.grading.trusted.submission_version`). As nbgrader's
     autograde does, test cells are taken from the ``source`` notebook when given (the
     submitted copy has its hidden tests stripped). Used by the tests to confirm that the
     course pipeline records exactly the engine's verdicts. Never use it on untrusted
@@ -27,7 +29,7 @@ def predict_scores(notebook: dict, student: str, salt: str, source: dict | None 
     student_provider = registry.provider("student")
     saved = (dict(student_provider.functions), dict(student_provider.sources))
     try:
-        return _predict(notebook, student, salt, originals)
+        return _predict(notebook, student, salt, originals, submission_version(notebook, source))
     finally:  # the answer cells' @student decorators must not leak into this process
         student_provider.functions.clear()
         student_provider.functions.update(saved[0])
@@ -35,7 +37,7 @@ def predict_scores(notebook: dict, student: str, salt: str, source: dict | None 
         student_provider.sources.update(saved[1])
 
 
-def _predict(notebook: dict, student: str, salt: str, originals: dict[str, str]) -> dict[str, float]:
+def _predict(notebook: dict, student: str, salt: str, originals: dict[str, str], version: str) -> dict[str, float]:
     namespace: dict = {"__name__": "__cvkit_prediction__"}
     tests = []
     for cell in notebook.get("cells", []):
@@ -64,7 +66,7 @@ def _predict(notebook: dict, student: str, salt: str, originals: dict[str, str])
             if function is None:
                 total = 0.0
                 continue
-            seed = hidden_seed(algorithm_id, student=student, salt=salt)
+            seed = hidden_seed(algorithm_id, student=student, salt=salt, version=version)
             report = evaluate(algorithm_id, function, hidden=hidden, seed=seed if hidden else None)
             if hidden:
                 total = min(total, round(report.score * float(keywords.get("points", 1.0)), 6))

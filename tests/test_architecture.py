@@ -43,7 +43,7 @@ def _imports(name: str, path: Path) -> list[tuple[str, str, int]]:
 def layer(name: str) -> int:
     """The layer of a module, as in docs/architecture.md's table."""
     parts = name.split(".")
-    if name == "cvkit._validation":
+    if name in ("cvkit._validation", "cvkit._text"):
         return 0
     if name in ("cvkit", "cvkit.registry"):
         return 1

@@ -107,10 +107,6 @@ def project(tmp_path_factory):
     return folder
 
 
-def _stamp(when):
-    return when.strftime("%Y-%m-%d %H:%M:%S.%f UTC")
-
-
 def _run(*args):
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
@@ -130,8 +126,8 @@ def graded(project, tmp_path_factory):
     on_time = DUE - dt.timedelta(hours=12)
     for student, answer, when in (("ada", LOOP, DUE + dt.timedelta(hours=2, minutes=30)),
                                   ("bob", RENAMED, on_time), ("cyd", FLAGGED, on_time)):
-        path = course.submit(student, ASSIGNMENT, submission(answer))
-        (path / "timestamp.txt").write_text(_stamp(when))
+        # the time a submission was received is cvkit's record, never the student's timestamp.txt
+        course.submit(student, ASSIGNMENT, submission(answer), received_at=when.replace(tzinfo=dt.timezone.utc))
     course.submit("ada", GONE, submission(LOOP))
     status, out = _run("course", "grade", "--course-dir", str(folder), "--workers", "2")
     return course, status, out

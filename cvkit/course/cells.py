@@ -9,6 +9,8 @@ from __future__ import annotations
 import re
 from typing import Any, Mapping
 
+from ..grading.runtime.cells import is_solution
+
 #: the suffixes of an exercise's cells: ``gaussian_answer``, ``gaussian_visible``, ...
 _CELL_SUFFIX = re.compile(r"_(answer|visible|hidden|test)$")
 _GRADE_SUFFIX = re.compile(r"_(visible|hidden|test)$")
@@ -30,3 +32,49 @@ def exercise_name(cell_id: str, *, answers: bool = True) -> str:
     ``_test`` (``answers=False``: an ``_answer`` suffix is kept, as for graded cells, whose
     names never end so)."""
     return (_CELL_SUFFIX if answers else _GRADE_SUFFIX).sub("", cell_id)
+
+
+def _is_answer(cell: Mapping[str, Any]) -> bool:
+    return bool(is_solution(cell))
+
+
+def graded_layout(notebook: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """(grade id, cell type) of every cell nbgrader tracks, in order: what a submission must
+    keep of its release for nbgrader to record it."""
+    return [(str(grade_id(cell)), str(cell.get("cell_type"))) for cell in notebook.get("cells", [])
+            if grade_id(cell)]
+
+
+def repaired_notebook(release: Mapping[str, Any], notebook: Mapping[str, Any]) -> dict[str, Any]:
+    """The ``release`` notebook with the student's answers of ``notebook`` put back in: for a
+    submission whose graded cells were deleted, duplicated or retyped so badly that nbgrader
+    refuses it. Answer cells are matched by grade id (their source kept, their type the
+    release's); code cells the student added come along after the answer cell they followed."""
+    answers: dict[str, str] = {}
+    added_after: dict[str | None, list[str]] = {}
+    known = {cell_source(c).strip() for c in release["cells"]}
+    last = None
+    for cell in notebook.get("cells", []):
+        cell_id = grade_id(cell)
+        if _is_answer(cell) and cell_id and cell_id not in answers:
+            answers[cell_id] = cell_source(cell)
+            last = cell_id
+        elif (not cell.get("metadata", {}).get("nbgrader", {}) and cell.get("cell_type") == "code"
+              and cell_source(cell).strip() not in known):
+            added_after.setdefault(last, []).append(cell_source(cell))
+
+    def added(anchor: str | None) -> list[dict[str, Any]]:
+        return [{"cell_type": "code", "source": source, "metadata": {}, "outputs": [], "execution_count": None}
+                for source in added_after.get(anchor, [])]
+
+    cells = []
+    for cell in release["cells"]:
+        cell_id = grade_id(cell)
+        if _is_answer(cell) and cell_id in answers:
+            cell = dict(cell, source=answers[str(cell_id)])
+        cells.append(cell)
+        if cell_id == "setup":
+            cells += added(None)
+        elif _is_answer(cell):
+            cells += added(cell_id)
+    return dict(release, cells=cells)

@@ -29,6 +29,7 @@ import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable
 
+from .._text import differences, name_problem, printable, skeleton
 from ..grading.isolation import collect_files
 from . import exports, jobs, parallel, results, samples
 from .journal import Journal
@@ -85,6 +86,44 @@ def _project_of(root: str | os.PathLike[str] | None) -> Path | None:
             project = config.parent.parent
             return project if (project / "lectures").is_dir() else None
     return None
+
+
+def refused_student_ids(ids: Iterable[str]) -> dict[str, str]:
+    """The rule for student ids (the folder names in ``submitted/``): id → why its submissions
+    are not graded (printable), for the ids refused.
+
+    An id is graded only when it can be written, shown and told apart from the others:
+
+    - an id that is not valid UTF-8, or holds control, format or invisible characters
+      (:func:`cvkit._text.name_problem`), is not graded: nbgrader, the journal, the exports and
+      the terminal would each break on it or show something else;
+    - a look-alike is not graded: an id whose :func:`~cvkit._text.skeleton` (invisible
+      characters removed, Unicode compatibility normalisation NFKC, surrounding spaces removed;
+      case kept) is another submitted id's, e.g. ``ada\\u200b`` or full-width ``ａｄａ`` beside
+      ``ada``: "looks like student 'ada'". Of a group of look-alikes, the id that is its own
+      skeleton (made of ordinary characters) is graded as before; when none is, none is graded.
+
+    An id of ordinary printable characters is therefore never refused, and no grade is ever
+    recorded under an id the instructor cannot tell apart from another.
+    """
+    ids = sorted(set(ids))
+    readable = [i for i in ids if name_problem(i) != "is not valid UTF-8"]
+    groups: dict[str, list[str]] = {}
+    for i in readable:
+        groups.setdefault(skeleton(i), []).append(i)
+    refused = {}
+    for i in ids:
+        group = groups.get(skeleton(i), []) if i in readable else []
+        problem = name_problem(i)
+        if len(group) > 1 and skeleton(i) != i:
+            like = [g for g in group if g == skeleton(g)] or [g for g in group if g != i]
+            shown = " or ".join(f"'{printable(g)}'" for g in like)
+            refused[i] = (f"the student id '{printable(i)}' looks like student {shown} (it differs only by "
+                          f"{differences(i)}): no grade is recorded under an id that cannot be told apart; rename "
+                          "the folder if it is another student")
+        elif problem:
+            refused[i] = f"the student folder '{printable(i)}' {problem}: rename the folder to the student's id"
+    return refused
 
 
 class Course:
@@ -291,27 +330,73 @@ class Course:
         return sorted((self.root / "release" / assignment).glob("*.ipynb"))
 
     # ------------------------------------------------------------------ submissions
-    def submit(self, student: str, assignment: str, notebooks: dict[str, dict[str, Any]]) -> Path:
-        """Place a submission (``{filename: notebook json}``) as nbgrader's collect would."""
+    def submit(self, student: str, assignment: str, notebooks: dict[str, dict[str, Any]],
+               received_at: _dt.datetime | None = None) -> Path:
+        """Place a submission (``{filename: notebook json}``) as nbgrader's collect would, and
+        record when it was received (:mod:`.received`: in ``.cvkit/``, out of the student's
+        folder; the ``timestamp.txt`` written here, as nbgrader's, is only a cross-check).
+
+        Parameters
+        ----------
+        received_at : datetime, optional
+            When the hand-in arrived, with a time zone (e.g. an LMS's upload time for an
+            imported zip); default now. The late penalty is computed from it.
+        """
+        from . import received
+
+        moment = received.checked_time(_dt.datetime.now(_dt.timezone.utc) if received_at is None else received_at)
         folder = self.root / "submitted" / student / assignment
         folder.mkdir(parents=True, exist_ok=True)
         for name, nb in notebooks.items():
             (folder / name).write_text(json.dumps(nb, indent=1))
-        stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S.%f %Z")
-        (folder / "timestamp.txt").write_text(stamp)
+        (folder / "timestamp.txt").write_text(received.nbgrader_timestamp(moment))
+        received.record_submitted(self.root, student, assignment, moment.replace(tzinfo=_dt.timezone.utc))
         return folder
 
     def submissions(self, assignments: Iterable[str] | None = None) -> list[tuple[str, str]]:
         """(student, assignment) of every submission folder holding a notebook (or what claims
-        to be one: a link or an empty file is listed, and refused when it is graded)."""
+        to be one: a link or an empty file is listed, and refused when it is graded), except
+        the folders refused for their names (:meth:`refused_submissions`): these are never
+        graded nor given to nbgrader."""
+        found = self._submission_folders()
+        refused = self._refused(found)
         wanted = set(assignments) if assignments else None
+        return [(s, a) for s, a in found if f"{s}/{a}" not in refused and (wanted is None or a in wanted)]
+
+    def _submission_folders(self) -> list[tuple[str, str]]:
+        """(student folder, assignment folder) of every plain folder ``submitted/*/*`` holding a
+        notebook, whatever their names."""
         found = []
         for folder in sorted((self.root / "submitted").glob("*/*")):
             if folder.parent.is_symlink() or folder.is_symlink() or not folder.is_dir():
                 continue
-            if any(folder.glob("*.ipynb")) and (wanted is None or folder.name in wanted):
+            if any(folder.glob("*.ipynb")):
                 found.append((folder.parent.name, folder.name))
         return found
+
+    def refused_submissions(self, assignments: Iterable[str] | None = None) -> dict[str, str]:
+        """``"student/assignment"`` → why the submission folder is not graded for its names
+        (printable): the student folder's name is refused by :func:`refused_student_ids`, or
+        the chapter folder's name is not valid UTF-8 or holds control or invisible characters.
+        Listed as not graded (:meth:`not_graded`), never a zero; worked out from the folders
+        each time, so that a renamed folder is graded on the next run."""
+        wanted = set(assignments) if assignments else None
+        return {key: why for key, why in self._refused(self._submission_folders()).items()
+                if wanted is None or key.partition("/")[2] in wanted}
+
+    @staticmethod
+    def _refused(found: list[tuple[str, str]]) -> dict[str, str]:
+        """:meth:`refused_submissions` of the folders ``found`` (:meth:`_submission_folders`)."""
+        students = refused_student_ids({s for s, _ in found})
+        refused = {}
+        for student, assignment in found:
+            chapter = name_problem(assignment)
+            if student in students:
+                refused[f"{student}/{assignment}"] = students[student]
+            elif chapter:
+                refused[f"{student}/{assignment}"] = (f"the chapter folder '{printable(assignment)}' {chapter}: "
+                                                      "rename the folder to the chapter's id")
+        return refused
 
     def _submission_files(self, student: str, assignment: str) -> dict[str, bytes]:
         """The submission's regular files (links, devices and the like are refused, see
@@ -331,8 +416,9 @@ class Course:
         return self._journal.is_current(student, assignment) and not self.audit([(student, assignment)])
 
     def autograde_one(self, student: str, assignment: str) -> JobResult:
-        """Execute one submission in isolation, then record its trusted grades."""
-        return self.record(jobs.grade_submission(*parallel.payload(self, student, assignment)))
+        """Execute one submission in isolation, decide its checks (in a worker process of its
+        own, :func:`~cvkit.course.jobs.grade_in_fresh_process`), then record its trusted grades."""
+        return self.record(jobs.grade_in_fresh_process(jobs.payload(self, student, assignment)))
 
     def record(self, executed: ExecutedSubmission) -> JobResult:
         """Record one executed submission (see :meth:`record_many`)."""
@@ -348,16 +434,21 @@ class Course:
     def record_many(self, batch: list[ExecutedSubmission], repair: bool = False) -> list[JobResult]:
         """The single writer: nbgrader's own autograde, without execution, on executed
         notebooks (one nbgrader run per assignment for the whole batch); only this process
-        writes the gradebook. Notebooks whose checks were decided in the parallel phase are
-        recorded as they are; a repaired copy (graded cells tampered with) is verified here by
-        nbgrader's TrustedChecks (sandboxed too). Never raises for a submission: what cannot be
-        recorded is listed as not graded, with the reason."""
+        writes the gradebook, and it never runs student code: notebooks whose checks were not
+        decided yet, or that nbgrader refuses (then from a repaired copy), are graded first in a
+        worker process of their own. Never raises for a submission: what cannot be recorded is
+        listed as not graded, with the reason."""
         return self._writer.record_many(batch, repair)
 
     def not_graded(self) -> dict[str, str]:
         """``"student/assignment"`` → why it could not be graded (never a zero): the journal's list,
-        and the submissions of chapters that are not in the plan (:meth:`outside_plan`)."""
-        return {**self._journal.not_graded(), **self.outside_plan()}
+        the submissions of chapters that are not in the plan (:meth:`outside_plan`) and the
+        folders refused for their names (:meth:`refused_submissions`). The keys are the folder
+        names as they are (show them with :func:`cvkit._text.printable`)."""
+        found = self._submission_folders()
+        refused = self._refused(found)
+        listed = [(s, a) for s, a in found if f"{s}/{a}" not in refused]
+        return {**self._journal.not_graded(), **self.outside_plan(listed), **refused}
 
     def outside_plan(self, jobs: Iterable[tuple[str, str]] | None = None) -> dict[str, str]:
         """``"student/assignment"`` → ``"chapter X is not in plan.toml"`` for the submissions (of

@@ -1,11 +1,21 @@
 """What a graded course shows: the grade table (terminal), the CSV exports and the similarity
-report (``exports/similarity.csv`` and ``.html``, :func:`export_similarity`)."""
+report (``exports/similarity.csv`` and ``.html``, :func:`export_similarity`).
+
+Students name much of it: their ids (folder names), their files, the text of their exceptions
+and imports. Every such text is shown with :func:`cvkit._text.printable`: control characters
+(terminal escape sequences), bidi and invisible characters, and bytes that were not UTF-8 appear
+as visible escapes (``\\x1b[2J``, ``\\u202e``, ``\\xff``). The terminal table keeps each text on
+its line (a newline too is escaped, so a student cannot forge a line of the table); a CSV cell
+keeps its newlines (quoted by the CSV writer), and is neutralised for spreadsheets
+(:func:`cvkit.grading.safety.csv_safe`). The CSV files are UTF-8.
+"""
 from __future__ import annotations
 
 import csv
 from pathlib import Path
 from typing import TYPE_CHECKING, Iterable
 
+from .._text import printable
 from .progress import Phase
 from .results import ExerciseScore, unsandboxed
 
@@ -17,22 +27,35 @@ def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str]
                  not_graded: dict[str, str] | None = None, unsandboxed: Iterable[str] = ()) -> str:
     """A plain-text table: one row per exercise, one column per student, totals, mistakes;
     then the submissions that could not be graded (``not_graded``: student → reason, never
-    shown as zeros) and a loud warning for those graded without the sandbox."""
-    not_graded = dict(not_graded or {})
-    unsandboxed = sorted(unsandboxed)
+    shown as zeros) and a loud warning for those graded without the sandbox. Every text is
+    shown printable, on its line (see the module docstring)."""
+    refused = sorted((printable(s), printable(reason)) for s, reason in (not_graded or {}).items())
+    unsandboxed = sorted(printable(s) for s in unsandboxed)
     tail = []
     if unsandboxed:
         tail.append("\n!! GRADED WITHOUT THE SANDBOX (--no-sandbox): student code ran with the grader's rights for "
                     + ", ".join(unsandboxed))
-    if not_graded:
+    if refused:
         tail.append("\nNot graded (no score recorded; fix the cause and grade again):")
-        tail += [f"  {s}: not graded: {reason}" for s, reason in sorted(not_graded.items())]
-    students = [s for s in (students or scores) if s in scores]
+        tail += [f"  {s}: not graded: {reason}" for s, reason in refused]
+    shown = _shown(scores)
+    students = [printable(s) for s in (students or scores) if s in scores]
     if not students:
         return "(no graded submissions)" + "\n".join(tail)
-    lines = _grades(scores, students)
-    lines += _findings(scores, students)
+    lines = _grades(shown, students)
+    lines += _findings(shown, students)
     return "\n".join(lines + tail)
+
+
+def _shown(scores: dict[str, list[ExerciseScore]]) -> dict[str, list[ExerciseScore]]:
+    """``scores`` with every text in it printable (:func:`cvkit._text.printable`, newlines
+    escaped too): the student ids, exercise names, mistakes, problems and flags."""
+    def text(items: list) -> list[str]:
+        return [printable(item) for item in items]
+
+    return {printable(student): [ExerciseScore(printable(e.name), e.score, e.max_score, text(e.mistakes),
+                                               text(e.problems), text(e.flags), e.to_mark) for e in exercises]
+            for student, exercises in scores.items()}
 
 
 def _grades(scores: dict[str, list[ExerciseScore]], students: list[str]) -> list[str]:
@@ -110,7 +133,7 @@ def export(course: Course, progress: bool = False) -> Path:
     """See :meth:`Course.export`."""
     target = course.root / "exports" / "grades.csv"
     target.parent.mkdir(exist_ok=True)
-    assignments = sorted({a for _, a in course.submissions()})
+    assignments = sorted({a for _, a in course.submissions()} | {k.partition("/")[2] for k in course.not_graded()})
     with Phase("exports", 1 + len(assignments), progress, unit="file") as bar:
         _export_grades(course, target)
         bar.update()
@@ -118,26 +141,36 @@ def export(course: Course, progress: bool = False) -> Path:
     return target
 
 
+def _cell(value: object) -> str:
+    """A CSV cell of text a student may have written: printable (newlines kept) and never a
+    spreadsheet formula."""
+    from ..grading.safety import csv_safe
+
+    return csv_safe(printable(value, newlines=True)) if isinstance(value, str) else csv_safe(value)
+
+
 def _export_grades(course: Course, target: Path) -> None:
-    """nbgrader's grades.csv, with a status column (not graded, graded without the sandbox)."""
+    """nbgrader's grades.csv, with a status column (not graded, graded without the sandbox), and
+    a row for each folder refused for its names (:meth:`Course.refused_submissions`: nbgrader
+    never sees them), its scores empty."""
     from nbgrader.api import Gradebook
     from nbgrader.plugins import CsvExportPlugin
-
-    from ..grading.safety import csv_safe
 
     with Gradebook(course.db_url) as gradebook:
         CsvExportPlugin(to=str(target)).export(gradebook)
     not_graded = course.not_graded()
     graded_unsandboxed = unsandboxed(course)
-    with target.open(newline="") as handle:
+    with target.open(newline="", encoding="utf-8", errors="surrogateescape") as handle:
         rows = list(csv.reader(handle))
     if not rows:
         return
     header = rows[0]
     column = {name: i for i, name in enumerate(header)}
     out = [header + ["status"]]
+    listed = set()
     for row in rows[1:]:
         key = f"{row[column['student_id']]}/{row[column['assignment']]}" if "student_id" in column else ""
+        listed.add(key)
         status = "graded"
         if key in not_graded:
             status = f"not graded: {not_graded[key]}"
@@ -146,18 +179,22 @@ def _export_grades(course: Course, target: Path) -> None:
                     row[column[name]] = ""
         elif key in graded_unsandboxed:
             status = "graded WITHOUT SANDBOX (--no-sandbox)"
-        out.append([csv_safe(cell) for cell in row] + [csv_safe(status)])
-    with target.open("w", newline="") as handle:
+        out.append([_cell(cell) for cell in row] + [_cell(status)])
+    if "student_id" in column and "assignment" in column:
+        for key, reason in sorted(course.refused_submissions().items()):
+            if key not in listed:
+                row = [""] * len(header)
+                row[column["student_id"]], _, row[column["assignment"]] = key.partition("/")
+                out.append([_cell(cell) for cell in row] + [_cell(f"not graded: {reason}")])
+    with target.open("w", newline="", encoding="utf-8") as handle:
         csv.writer(handle).writerows(out)
 
 
 def _export_exercises(course: Course, target: Path, assignments: list[str], bar: Phase) -> None:
     """cvkit's exercises.csv: one row per student × exercise, and one per submission not graded
     (``bar`` counts the assignments written)."""
-    from ..grading.safety import csv_safe
-
     not_graded = course.not_graded()
-    with target.open("w", newline="") as handle:
+    with target.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle)
         writer.writerow(["assignment", "student", "exercise", "score", "max_score", "mistakes", "problems", "flags",
                          "status"])
@@ -165,15 +202,15 @@ def _export_exercises(course: Course, target: Path, assignments: list[str], bar:
             bar.update()
             for student, exercises in course.scores(assignment).items():
                 for e in exercises:
-                    writer.writerow([csv_safe(x) for x in (
+                    writer.writerow([_cell(x) for x in (
                         assignment, student, e.name, "" if e.to_mark else f"{e.score:g}", f"{e.max_score:g}",
                         "; ".join(e.mistakes), "; ".join(e.problems), "; ".join(e.flags),
                         "to mark by hand (formgrader)" if e.to_mark else "graded")])
             for key, reason in sorted(not_graded.items()):
                 student, _, a = key.partition("/")
                 if a == assignment:
-                    writer.writerow([csv_safe(x) for x in (assignment, student, "(submission)", "", "", "",
-                                                            f"not graded: {reason}", "not graded", "not graded")])
+                    writer.writerow([_cell(x) for x in (assignment, student, "(submission)", "", "", "",
+                                                         f"not graded: {reason}", "not graded", "not graded")])
 
 
 def export_similarity(course: Course, assignments: Iterable[str] | None = None, progress: bool = False) -> Path:
@@ -200,7 +237,7 @@ def similar_pairs(course: Course) -> list[dict[str, str]]:
     path = course.root / "exports" / "similarity.csv"
     if not path.is_file():
         return []
-    with path.open(newline="", encoding="utf-8") as handle:
+    with path.open(newline="", encoding="utf-8", errors="surrogateescape") as handle:  # raw bytes of a name
         return list(csv.DictReader(handle))
 
 
@@ -220,8 +257,8 @@ def similarity_summary(course: Course, top: int = 5) -> list[str]:
     lines = [f"similar answers: {len(pairs)} pair{'s' * (len(pairs) != 1)} ({', '.join(kinds)}; a signal for the "
              f"instructor, never a score change): {path}"]
     for pair in pairs[:top]:
-        lines.append(f"  {float(pair['similarity']):>4.0%}  {pair['assignment']} · {pair['exercise']}: "
-                     f"{pair['student_a']} ↔ {pair['student_b']}")
+        a, b, exercise, assignment = (printable(pair[k]) for k in ("student_a", "student_b", "exercise", "assignment"))
+        lines.append(f"  {float(pair['similarity']):>4.0%}  {assignment} · {exercise}: {a} ↔ {b}")
     if len(pairs) > top:
         lines.append(f"  ... and {len(pairs) - top} more in {path.name}")
     return lines

@@ -5,9 +5,11 @@ with the trusted checks, write feedback pages.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from .cells import repaired_notebook
 
 
 @dataclass
@@ -24,10 +26,26 @@ class ExecutedSubmission:
     log: str = ""
     verified: bool = False
     not_graded: str = ""  # why this submission cannot be graded at all (never shown as a zero)
+    repaired: list = field(default_factory=list)  # notebooks graded from a repaired copy
 
 
 def _notebook_names(files: dict[str, Any]) -> list[str]:
     return sorted(name for name in files if name.endswith(".ipynb"))
+
+
+def graded_names(files: dict[str, Any], releases: dict[str, Any] | None) -> list[str]:
+    """The notebooks of a submission that are graded: those the release has (nbgrader records
+    no other); every notebook when there is no release to compare with."""
+    names = _notebook_names(files)
+    return [name for name in names if name in releases] if releases else names
+
+
+def extra_notebook_flags(files: dict[str, Any], releases: dict[str, Any] | None) -> list[str]:
+    """A flag for each notebook of a submission that is not one of the release's: it is neither
+    run nor checked (nbgrader would ignore it), and the instructor is told."""
+    graded = set(graded_names(files, releases))
+    return [f"(notebook): {name} is not a notebook of this assignment: not run and not graded"
+            for name in _notebook_names(files) if name not in graded]
 
 
 def execute_submission(project: Any, student: str, assignment: str, files: dict[str, bytes],
@@ -45,10 +63,11 @@ def execute_submission(project: Any, student: str, assignment: str, files: dict[
     """
     from ..grading.execute import execute_in_sandbox, prepare
 
+    prepared_files: dict[str, Any] = {name: data for name, data in files.items()
+                                      if not name.endswith(".ipynb") or name in graded_names(files, releases)}
     releases = releases or {}
-    prepared_files: dict[str, Any] = dict(files)
     jobs = []
-    for name in _notebook_names(files):
+    for name in graded_names(files, releases):
         try:
             release = json.loads(releases[name]) if name in releases else None
             prepared_files[name] = json.dumps(prepare(json.loads(files[name]), release)).encode()
@@ -73,7 +92,7 @@ def _unreadable(files: dict[str, bytes], releases: dict[str, str]) -> list[str]:
     notebook_names = _notebook_names(files)
     expected = _notebook_names(releases)
     problems = []
-    for name in notebook_names:
+    for name in graded_names(files, releases):
         try:
             nb = json.loads(files[name])
             if not isinstance(nb, dict) or not isinstance(nb.get("cells"), list):
@@ -88,8 +107,22 @@ def _unreadable(files: dict[str, bytes], releases: dict[str, str]) -> list[str]:
     return problems
 
 
+def needs_repair(notebook: Any, release: dict[str, Any] | None) -> bool:
+    """Whether nbgrader would refuse ``notebook``: its cell metadata fails nbgrader's check, or
+    its graded cells (grade id and type, in order) are not the release's — deleted,
+    duplicated or retyped."""
+    import nbformat
+
+    from .cells import graded_layout
+
+    nb = notebook if isinstance(notebook, nbformat.NotebookNode) else nbformat.from_dict(notebook)
+    if not _valid_cell_metadata(nb):
+        return True
+    return release is not None and graded_layout(nb) != graded_layout(release)
+
+
 def grade_submission(project: Any, student: str, assignment: str, files: dict[str, bytes], releases: dict[str, str],
-                     sources: dict[str, str], salt: str, memory_mb: int = 3072) -> ExecutedSubmission:
+                     sources: dict[str, str], salt: str, memory_mb: int = 3072, repair: bool = False) -> ExecutedSubmission:
     """Execute a submission (:func:`execute_submission`), then decide its checks with the
     trusted checks (:func:`cvkit.grading.nbgrader_plugins.apply_trusted_checks`, every line of
     student code again in the sandbox): the parallel phase of :meth:`Course.grade`, run by a
@@ -97,41 +130,55 @@ def grade_submission(project: Any, student: str, assignment: str, files: dict[st
     (JSON text by file name); ``salt`` is the course's grading salt, so Dask workers must be
     the instructor's own. A notebook that could not run is graded from its answers as
     submitted (sanitized as nbgrader does); one that is not a notebook at all comes back
-    ``not_graded`` with the reason — never as a zero."""
+    ``not_graded`` with the reason — never as a zero.
+
+    A notebook nbgrader would refuse (:func:`needs_repair`: graded cells deleted, duplicated
+    or retyped), or every notebook when ``repair``, is graded here from a repaired copy
+    (:func:`~cvkit.course.cells.repaired_notebook`: the release with the student's answers and
+    added cells put back) and flagged: the student's code runs in this worker like any other
+    submission's, never in the process that writes the gradebook. Only the release's notebooks
+    are run and checked; any other is flagged (:func:`extra_notebook_flags`)."""
     import nbformat
 
     from ..grading.execute import prepare
     from ..grading.nbgrader_plugins import apply_trusted_checks
+    from .writer import REPAIRED_FLAG
 
     problems = _unreadable(files, releases)
     if problems:
         return ExecutedSubmission(student, assignment, {}, False, "; ".join(problems), not_graded="; ".join(problems))
-    executed = execute_submission(project, student, assignment, files, releases)
+    releases_nb = {name: json.loads(text) for name, text in releases.items()}
+    repairs = {name for name in graded_names(files, releases)
+               if repair or needs_repair(json.loads(files[name]), releases_nb.get(name))}
+    submitted = {name: (json.dumps(repaired_notebook(releases_nb[name], json.loads(files[name]))).encode()
+                        if name in repairs and name in releases_nb else files[name]) for name in files}
+    executed = execute_submission(project, student, assignment, submitted, releases)
     notebooks = dict(executed.notebooks)
     if not executed.ok:  # graded from the answers as submitted; the run's problem is reported
-        for name in _notebook_names(files):
-            release = json.loads(releases[name]) if name in releases else None
-            notebooks[name] = json.dumps(prepare(json.loads(files[name]), release))
+        for name in graded_names(files, releases):
+            notebooks[name] = json.dumps(prepare(json.loads(submitted[name]), releases_nb.get(name)))
     verified = {}
+    extra = extra_notebook_flags(files, releases)
     for name, text in notebooks.items():
         try:
             nb = nbformat.reads(text, as_version=4)
             source = json.loads(sources[name]) if name in sources else None
             apply_trusted_checks(nb, student=student, salt=salt, source_notebook=source, memory_mb=memory_mb)
+            notes = list(extra)
             if not executed.ok:
+                notes.append("(notebook): the notebook could not run to the end in the sandbox; graded from its answers")
+            if name in repairs:
+                notes.append(REPAIRED_FLAG)
+            if notes:
                 meta = dict(nb.metadata.get("cvkit", {}))
-                meta["flags"] = list(meta.get("flags", [])) + [
-                    "(notebook): the notebook could not run to the end in the sandbox; graded from its answers"]
+                meta["flags"] = list(meta.get("flags", [])) + notes
                 nb.metadata["cvkit"] = meta
         except Exception as error:  # noqa: BLE001 - the grader's own failure: not graded, with the reason
             reason = f"{name}: the grader failed on this notebook ({type(error).__name__}: {str(error)[:200]})"
             return ExecutedSubmission(student, assignment, {}, False, executed.log + "\n" + reason, not_graded=reason)
         verified[name] = nbformat.writes(nb)
-    # nbgrader's cell-metadata check, here in the parallel phase rather than twice in the single
-    # writer (about a fifth of its recording time): a notebook that fails it is recorded by the
-    # writer's full pipeline instead, which refuses it and grades a repaired copy
-    metadata_valid = all(_valid_cell_metadata(nbformat.reads(text, as_version=4)) for text in verified.values())
-    return ExecutedSubmission(student, assignment, verified, True, executed.log, verified=metadata_valid)
+    return ExecutedSubmission(student, assignment, verified, True, executed.log, verified=True,
+                              repaired=sorted(repairs))
 
 
 def _valid_cell_metadata(nb: Any) -> bool:
@@ -142,6 +189,37 @@ def _valid_cell_metadata(nb: Any) -> bool:
     except Exception:  # noqa: BLE001 - any complaint means: let the writer's full pipeline decide
         return False
     return True
+
+
+def payload(course: Any, student: str, assignment: str) -> tuple[Any, ...]:
+    """Arguments of :func:`grade_submission` for one submission of ``course``: plain data only."""
+    def texts(folder: Path) -> dict[str, str]:
+        return {str(p.relative_to(folder)): p.read_text() for p in sorted(folder.rglob("*.ipynb"))}
+
+    return (str(course.project), student, assignment, course._submission_files(student, assignment),
+            texts(course.root / "release" / assignment), texts(course.source_dir / assignment), course.salt())
+
+
+def _grade_job(job: tuple[Any, ...], repair: bool) -> ExecutedSubmission:
+    return grade_submission(*job[:7], repair=repair)
+
+
+def grade_in_fresh_process(job: tuple[Any, ...], repair: bool = False) -> ExecutedSubmission:
+    """:func:`grade_submission` of ``job`` (a :func:`payload`) in a worker process of its own
+    (``spawn``): for the few submissions graded outside the parallel phase (a lost worker, a
+    copy nbgrader refused), so that the process that writes the gradebook never runs, nor
+    waits inside, a student's code. A worker that dies leaves the submission not graded,
+    with the reason."""
+    import concurrent.futures
+    import multiprocessing
+
+    student, assignment = job[1], job[2]
+    try:
+        with concurrent.futures.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+            return pool.submit(_grade_job, job, repair).result()
+    except Exception as error:  # noqa: BLE001 - a lost worker: listed as not graded, never a zero
+        reason = f"the grading worker was lost ({type(error).__name__}: {str(error)[:200]})"
+        return ExecutedSubmission(student, assignment, {}, False, reason, not_graded=reason)
 
 
 def feedback_submissions(root: str, db_url: str, project: str, pairs: list[tuple[str, str]]) -> None:

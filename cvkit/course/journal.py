@@ -1,9 +1,10 @@
 """The course's own bookkeeping next to nbgrader's gradebook, in ``<course>/.cvkit/``.
 
 - ``journal.json``: ``"student/assignment"`` → the hash of the submission's files when it was
-  last graded (so that an interrupted run resumes after it and a changed submission is
-  regraded), with the due date, the late policy and the fingerprint of the checks it was graded
-  under (:mod:`.stamps`: a later change offers a regrade);
+  last graded, with the time the instructor's ``submission_times.csv`` lists for it
+  (:mod:`.received`), so that an interrupted run resumes after it and a changed submission or
+  listed time is regraded; with the due date, the late policy and the fingerprint of the
+  checks it was graded under (:mod:`.stamps`: a later change offers a regrade);
 - ``not_graded.json``: ``"student/assignment"`` → why it could not be graded (never a zero);
 - flags for the instructor, added to the autograded notebooks' metadata (``metadata.cvkit.flags``).
 """
@@ -15,9 +16,16 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ..grading.isolation import collect_files
+from .received import listed_stamp
 
 #: what a journal entry records besides the files' hash (see :mod:`.stamps`)
 STAMPS = ("due", "late", "checks")
+
+
+def _raw(text: str) -> bytes:
+    """``text`` as UTF-8 bytes to hash, lone surrogates included (``surrogatepass``: any ``str``
+    can be hashed)."""
+    return text.encode("utf-8", "surrogatepass")
 
 
 class Journal:
@@ -59,14 +67,19 @@ class Journal:
         return {key: str(entry.get("files")) for key, entry in self.entries().items()}
 
     def submission_hash(self, student: str, assignment: str) -> str:
-        """Hash of a submission's regular files (and of the notes on the files refused)."""
+        """Hash of a submission's regular files (and of the notes on the files refused). The
+        names are printable (:func:`~cvkit.grading.isolation.collect_files` refuses the others);
+        a lone surrogate (a byte that was not UTF-8) would still be hashed, never stop the run."""
         digest = hashlib.sha256()
         files, refused = collect_files(self.root / "submitted" / student / assignment)
         for name, data in sorted(files.items()):
-            digest.update(name.encode())
+            digest.update(_raw(name))
             digest.update(data)
         for note in refused:
-            digest.update(note.encode())
+            digest.update(_raw(note))
+        listed = listed_stamp(self.root, student, assignment)  # the instructor's time: a correction regrades
+        if listed:
+            digest.update(f"\0received {listed}".encode())
         return digest.hexdigest()
 
     def is_current(self, student: str, assignment: str) -> bool:

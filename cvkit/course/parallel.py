@@ -12,9 +12,9 @@ from __future__ import annotations
 import concurrent.futures
 import os
 from concurrent.futures import Future
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable
 
+from . import jobs
 from .jobs import ExecutedSubmission, feedback_submissions, grade_submission
 from .progress import Phase, progress
 from .writer import JobResult
@@ -23,13 +23,7 @@ if TYPE_CHECKING:
     from .course import Course
 
 
-def payload(course: Course, student: str, assignment: str) -> tuple[Any, ...]:
-    """Arguments of :func:`grade_submission` for one submission: plain data only."""
-    def texts(folder: Path) -> dict[str, str]:
-        return {str(p.relative_to(folder)): p.read_text() for p in sorted(folder.rglob("*.ipynb"))}
-
-    return (str(course.project), student, assignment, course._submission_files(student, assignment),
-            texts(course.root / "release" / assignment), texts(course.source_dir / assignment), course.salt())
+payload = jobs.payload  # the arguments of grade_submission for one submission
 
 
 class _Batches:

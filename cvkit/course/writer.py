@@ -13,7 +13,8 @@ import subprocess
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from .cells import cell_source, grade_id
+from . import received
+from .cells import repaired_notebook
 
 if TYPE_CHECKING:
     from traitlets.config import Config
@@ -76,22 +77,30 @@ class Writer:
                                            f"the grader could not record it ({type(error).__name__}: {str(error)[:200]})")]
 
     def _record_many(self, batch: list[ExecutedSubmission], repair: bool) -> list[JobResult]:
+        from .jobs import grade_in_fresh_process, payload
+
         results = []
-        groups: dict[tuple[str, bool], list[ExecutedSubmission]] = {}
-        for executed in batch:  # one nbgrader run per assignment and kind of verification
+        groups: dict[str, list[ExecutedSubmission]] = {}
+        for executed in batch:  # one nbgrader run per assignment
+            if not executed.not_graded and (not (executed.verified and executed.ok)
+                                            or (repair and not executed.repaired)):
+                # checks not decided yet (a lost worker, a caller's raw submission) or refused by
+                # nbgrader: graded (from a repaired copy when refused) in a worker process of
+                # its own — the student's code never runs in the process that writes the gradebook
+                executed = grade_in_fresh_process(payload(self.course, executed.student, executed.assignment),
+                                                  repair=repair)
             if executed.not_graded:
                 results.append(self.record_not_graded(executed.student, executed.assignment, executed.not_graded))
                 continue
-            key = (executed.assignment, bool(executed.verified and executed.ok))
-            groups.setdefault(key, []).append(executed)
-        for (assignment, _), group in sorted(groups.items()):
-            done = self._autograde(assignment, group, repair)
+            groups.setdefault(executed.assignment, []).append(executed)
+        for assignment, group in sorted(groups.items()):
+            done = self._autograde(assignment, group)
             if done.returncode != 0 and len(group) > 1:  # isolate the submission that fails
                 results += [r for e in group for r in self.record_many([e], repair=repair)]
                 continue
             if done.returncode != 0 and not repair:
-                # nbgrader refuses the notebook (graded cells deleted, duplicated, retyped):
-                # grade the student's answers in a repaired copy of the release instead
+                # nbgrader refuses the notebook (graded cells deleted, duplicated, retyped in a
+                # way the worker did not see): grade the student's answers in a repaired copy
                 results += self.record_many(group, repair=True)
                 continue
             if done.returncode != 0:  # not even a repaired copy: not graded, with nbgrader's reason
@@ -102,32 +111,34 @@ class Writer:
             results += self._recorded(assignment, group, repair, done)
         return results
 
-    def _autograde(self, assignment: str, group: list[ExecutedSubmission], repair: bool) -> subprocess.CompletedProcess:
+    def _autograde(self, assignment: str, group: list[ExecutedSubmission]) -> subprocess.CompletedProcess:
         """One nbgrader autograde run over ``group`` (staged in ``.cvkit/staging``), as a
-        completed process (its log and error) for the journal and the retries."""
+        completed process (its log and error) for the journal and the retries. Every notebook
+        carries its verdicts (decided in a worker): nbgrader only records, nothing is executed
+        or checked here. Notebooks that are not the release's are not staged."""
         course = self.course
         staging = course.root / ".cvkit" / "staging"
         shutil.rmtree(staging, ignore_errors=True)
         for executed in group:
             folder = staging / executed.student / assignment
             folder.mkdir(parents=True)
-            files = executed.notebooks if executed.ok and not repair else {}
+            # nbgrader reads the submission time from timestamp.txt: the trusted one, never the student's
+            trusted = received.received_time(course, executed.student, assignment)
+            (folder / received.STAMP_FILE).write_text(received.nbgrader_timestamp(trusted.at))
+            files = executed.notebooks
             for name, data in course._submission_files(executed.student, assignment).items():
+                if name.partition("/")[0] == received.STAMP_FILE or (name.endswith(".ipynb") and name not in files):
+                    continue
                 target = folder / name
                 target.parent.mkdir(parents=True, exist_ok=True)
-                if repair and name.endswith(".ipynb"):
-                    data = json.dumps(self.repaired(executed.student, assignment, name, json.loads(data))).encode()
                 target.write_bytes(files[name].encode() if name in files else data)
 
         students = [] if len(group) > 1 else ["--student", group[0].student]
-        # notebooks verified in the parallel phase carry their verdicts; any other
-        # (execution failed, repaired copy) is verified here by nbgrader's TrustedChecks
-        verified = all(e.verified and e.ok for e in group) and not repair
         config = course._config()  # the course's configuration, loaded once
         api = course.nbgrader_api(**{
             "CourseDirectory.submitted_directory": str(staging), "SandboxedExecute.enabled": False,
-            "ClearOutput.enabled": False, "TrustedChecks.enabled": not verified,
-            **_recording_settings(config, verified)})
+            "ClearOutput.enabled": False, "TrustedChecks.enabled": False,
+            **_recording_settings(config, True)})
         try:
             outcome = api.autograde(assignment, group[0].student if len(group) == 1 else "*", force=True,
                                     create=True)
@@ -147,7 +158,9 @@ class Writer:
             self.journal.set_not_graded(executed.student, assignment, None)
             for note in self.course._refused_files(executed.student, assignment):
                 self.journal.add_flag(executed.student, assignment, f"(notebook): {note}")
-            if repair:
+            for flag in received.cross_check(self.course, executed.student, assignment):
+                self.journal.add_flag(executed.student, assignment, flag)
+            if repair or executed.repaired:
                 log += "\ngraded from a repaired copy: the submission's graded cells had been tampered with"
                 self.journal.add_flag(executed.student, assignment, REPAIRED_FLAG)
             results.append(JobResult(executed.student, assignment, done.returncode, 1, log, executed=executed.ok))
@@ -205,34 +218,5 @@ class Writer:
 
     def repaired(self, student: str, assignment: str, name: str, notebook: dict[str, Any]) -> dict[str, Any]:
         """See :meth:`Course.repaired`."""
-        from ..grading.nbgrader_plugins import is_answer_cell
-
         release = json.loads((self.course.root / "release" / assignment / name).read_text())
-        answers: dict[str, str] = {}
-        added_after: dict[str | None, list[str]] = {}
-        known = {cell_source(c).strip() for c in release["cells"]}
-        last = None
-        for cell in notebook.get("cells", []):
-            cell_id = grade_id(cell)
-            if is_answer_cell(cell) and cell_id and cell_id not in answers:
-                answers[cell_id] = cell_source(cell)
-                last = cell_id
-            elif (not cell.get("metadata", {}).get("nbgrader", {}) and cell.get("cell_type") == "code"
-                  and cell_source(cell).strip() not in known):
-                added_after.setdefault(last, []).append(cell_source(cell))
-
-        def added(anchor: str | None) -> list[dict[str, Any]]:
-            return [{"cell_type": "code", "source": source, "metadata": {}, "outputs": [], "execution_count": None}
-                    for source in added_after.get(anchor, [])]
-
-        cells = []
-        for cell in release["cells"]:
-            cell_id = grade_id(cell)
-            if is_answer_cell(cell) and cell_id in answers:
-                cell = dict(cell, source=answers[str(cell_id)])
-            cells.append(cell)
-            if cell_id == "setup":
-                cells += added(None)
-            elif is_answer_cell(cell):
-                cells += added(cell_id)
-        return dict(release, cells=cells)
+        return repaired_notebook(release, notebook)

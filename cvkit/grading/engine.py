@@ -20,6 +20,7 @@ from .. import registry
 from .checks import Case, Check, Mistake, bind_call
 from .compare import Mismatch, Statistics
 from .diagnose import CONVENTION, diagnose, explain_exception, image_variants
+from .reference_server import DATA_TRANSFORMS
 from .runtime.guard import Outcome, run_guarded
 from .report import MIME_TYPE, CaseResult, Report
 
@@ -27,17 +28,37 @@ SALT_VARIABLE = "CVKIT_GRADING_SALT"
 STUDENT_VARIABLE = "CVKIT_STUDENT_ID"
 
 
-def hidden_seed(algorithm_id: str, student: str | None = None, salt: str | None = None) -> int:
+def hidden_seed(algorithm_id: str, student: str | None = None, salt: str | None = None,
+                version: str | None = None) -> int:
     """The seed of an algorithm's hidden cases for one student.
 
     It mixes a salt chosen at grading time (environment variable ``CVKIT_GRADING_SALT``,
     kept by the course for regrading) with the student id (``CVKIT_STUDENT_ID``) and the
-    algorithm id, so it is reproducible for the grader and unknowable to students beforehand.
+    algorithm id, so it is reproducible for the grader and unknowable to students beforehand;
+    and, at grading time, the ``version`` of the student's code
+    (:func:`cvkit.grading.trusted.submission_version`), so that every new version of a
+    submission meets new cases: answers learned from one attempt are worth nothing on the next.
     """
     salt = salt if salt is not None else os.environ.get(SALT_VARIABLE, "practice")
     student = student if student is not None else os.environ.get(STUDENT_VARIABLE, "student")
-    digest = hashlib.sha256(f"{salt}\x1f{student}\x1f{algorithm_id}".encode()).digest()
+    mixed = f"{salt}\x1f{student}\x1f{algorithm_id}" + (f"\x1f{version}" if version else "")
+    digest = hashlib.sha256(mixed.encode("utf-8", "surrogatepass")).digest()
     return int.from_bytes(digest[:8], "little")
+
+
+def watched_functions() -> dict:
+    """What a candidate may not call unless its check allows it (code object → id): cvkit's
+    reference functions, and the data loaders that compute from an image
+    (:data:`~cvkit.grading.reference_server.DATA_TRANSFORMS`: ``data.with_gaussian_noise`` is
+    the answer of ``noise.add_gaussian``), which grading never serves either."""
+    from .. import data
+
+    codes = registry.reference_functions()
+    for name in DATA_TRANSFORMS:
+        code = getattr(inspect.unwrap(getattr(data, name)), "__code__", None)
+        if code is not None:
+            codes[code] = f"data.{name}"
+    return codes
 
 
 def arg_names(function: Callable, check: Check) -> tuple:
@@ -395,6 +416,7 @@ def evaluate(
                 forbidden_functions=spec.forbidden if attempt == 0 else (),
                 allowed_ids=tuple(spec.allowed),
                 watch_reference=attempt == 0,
+                reference_codes=watched_functions() if attempt == 0 else None,
             )
 
         def run_here(case):  # a variant of a case, to explain a crash (short: it is only feedback)
@@ -406,6 +428,7 @@ def evaluate(
                 forbidden_functions=spec.forbidden,
                 allowed_ids=tuple(spec.allowed),
                 watch_reference=True,
+                reference_codes=watched_functions(),
             )
     crashes_explained = 0
 

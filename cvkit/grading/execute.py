@@ -242,6 +242,24 @@ def execute(notebook: dict, folder: str, timeout: int | None = None) -> dict:
 
 MAX_TEXT = 100_000        # characters of one text output kept for the feedback
 MAX_OUTPUTS_BYTES = 16 << 20   # all outputs of a notebook
+MAX_ERROR_TEXT = 2000     # characters of an error's message, and of each of its traceback lines
+MAX_TRACEBACK_LINES = 40  # lines of an error's traceback kept (the last ones: where it was raised)
+
+
+def _cut(text: str, limit: int) -> str:
+    return text if len(text) <= limit else text[:limit] + f" [… {len(text) - limit} characters cut by the grader]"
+
+
+def _bounded_error(output: dict) -> None:
+    """An error output with its message and traceback capped (a 64 KB message raised in every
+    cell must not make a 36 MB notebook and a 15 MB feedback page)."""
+    output["ename"] = _cut(str(output.get("ename", "")), 200)
+    output["evalue"] = _cut(str(output.get("evalue", "")), MAX_ERROR_TEXT)
+    lines = output.get("traceback") or []
+    lines = [_cut(str(line), MAX_ERROR_TEXT) for line in (lines if isinstance(lines, list) else [lines])]
+    if len(lines) > MAX_TRACEBACK_LINES:
+        lines = [f"[… {len(lines) - MAX_TRACEBACK_LINES} traceback lines cut by the grader]"] + lines[-MAX_TRACEBACK_LINES:]
+    output["traceback"] = lines
 
 
 def bounded(notebook: dict) -> dict:
@@ -252,6 +270,8 @@ def bounded(notebook: dict) -> dict:
     for cell in notebook.get("cells", []):
         kept = []
         for output in cell.get("outputs", []) or []:
+            if output.get("output_type") == "error":
+                _bounded_error(output)
             text = output.get("text")
             if isinstance(text, list):
                 text = "".join(text)
@@ -270,6 +290,23 @@ def bounded(notebook: dict) -> dict:
     return notebook
 
 
+def private_memory() -> bool:
+    """Make this process's memory closed to the other processes of its user (Linux
+    ``prctl(PR_SET_DUMPABLE, 0)``): the student's kernel, a child of this driver running as the
+    same sandbox user, can then neither open ``/proc/<driver>/mem`` nor attach to it. The
+    kernel's own process is not affected (an ``exec`` makes a process dumpable again). Returns
+    whether it took effect."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(4, 0, 0, 0, 0) == 0  # 4 = PR_SET_DUMPABLE
+    except (OSError, AttributeError):
+        return False
+
+
 def main(argv: list[str] | None = None) -> int:  # pragma: no cover - runs in the disposable process
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 2:
@@ -282,6 +319,7 @@ def main(argv: list[str] | None = None) -> int:  # pragma: no cover - runs in th
 
         resource.setrlimit(resource.RLIMIT_NPROC, (processes, processes))
     os.environ["CVKIT_TRUSTED_GRADING"] = "1"  # the kernel's check() calls are no-ops
+    private_memory()
     with open(source, encoding="utf-8") as handle:
         notebook = json.load(handle)
     executed = bounded(execute(notebook, os.path.dirname(os.path.abspath(source))))

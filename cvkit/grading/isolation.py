@@ -31,6 +31,8 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .._text import name_problem, printable
+
 SANDBOX_UID = 65534
 INSTALL_HINT = (
     "cvkit grades student code inside a bubblewrap sandbox. Install it with "
@@ -71,29 +73,49 @@ class Mounts:
 
 
 def collect_files(folder: Path) -> tuple[dict[str, bytes], list[str]]:
-    """The regular files of a submission folder, and what was refused: symbolic links, hard
-    links to files elsewhere, devices, sockets and pipes are never followed nor read."""
+    """The regular files of a submission folder, and what was refused, as printable notes
+    (``"<name>: <why> (refused)"``).
+
+    Symbolic links, hard links to files elsewhere, devices, sockets and pipes are never followed
+    nor read. Nor is a file whose name (or the name of a folder on its way) is not valid UTF-8
+    or holds control or invisible characters (:func:`cvkit._text.name_problem`): such a name
+    cannot be written safely to the journal, nbgrader's folders or a report, and no notebook of
+    the assignment bears it. Names in the notes are shown with visible escapes
+    (:func:`cvkit._text.printable`, ``b"bad\\xff"`` → ``bad\\xff``), so that the notes are
+    safe to hash, store and print; every file kept has a name that is.
+    """
     import stat
 
     files: dict[str, bytes] = {}
     refused: list[str] = []
     if folder.is_symlink() or not folder.is_dir():
-        return files, [f"{folder.name}: the submission folder is not a plain folder (refused)"]
+        return files, [f"{printable(folder.name)}: the submission folder is not a plain folder (refused)"]
     for path in sorted(folder.rglob("*")):
         name = str(path.relative_to(folder))
-        info = path.lstat()
+        shown = printable(name)
+        try:
+            info = path.lstat()
+        except OSError as error:  # gone while we looked
+            refused.append(f"{shown}: could not be read ({printable(error.strerror)}) (refused)")
+            continue
         if stat.S_ISDIR(info.st_mode) and not path.is_symlink():
             continue
+        problem = name_problem(name)
         if stat.S_ISLNK(info.st_mode):
-            refused.append(f"{name}: a symbolic link (refused, not followed)")
+            refused.append(f"{shown}: a symbolic link (refused, not followed)")
         elif not stat.S_ISREG(info.st_mode):
-            refused.append(f"{name}: not a regular file (refused)")
+            refused.append(f"{shown}: not a regular file (refused)")
+        elif problem:
+            refused.append(f"{shown}: a file whose name {problem} (refused)")
         elif info.st_nlink > 1:
-            refused.append(f"{name}: a hard link to another file (refused)")
+            refused.append(f"{shown}: a hard link to another file (refused)")
         elif any(parent.is_symlink() for parent in path.relative_to(folder).parents if str(parent) != "."):
-            refused.append(f"{name}: inside a linked folder (refused)")
+            refused.append(f"{shown}: inside a linked folder (refused)")
         else:
-            files[name] = path.read_bytes()
+            try:
+                files[name] = path.read_bytes()
+            except OSError as error:
+                refused.append(f"{shown}: could not be read ({printable(error.strerror)}) (refused)")
     return files, refused
 
 

@@ -205,7 +205,11 @@ class Report:
                    "problem", "cases", "dropped", "fallback", "cascade")
 
     def to_dict(self) -> dict:
+        """The report as JSON-ready data. A hidden report leaves its seed out: with the public
+        check code, the seed would give the hidden cases away."""
         data = {name: getattr(self, name) for name in self.WIRE_FIELDS}
+        if self.hidden:
+            data["seed"] = None
         data["cases"] = [c.to_dict() for c in self.cases]
         data["dropped"] = [str(d) for d in self.dropped]
         return data

@@ -8,12 +8,20 @@ OpenCV, Pillow, scikit-learn or torch. It then drives the conversation:
 - the answer cells run one by one, each under a wall-clock limit kept *here*: a cell that
   sleeps is stopped, reported, and skipped on the next start, so only what it defined is lost;
 - the cases are sent one at a time (the worker never sees a case before it runs), each under
-  its check's time limit plus a small grace, measured here: a student cannot ignore it;
-- a building block the current case allows (``filters.pad``) or a data loader is computed on
-  this side by the :class:`~cvkit.grading.reference_server.ReferenceServer` and sent back as
-  data; any other id is refused and reported as a forbidden call;
-- messages are size-capped JSON; anything malformed, too large or out of turn ends the
-  sandbox, and the call that was running fails with the reason;
+  its check's time limit plus a small grace, measured here on the wall clock — the time this
+  side spends serving the case's requests included, so that a student cannot ignore the limit
+  nor hide slow work behind requests;
+- a building block the current case allows (``filters.pad``, or a data loader that is not
+  itself the exercise's answer: the case's ``"allowed"`` list, decided by :mod:`.trusted`) is
+  computed on this side by the :class:`~cvkit.grading.reference_server.ReferenceServer` and
+  sent back as data, at most :data:`MAX_REQUESTS` times per case; any other id is refused and
+  reported as a forbidden call;
+- the whole run has a deadline (``total_seconds``: every cell, case and restart of one
+  notebook, cascades included when the caller passes the same deadline on); what has not run
+  when it passes fails with the reason;
+- messages are size-capped JSON, refused *before* they are parsed when they are too long or
+  made of too many parts (:func:`parse_message`); anything malformed, too large or out of
+  turn ends the sandbox, and the call that was running fails with the reason;
 - if the student's code kills the worker, or a case runs out of time, the sandbox is killed
   (all its processes with it) and the remaining cases run in a fresh one.
 
@@ -34,7 +42,7 @@ from pathlib import Path
 
 from .. import registry
 from . import isolation
-from .reference_server import DATA_LOADERS, ReferenceServer
+from .reference_server import DATA_LOADERS, DATA_SOURCES, ReferenceServer
 from .runtime import wire
 from .runtime.guard import Outcome
 
@@ -46,6 +54,13 @@ GRACE_SECONDS = 1.0              # a case's result may arrive this late (encodin
 KILL_GRACE_SECONDS = 3.0         # after this, the sandbox is killed
 OUTPUT_TAIL = 20000              # characters of the worker's own stdout/stderr kept
 MAX_LINE = 2 * wire.MAX_BYTES    # one protocol message (base64 is 4/3 of the data)
+#: JSON parts (objects, arrays, members) of one message: an array travels as one base64 string,
+#: so honest messages have few; a line of millions of tiny parts would cost the grader gigabytes
+#: to parse (``[1,1,1,…]``: about 20 bytes of Python objects per 2 bytes of text)
+MAX_PARTS = 200_000
+MAX_REQUESTS = 1000              # building-block and data requests of one case
+#: the deciding run of one notebook: its cells, cases and restarts (cascades included)
+NOTEBOOK_SECONDS = float(os.environ.get("CVKIT_NOTEBOOK_GRADING_SECONDS", "900"))
 
 
 @dataclass
@@ -59,6 +74,7 @@ class SandboxResult:
     started: bool = True
     refused: list = field(default_factory=list)   # imports the allow-list refused
     sandboxed: bool = True
+    exhausted: bool = False   # the run's deadline passed before every call had run
 
 
 class _Replace(Exception):
@@ -68,10 +84,28 @@ class _Replace(Exception):
 class _Stopped(Exception):
     """The sandbox ended, broke the protocol or ran out of time (``reason`` says which)."""
 
-    def __init__(self, reason: str, timed_out: bool = False):
+    def __init__(self, reason: str, timed_out: bool = False, exhausted: bool = False):
         super().__init__(reason)
         self.reason = reason
         self.timed_out = timed_out
+        self.exhausted = exhausted   # the whole run's deadline has passed: nothing more runs
+
+
+def parse_message(line: bytes) -> tuple[str, object]:
+    """One line of the worker's channel as ``("message", dict)`` or ``("bad", why)``.
+
+    The size and the number of JSON parts are checked on the raw bytes *before* parsing, so a
+    hostile line costs the grader at most its own length in memory."""
+    if len(line) > MAX_LINE or not line.endswith(b"\n"):
+        return "bad", f"sent a message larger than {MAX_LINE >> 20} MB"
+    parts = line.count(b",") + line.count(b"{") + line.count(b"[")
+    if parts > MAX_PARTS:
+        return "bad", f"sent a message of {parts} parts (at most {MAX_PARTS}: return NumPy arrays, not long lists)"
+    try:
+        item = json.loads(line)
+    except ValueError:
+        return "bad", "sent a malformed message (the student's code wrote to the grader's channel)"
+    return ("message", item) if isinstance(item, dict) else ("bad", "sent a malformed message")
 
 
 def _runtime_paths(sandboxed: bool) -> tuple[list, str, str | None]:
@@ -95,7 +129,8 @@ def _runtime_paths(sandboxed: bool) -> tuple[list, str, str | None]:
 class _Session:
     """One sandboxed worker and the threads that read its streams."""
 
-    def __init__(self, memory_mb: int, sandboxed: bool):
+    def __init__(self, memory_mb: int, sandboxed: bool, deadline: float = float("inf")):
+        self.deadline = deadline
         mounts, path, self._links = _runtime_paths(sandboxed)
         read_fd, write_fd = os.pipe()
         python = getattr(sys, "_base_executable", None) or sys.executable
@@ -127,15 +162,11 @@ class _Session:
                 if not line:
                     self.messages.put(("end", None))
                     return
-                if len(line) > MAX_LINE or not line.endswith(b"\n"):
-                    self.messages.put(("bad", f"sent a message larger than {wire.MAX_BYTES >> 20} MB"))
+                kind, item = parse_message(line)
+                del line
+                self.messages.put((kind, item))
+                if kind == "bad":
                     return
-                try:
-                    item = json.loads(line)
-                except ValueError:
-                    self.messages.put(("bad", "sent a malformed message (the student's code wrote to the grader's channel)"))
-                    return
-                self.messages.put(("message", item) if isinstance(item, dict) else ("bad", "sent a malformed message"))
 
     def _read_output(self) -> None:
         stream = self.box.process.stdout
@@ -162,9 +193,12 @@ class _Session:
             raise _Stopped(self._death()) from None
 
     def receive(self, timeout: float, what: str) -> dict:
+        left = self.deadline - time.monotonic()
         try:
-            kind, item = self.messages.get(timeout=max(0.0, timeout))
+            kind, item = self.messages.get(timeout=max(0.0, min(timeout, left)))
         except queue.Empty:
+            if left <= timeout:
+                raise _Stopped(EXHAUSTED, timed_out=True, exhausted=True) from None
             raise _Stopped(f"{what} ran longer than its limit and was stopped", timed_out=True) from None
         if kind == "end":
             raise _Stopped(self._death())
@@ -191,20 +225,26 @@ class _Session:
             shutil.rmtree(self._links, ignore_errors=True)
 
 
-def _serve(session: _Session, message: dict, allowed: set, budget: float, refused: list) -> float:
-    """Answer one building-block request; returns the seconds it took."""
-    start = time.monotonic()
-    identifier = str(message.get("rpc"))
-    if identifier not in allowed:
+EXHAUSTED = "the notebook's grading time ran out (every cell and case of one notebook, in all)"
+
+
+def _serve(session: _Session, message: dict, allowed: set, budget: float, refused: list, count: int) -> None:
+    """Answer one building-block request (the ``count``-th of this case) within ``budget`` seconds."""
+    identifier = str(message.get("rpc"))[:200]
+    if count > MAX_REQUESTS:
+        note = f"more than {MAX_REQUESTS} requests for cvkit's building blocks in one case"
+        if note not in refused:
+            refused.append(note)
+        reply = {"error": f"{note}: compute what you need yourself"}
+    elif identifier not in allowed:
         what = f"cvkit reference implementation of {identifier!r}"
         if what not in refused:
             refused.append(what)
         reply = {"error": f"{identifier} is not allowed in this exercise: write it yourself"}
     else:
         reply = ReferenceServer.shared().call(identifier, message.get("args"), message.get("kwargs"),
-                                              timeout=max(1.0, budget))
+                                              timeout=max(0.1, budget))
     session.send(reply)
-    return time.monotonic() - start
 
 
 def run_calls(
@@ -216,15 +256,19 @@ def run_calls(
     max_restarts: int = 8,
     sandboxed: bool | None = None,
     cell_seconds: float = CELL_SECONDS,
+    deadline: float | None = None,
 ) -> SandboxResult:
     """Execute ``cells`` in a sandboxed worker, then each call ``{"function", "args", "kwargs",
     "time_limit", "allowed", "group", ...}`` in order; see the module docstring.
 
-    ``blocks`` are the algorithm ids some call may use as building blocks (each call lists the
-    ones it really may use in ``"allowed"``). A call's outcome is ``None`` only if it was never
-    reached (it then fails with the reason). ``sandboxed=False`` (``--no-sandbox``) runs the
-    same worker with resource limits only.
+    ``blocks`` are the algorithm ids some call may use as building blocks; each call lists the
+    ids it really may use in ``"allowed"`` (building blocks and ``"data.<loader>"``; a call
+    without that key may use the data loaders only). A call's outcome is ``None`` only if it
+    was never reached (it then fails with the reason). ``deadline`` (``time.monotonic()``
+    seconds; default :data:`NOTEBOOK_SECONDS` from now) ends the whole run, restarts included.
+    ``sandboxed=False`` (``--no-sandbox``) runs the same worker with resource limits only.
     """
+    deadline = time.monotonic() + NOTEBOOK_SECONDS if deadline is None else deadline
     sandboxed = (not isolation.sandbox_disabled()) if sandboxed is None else sandboxed
     if sandboxed:
         isolation.require()
@@ -238,9 +282,9 @@ def run_calls(
     data_names = list(DATA_LOADERS)
     topics = registry.topic_modules()  # the worker's stand-ins for cvkit's modules
     restarts = 0
-    while restarts <= max_restarts:
+    while restarts <= max_restarts and time.monotonic() < deadline:
         restarts += 1
-        session = _Session(memory_mb, sandboxed)
+        session = _Session(memory_mb, sandboxed, deadline)
         current = None
         try:
             session.send({"cells": [("pass  # stopped: ran longer than its limit" if i in skipped_cells else c)
@@ -273,30 +317,33 @@ def run_calls(
                 if strikes.get(group, 0) >= 2:  # two cases of this exercise timed out or crashed: skip the rest
                     outcomes[current] = Outcome(
                         error="skipped: two earlier cases of this exercise ran out of time or crashed the worker; "
-                              "vectorize with NumPy instead of looping over pixels", exception="Timeout", timed_out=True)
+                              "vectorize with NumPy instead of looping over pixels", exception="Timeout", timed_out=True, from_grader=True)
                     pending.pop(0)
                     current = None
                     continue
                 limit = float(call.get("time_limit", 20.0))
-                allowed = set(call.get("allowed", ())) | {f"data.{name}" for name in data_names}
+                allowed = set(call["allowed"]) if "allowed" in call else {f"data.{name}" for name in DATA_SOURCES}
                 refused: list = []
                 session.send({"call": encoded[current]})
-                started, serving = time.monotonic(), 0.0
-                while True:
-                    used = time.monotonic() - started - serving
+                started, requests = time.monotonic(), 0
+                while True:  # the wall clock, serving included: the case's time is all of it
+                    used = time.monotonic() - started
                     message = session.receive(limit + KILL_GRACE_SECONDS - used, "this case")
                     if "rpc" in message:
-                        serving += _serve(session, message, allowed, limit + KILL_GRACE_SECONDS - used, refused)
+                        requests += 1
+                        _serve(session, message, allowed, limit + KILL_GRACE_SECONDS - (time.monotonic() - started),
+                               refused, requests)
                         continue
                     if "outcome" not in message or not isinstance(message["outcome"], dict):
                         raise _Stopped("the graded code sent a message out of turn")
                     break
                 outcome = Outcome.from_json(message["outcome"])
                 outcome.forbidden_calls += [r for r in refused if r not in outcome.forbidden_calls]
-                used = time.monotonic() - started - serving
+                used = time.monotonic() - started
                 if used > limit + GRACE_SECONDS and not outcome.timed_out:
                     outcome = Outcome(error=f"stopped after {limit:g} s (it took {used:.1f} s): vectorize with NumPy "
-                                            "instead of looping over pixels", exception="Timeout", timed_out=True)
+                                            "instead of looping over pixels", exception="Timeout", timed_out=True,
+                                      from_grader=True)
                 outcomes[current] = outcome
                 pending.pop(0)
                 current = None
@@ -311,6 +358,10 @@ def run_calls(
             continue
         except _Stopped as stop:
             result.output = session.output
+            if stop.exhausted:
+                result.exhausted = True
+                result.crashed = stop.reason
+                break
             if current is None:
                 if not result.started and not skipped_cells:
                     # the sandbox itself, or the cells, cannot get going: no retry helps
@@ -325,7 +376,7 @@ def run_calls(
                                                "with NumPy instead of looping over pixels") if stop.timed_out
                                         else f"no result: {stop.reason}",
                                         exception="Timeout" if stop.timed_out else "WorkerDied",
-                                        timed_out=stop.timed_out)
+                                        timed_out=stop.timed_out, from_grader=True)
             result.crashed = stop.reason
             pending.pop(0)
             if not pending:
@@ -333,8 +384,13 @@ def run_calls(
         finally:
             result.output = result.output or session.output
             session.close()
+    if any(outcome is None for outcome in outcomes) and time.monotonic() >= deadline:
+        result.exhausted = True
     for index, outcome in enumerate(outcomes):
-        if outcome is None:
+        if outcome is None and result.exhausted:
+            outcomes[index] = Outcome(error=f"not run: {EXHAUSTED}", exception="Timeout", timed_out=True,
+                                      from_grader=True)
+        elif outcome is None:
             outcomes[index] = Outcome(error=f"no result: {result.crashed or 'the grading worker stopped'} "
-                                            "(too many restarts)", exception="WorkerDied")
+                                            "(too many restarts)", exception="WorkerDied", from_grader=True)
     return result

@@ -12,7 +12,9 @@ from __future__ import annotations
 import ast
 import copy
 import dataclasses
+import hashlib
 import re
+import time
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
@@ -21,10 +23,11 @@ import numpy as np
 from .. import registry
 from .checks import FORBIDDEN_LIBRARIES, Case, Check, call_target
 from .engine import arg_names, evaluate, hidden_seed
-from .report import Report
+from .reference_server import served_helpers
+from .report import CaseResult, Report
 from .runtime.cells import is_solution, is_test_cell, nbgrader_metadata
 from .runtime.guard import Outcome
-from .sandbox import run_calls
+from .sandbox import NOTEBOOK_SECONDS, run_calls
 
 
 @dataclass
@@ -213,13 +216,30 @@ def scan(source: str, where: str = "") -> list[str]:
 
 
 # ---------------------------------------------------------------------------- grading
+def submission_version(notebook: Any, source_notebook: Any = None) -> str:
+    """A digest of the code a student wrote in ``notebook`` (:func:`worker_cells`): the
+    *version* of a submission that its hidden cases are drawn for. Regrading the same code
+    draws the same cases; any change to it draws new ones."""
+    digest = hashlib.sha256()
+    for source in worker_cells(notebook, source_notebook):
+        digest.update(source.encode("utf-8", "surrogatepass"))
+        digest.update(b"\x1e")
+    return digest.hexdigest()[:32]
+
+
 def grade_notebook(notebook: Any, *, student: str, salt: str, source_notebook: Any = None,
-                   memory_mb: int = 3072) -> NotebookGrade:
+                   memory_mb: int = 3072, total_seconds: float | None = None) -> NotebookGrade:
     """Decide every check of ``notebook`` in an isolated worker; see the module docstring.
 
-    Each check call's cases are drawn once (:func:`_draw_cases`); the sandbox runs them, and
-    the same cases are evaluated here, run again for a cascade and read by the hard-coding rule.
+    Each check call's cases are drawn once (:func:`_draw_cases`), for this student and this
+    version of their code (:func:`submission_version`); the sandbox runs them, and the same
+    cases are evaluated here, run again for a cascade and read by the hard-coding rule. The
+    visible cases of every exercise run before any hidden case, and what a student sees of a
+    hidden case is cut to what is theirs (:func:`hidden_view`). The whole deciding run, the
+    cascade included, has ``total_seconds`` (default
+    :data:`~cvkit.grading.sandbox.NOTEBOOK_SECONDS`).
     """
+    deadline = time.monotonic() + (NOTEBOOK_SECONDS if total_seconds is None else float(total_seconds))
     tests_from = source_notebook if source_notebook is not None else notebook
     calls: list[CheckCall] = []
     for cell in _cells(tests_from):
@@ -238,11 +258,12 @@ def grade_notebook(notebook: Any, *, student: str, salt: str, source_notebook: A
     if not calls:
         return result
 
-    plans = [_plan(call, student, salt) for call in _building_blocks_first(calls)]
-    blocks = tuple(sorted({block for plan in plans for block in plan.spec.allowed}))
     cells = worker_cells(notebook, source_notebook)
+    version = submission_version(notebook, source_notebook)
+    plans = [_plan(call, student, salt, version, cells) for call in _public_first(_building_blocks_first(calls))]
+    blocks = tuple(sorted({block for plan in plans for block in plan.spec.allowed}))
     outcome = run_calls(cells, [request for plan in plans for request in plan.requests], blocks=blocks,
-                        memory_mb=memory_mb)
+                        memory_mb=memory_mb, deadline=deadline)
     result.worker_problem = outcome.crashed
     result.cell_errors = outcome.cell_errors
     result.sandboxed = outcome.sandboxed
@@ -250,7 +271,11 @@ def grade_notebook(notebook: Any, *, student: str, salt: str, source_notebook: A
     result.flags += [f"(notebook): {error}" for error in outcome.cell_errors
                      if "was stopped" in error or "ended early" in error or "killed" in error or "out of turn" in error]
     reports = _evaluate_plans(plans, outcome.outcomes)
-    _cascades(plans, reports, result, cells, blocks, memory_mb)
+    exhausted = outcome.exhausted or _cascades(plans, reports, result, cells, blocks, memory_mb, deadline)
+    if exhausted:
+        seconds = NOTEBOOK_SECONDS if total_seconds is None else float(total_seconds)
+        result.flags.append(f"(notebook): grading stopped after {seconds:g} s in all (the notebook's limit); "
+                            "the cases not run by then count as failed")
     telling: dict[str, bool] = {}   # algorithm id -> passes a hidden case that tells something
     for plan, report in zip(plans, reports):
         call = plan.call
@@ -280,6 +305,7 @@ class _Plan:
     cases: list[Case]               # drawn once (:func:`_draw_cases`)
     keys: list[tuple[int, int]]     # (case index, attempt) of each request
     requests: list[dict]
+    cells: list[str] = field(default_factory=list)   # the code the worker ran (for hidden tracebacks)
 
     def with_reference_blocks(self, substitute: dict[str, str]) -> "_Plan":
         """The same cases, the student's functions named in ``substitute`` (name → algorithm
@@ -295,8 +321,15 @@ class _Plan:
 
         # the cases drawn for this plan (a copy: nothing done to them there reaches the
         # requests a cascade sends again); the candidate lives in the sandbox
-        return evaluate(self.call.algorithm_id, hidden=self.call.hidden, seed=self.seed, check=self.spec,
-                        runner=runner, cases=copy.deepcopy(self.cases))
+        report = evaluate(self.call.algorithm_id, hidden=self.call.hidden, seed=self.seed, check=self.spec,
+                          runner=runner, cases=copy.deepcopy(self.cases))
+        if self.call.hidden:
+            names = set(self.requests[0]["arg_names"]) if self.requests else set()
+            for case in report.cases:
+                outcome = found.get((case.index, 0))
+                if outcome is not None:
+                    hidden_view(case, outcome, self.cells, self.spec.time_limit, names)
+        return report
 
 
 def _draw_cases(spec: Check, hidden: bool, seed: int | None) -> list[Case]:
@@ -305,14 +338,15 @@ def _draw_cases(spec: Check, hidden: bool, seed: int | None) -> list[Case]:
     return spec.hidden_cases(np.random.default_rng(seed)) if hidden else spec.public_cases()
 
 
-def _plan(call: CheckCall, student: str, salt: str) -> _Plan:
+def _plan(call: CheckCall, student: str, salt: str, version: str | None = None, cells: Sequence[str] = ()) -> _Plan:
     record = registry.get(call.algorithm_id)
     spec = record.check
     if spec is None:
         raise ValueError(f"a test cell checks {call.algorithm_id!r}, which has no check")
-    seed = hidden_seed(call.algorithm_id, student=student, salt=salt) if call.hidden else None
+    seed = hidden_seed(call.algorithm_id, student=student, salt=salt, version=version) if call.hidden else None
     cases = _draw_cases(spec, call.hidden, seed)
     names = list(arg_names(record.reference, spec))
+    helpers = list(served_helpers(call.algorithm_id, tuple(spec.allowed)))
     keys: list[tuple[int, int]] = []
     requests: list[dict] = []
     for index, case in enumerate(cases):
@@ -321,13 +355,13 @@ def _plan(call: CheckCall, student: str, salt: str) -> _Plan:
             requests.append({
                 "function": call.function, "group": f"{call.function}:{call.algorithm_id}",
                 "args": case.args, "kwargs": case.kwargs,
-                "time_limit": spec.time_limit, "allowed": list(spec.allowed), "arg_names": names,
+                "time_limit": spec.time_limit, "allowed": helpers, "arg_names": names,
                 "forbidden_libraries": list(spec.forbidden_libraries) if attempt == 0 else [],
                 "forbidden_functions": list(spec.forbidden) if attempt == 0 else [],
                 "call": (call_target(spec.call) or "").rpartition(":")[2] or None,
                 "substitute": {},
             })
-    return _Plan(call, spec, seed, cases, keys, requests)
+    return _Plan(call, spec, seed, cases, keys, requests, list(cells))
 
 
 def _evaluate_plans(plans: list[_Plan], outcomes: Sequence[Outcome | None]) -> list[Report]:
@@ -340,7 +374,7 @@ def _evaluate_plans(plans: list[_Plan], outcomes: Sequence[Outcome | None]) -> l
 
 
 def _cascades(plans: list[_Plan], reports: list[Report], result: NotebookGrade, cells: list[str],
-              blocks: tuple[str, ...], memory_mb: int) -> None:
+              blocks: tuple[str, ...], memory_mb: int, deadline: float | None = None) -> bool:
     """One mistake costs points once: an exercise that fails while one of its building blocks
     (``filters.pad`` for ``filters.correlate``) is the student's own and fails its own check is
     graded again with the reference building block in its place (the sandbox serves it under
@@ -361,9 +395,11 @@ def _cascades(plans: list[_Plan], reports: list[Report], result: NotebookGrade, 
         if culprits:
             again.append((index, culprits))
     if not again:
-        return
+        return False
+    again.sort(key=lambda item: plans[item[0]].call.hidden)  # visible cases first, as in the first run
     student_plans = [plans[i].with_reference_blocks(culprits) for i, culprits in again]  # the same cases
-    outcome = run_calls(cells, [r for p in student_plans for r in p.requests], blocks=blocks, memory_mb=memory_mb)
+    outcome = run_calls(cells, [r for p in student_plans for r in p.requests], blocks=blocks, memory_mb=memory_mb,
+                        deadline=deadline)
     for new_report, (i, culprits) in zip(_evaluate_plans(student_plans, outcome.outcomes), again):
         old = reports[i]
         names = ", ".join(f"`{name}`" for name in culprits)
@@ -379,6 +415,7 @@ def _cascades(plans: list[_Plan], reports: list[Report], result: NotebookGrade, 
         else:
             old.cascade = (f"Your {names} fails its own check ({ids}), but even with cvkit's reference {names} "
                            f"your `{own}` fails: the problem is in `{own}` itself.")
+    return outcome.exhausted
 
 
 def _building_blocks_first(calls: list[CheckCall]) -> list[CheckCall]:
@@ -398,6 +435,83 @@ def _building_blocks_first(calls: list[CheckCall]) -> list[CheckCall]:
             ordered += remaining
             break
     return ordered
+
+
+def _public_first(calls: list[CheckCall]) -> list[CheckCall]:
+    """The visible checks before every hidden one (each group in its order): code that records
+    a hidden case's inputs cannot show them in a visible case's message, which is shown in full."""
+    return [call for call in calls if not call.hidden] + [call for call in calls if call.hidden]
+
+
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_.]{0,79}")
+_STUDENT_FRAME = re.compile(r'File "<cell (\d+)>", line (\d+), in ([A-Za-z_][A-Za-z0-9_]{0,79}|<module>)')
+HIDDEN_MESSAGE_NOTE = ("the message is not shown for hidden cases; the line above is where it was raised — try your "
+                       "function on a similar input of your own")
+
+
+def _safe_name(text: Any, default: str) -> str:
+    return text if isinstance(text, str) and _IDENTIFIER.fullmatch(text) else default
+
+
+_REFERENCE_CALL = re.compile(r"cvkit reference implementation of '([A-Za-z_][A-Za-z0-9_.]{0,79})'")
+
+
+def _safe_call(text: str) -> str:
+    """A forbidden call as the guard names it, if it is a plain dotted name; else a placeholder."""
+    found = _REFERENCE_CALL.fullmatch(text)
+    if found:
+        return f"cvkit reference implementation of {found.group(1)!r}"
+    name = text.removeprefix("import ").split(" (")[0]
+    return ("import " if text.startswith("import ") else "") + _safe_name(name, "a refused name")
+
+
+def _own_traceback(text: str | None, cells: Sequence[str], exception: str) -> str | None:
+    """The student's frames of a traceback (cell, line, function and the line's code, taken
+    from the cells the grader ran) and the exception's type: nothing the code printed or put in
+    a message."""
+    frames = _STUDENT_FRAME.findall(text or "")[-6:]
+    if not frames:
+        return None
+    lines = []
+    for cell, line, function in frames:
+        lines.append(f"  cell {int(cell)}, line {int(line)}, in {function}")
+        index, number = int(cell), int(line)
+        if 0 <= index < len(cells):
+            code = cells[index].splitlines()
+            if 1 <= number <= len(code):
+                lines.append(f"    {code[number - 1].strip()[:160]}")
+    lines.append(f"{exception} ({HIDDEN_MESSAGE_NOTE})")
+    return "\n".join(lines)
+
+
+def hidden_view(case: CaseResult, outcome: Outcome, cells: Sequence[str], time_limit: float,
+                arg_names: set) -> None:
+    """What a student is shown of a failing hidden case, cut to what is theirs: the type of
+    their error and the line of their code that raised it, never a message, a print, a
+    warning's text or a name their code made up — each could carry a hidden input recorded
+    by another exercise. Texts the grader wrote itself (``outcome.from_grader``: a time limit
+    measured outside, a worker that died) stay; so do the comparison's own words."""
+    case.stdout = case.stderr = ""
+    case.warnings = sorted({_safe_name(str(w).partition(":")[0], "Warning") for w in case.warnings})
+    exception = _safe_name(outcome.exception, "an exception")
+    if outcome.error is not None and case.message == outcome.error and not outcome.from_grader:
+        if outcome.timed_out or outcome.exception == "Timeout":
+            case.message = (f"stopped: it ran longer than the case's limit of {time_limit:g} s; make it faster "
+                            "(whole-array NumPy operations instead of loops over pixels)")
+        elif outcome.exception == "NotImplementedError":
+            case.message = "not implemented yet (the function raises NotImplementedError)"
+        elif outcome.exception is None:
+            case.message = "returned something the grader cannot read (details are not shown for hidden cases)"
+        else:
+            case.message = f"raised {exception} ({HIDDEN_MESSAGE_NOTE})"
+    elif outcome.error is None and outcome.forbidden_calls and case.message.startswith("calls "):
+        names = sorted({_safe_call(str(call)) for call in outcome.forbidden_calls})
+        case.message = "calls " + ", ".join(names) + ", which would do the exercise for you: write it with NumPy"
+    elif outcome.error is None and outcome.modified and case.message.startswith("modified its input"):
+        names = sorted({name for name in outcome.modified if name in arg_names or _IDENTIFIER.fullmatch(str(name))})
+        case.message = (f"modified its input {', '.join(map(repr, names)) or 'arguments'}: do not overwrite an "
+                        "input; work on a copy or write the result to a new array")
+    case.traceback = _own_traceback(case.traceback, cells, exception) if case.traceback else None
 
 
 def _trivial(case, expected) -> bool:
@@ -446,4 +560,4 @@ def hide_hidden_tests(source: str) -> str:
 
 
 __all__ = ["CheckCall", "NotebookGrade", "check_calls", "worker_cells", "scan", "grade_notebook",
-           "hide_hidden_tests", "Report"]
+           "hide_hidden_tests", "hidden_view", "submission_version", "Report"]

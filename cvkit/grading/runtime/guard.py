@@ -41,6 +41,17 @@ class CandidateTimeout(BaseException):
 _LIST_LIMITS = {"modified": (20, 200), "forbidden_calls": (20, 200), "warnings": (20, 500)}
 #: characters of the end of the captured stdout/stderr that cross the boundary
 _OUTPUT_TAIL = 2000
+#: characters of an exception's one-line summary, of its traceback and of its type name that
+#: cross the boundary (a 64 KB message must not make a 36 MB graded notebook)
+_ERROR_CHARS, _TRACEBACK_CHARS, _NAME_CHARS = 500, 4000, 100
+
+
+def _capped(text: str | None, limit: int, keep_end: bool = False) -> str | None:
+    """``text`` cut to ``limit`` characters, saying so (the end kept for a traceback)."""
+    if text is None or len(text) <= limit:
+        return text
+    note = f" […{len(text) - limit} characters cut]"
+    return note.strip() + "\n" + text[-limit:] if keep_end else text[:limit] + note
 
 
 def _texts(items: Any, count: int, length: int) -> list[str]:
@@ -72,6 +83,9 @@ class Outcome:
     warnings: list = field(default_factory=list)
     stdout: str = ""
     stderr: str = ""
+    #: True for an outcome the trusted side wrote itself (a timeout measured outside, a worker
+    #: that died): its texts are the grader's. Never read from the wire.
+    from_grader: bool = False
 
     @property
     def ok(self) -> bool:
@@ -89,7 +103,8 @@ class Outcome:
             What :meth:`from_json` reads back.
         """
         item: dict[str, Any] = {
-            "error": self.error, "traceback": self.traceback, "exception": self.exception,
+            "error": _capped(self.error, _ERROR_CHARS), "traceback": _capped(self.traceback, _TRACEBACK_CHARS, True),
+            "exception": _capped(self.exception, _NAME_CHARS),
             "elapsed": self.elapsed, "timed_out": self.timed_out,
             **{key: _texts(getattr(self, key), *limits) for key, limits in _LIST_LIMITS.items()},
             "stdout": self.stdout[-_OUTPUT_TAIL:], "stderr": self.stderr[-_OUTPUT_TAIL:],
@@ -117,19 +132,20 @@ class Outcome:
         Outcome
             With ``error`` set when the value cannot be decoded or is missing.
         """
-        def text(key: str) -> str | None:
+        def text(key: str, limit: int = _ERROR_CHARS, keep_end: bool = False) -> str | None:
             value = item.get(key)
-            return value if value is None or isinstance(value, str) else str(value)
+            return _capped(value if value is None or isinstance(value, str) else str(value)[:limit], limit, keep_end)
 
         elapsed = item.get("elapsed", 0.0)
         outcome = cls(
-            error=text("error"), traceback=text("traceback"), exception=text("exception"),
+            error=text("error"), traceback=text("traceback", _TRACEBACK_CHARS, True),
+            exception=text("exception", _NAME_CHARS),
             elapsed=float(elapsed) if isinstance(elapsed, (int, float)) else 0.0,
             timed_out=bool(item.get("timed_out", False)),
             modified=_texts(item.get("modified"), *_LIST_LIMITS["modified"]),
             forbidden_calls=_texts(item.get("forbidden_calls"), *_LIST_LIMITS["forbidden_calls"]),
             warnings=_texts(item.get("warnings"), *_LIST_LIMITS["warnings"]),
-            stdout=(text("stdout") or "")[-_OUTPUT_TAIL:], stderr=(text("stderr") or "")[-_OUTPUT_TAIL:],
+            stdout=(text("stdout", 1 << 30) or "")[-_OUTPUT_TAIL:], stderr=(text("stderr", 1 << 30) or "")[-_OUTPUT_TAIL:],
         )
         if "value" in item and outcome.error is None:
             try:
@@ -722,8 +738,9 @@ def _run(outcome, function, args, kwargs, arg_names, time_limit, forbidden_libra
                 except Exception:  # an exception whose str() fails
                     text = ""
                 message = text.splitlines()[0] if text else ""
-                outcome.error = f"raised {type(exc).__name__}" + (f": {message}" if message else "")
-            outcome.traceback = _candidate_traceback(exc)
+                outcome.error = _capped(f"raised {type(exc).__name__}" + (f": {message}" if message else ""),
+                                        _ERROR_CHARS)
+            outcome.traceback = _capped(_candidate_traceback(exc), _TRACEBACK_CHARS, True)
         finally:
             if clock is not None:
                 clock.base = None  # no reference cycle through the frame
