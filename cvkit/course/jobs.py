@@ -201,7 +201,8 @@ def payload(course: Any, student: str, assignment: str) -> tuple[Any, ...]:
 
 
 def _grade_job(job: tuple[Any, ...], repair: bool) -> ExecutedSubmission:
-    return grade_submission(*job[:7], repair=repair)
+    project, student, assignment, files, releases, sources, salt = job[:7]
+    return grade_submission(project, student, assignment, files, releases, sources, salt, repair=repair)
 
 
 def grade_in_fresh_process(job: tuple[Any, ...], repair: bool = False) -> ExecutedSubmission:

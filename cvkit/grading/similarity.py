@@ -1,10 +1,12 @@
 """Similarity report: answers that look copied, for the instructor to look at.
 
 For every exercise of an assignment (an nbgrader answer cell: a ``solution: true`` code cell),
-each student's answer is compared with every other student's answer, with the reference
+each student's answer — the answer cell and the code it pulls in from the cells the student
+added (:func:`student_code`) — is compared with every other student's answer, with the reference
 implementation of the exercise's algorithm (its source, :func:`inspect.getsource`) and with the
 instructor's solution (the source notebook's text between ``### BEGIN SOLUTION`` and
-``### END SOLUTION``). Pairs above a threshold are listed (:func:`similar_pairs`,
+``### END SOLUTION``); all of a student's added code is also compared with the other students'
+(the pseudo-exercise :data:`ADDED`). Pairs above a threshold are listed (:func:`similar_pairs`,
 :func:`report`) and exported (:func:`write_csv`, :func:`write_html`). It is a signal for the
 instructor, never a score change: nothing here touches a grade.
 
@@ -38,6 +40,63 @@ that reach the threshold: its value is the one reported. Identical normalised te
 are fingerprinted and compared once. Tokenizing (Pygments) costs a few milliseconds per answer,
 a pair well under one.
 
+Added code
+~~~~~~~~~~
+The grader runs every code cell a student added or changed, not only the answer cells
+(:func:`cvkit.grading.trusted.worker_cells`), so all of that code is compared. A student's
+**added code** is every code cell of their notebook that is neither an exercise's answer cell
+(the first cell with that ``grade_id``) nor a test cell, and whose text (white space at its ends
+aside) is none of the instructor's non-answer code cells (of the source or the release
+notebook): the cells they inserted, and the release cells they changed. Unchanged set-up, demo
+and test cells are never compared; test cells are never student code (the grader does not run
+a student's test cells).
+
+*Per exercise*, the compared text is the answer cell followed by the definitions it **pulls
+in**. Each cell is split into its top-level statements (statements sharing a line are one). A
+statement *defines* the module-level names it binds (``def``, ``class``, assignments, ``for`` and
+``with`` targets, a ``global`` name assigned in a function; imports are not definitions) and
+the names whose value it changes (``d[k] = …``, ``o.x = …``, a statement ``d.update(…)``); it
+*uses* the module-level names it reads, as :mod:`symtable` resolves them (a function's
+parameters and locals are not module-level names). Starting from the names the answer cell uses
+and defines and the names of the functions its test cells check, each name pulls in every
+statement of the added cells that defines it — all of them, wherever they are in the notebook,
+since a later cell may redefine the graded function — then the names those statements use,
+transitively. An exercise whose answer cell is gone (deleted, or its metadata changed) is
+compared with what its checked function's name pulls in. Top-level statements placed beside
+another exercise's answer function (a helper
+in another answer cell) are pulled in the same way; that exercise's answer function itself is
+not (a building block such as ``pad`` called by ``correlate`` is compared in its own exercise).
+Names are matched, not traced: a name read only through a string (``globals()["f"]``) pulls in
+nothing, and a module-level name that happens to be defined in an added cell pulls in that
+definition even if it is dead code (more is compared, never less). A cell that does not compile
+(after IPython's ``%``/``!`` lines are replaced, as the grader's worker replaces them) does not run
+in the grader, so it defines nothing; its text is still compared (as an answer, or among the
+added cells). The pulled statements follow the answer in notebook order, after a comment naming
+them (comments are not compared), and each pair says whose text includes added code
+(:attr:`SimilarPair.added`, the CSV's and the page's exercise column:
+``mean_kernel_answer + added code (ann: _helper)``). The exercise's boilerplate also holds the
+k-grams of the obvious wrapper (the stub's body a call of a helper with the function's
+parameters, then the helper's ``def`` line — the stub's signature or the bare parameter names —
+with or without a docstring): two students who each move their whole answer into a helper share
+that glue, and it is nobody's own code.
+
+*All added code* of a notebook is compared too, as one more exercise, :data:`ADDED`: each
+student's added cells, in notebook order, against the other students' (not with a reference or
+the solution: it is no exercise's answer). It shows copied helper code however it is called
+(through a string, a dict, a wrapper the names do not reveal). Its boilerplate is every code cell
+the instructor released (set-up, demos, test cells, the answer stubs), so a demo run again with
+other numbers, or a copy of a test call, is nothing of the student's own.
+
+Cost: cells are split with :mod:`ast` and resolved with :mod:`symtable` (about a second per
+megabyte); an answer cell with nothing beside its answer function (every line that starts in
+column 0 a comment, a decorator or that function's ``def`` line) is parsed only when the
+notebook has something to pull in. A student's cells are parsed up to :data:`MAX_PARSED_CHARS` characters per
+notebook, in notebook order (cells beyond define nothing; they are still compared as text). A
+pulled definition is tokenized again in each exercise that pulls it in; :data:`ADDED` adds one
+text per student with added code, and one exercise per notebook. Measured on 100 submissions of
+Chapter 3 (13 exercises, CPU time of :func:`report`): 2.4 s before added code was compared; now
+2.6 s when no one added code, 3.2 s when every student added two cells.
+
 What is skipped: unanswered cells (the released stub as it is, or nothing of the student's own
 left once the stub's k-grams are removed) and answers with fewer than ``min_size``
 (:data:`MIN_SIZE`) normalised characters of their own: a three-line exercise has only one
@@ -52,9 +111,17 @@ solutions, cvkit's references and the loop/FFT/integral-image versions of
 ``tests/alternatives_ch03.py``, among themselves; a loop and a vectorized Gaussian kernel)
 score at most 0.41. Over all 140 exercises of the course, the notebooks' solutions against
 cvkit's references (written by the same authors, so not quite independent) score at most 0.58.
+Added code is measured the same way and with the same threshold
+(``tests/test_similarity_added_cells.py``): a helper copied with renamed variables and two
+statements swapped, called from two answer cells that share nothing, scores 0.68 with the
+pulled-in code and 0.91 among the added cells; the instructor's solution pasted into a helper
+scores 0.97 against the solution; two honest students' own helpers score 0. The independent
+solutions above, each moved whole into a helper that the answer cell calls, score at most 0.41
+among themselves (0.39 as plain answers; 0.59 without the wrapper boilerplate).
 """
 from __future__ import annotations
 
+import ast
 import csv
 import html
 import inspect
@@ -63,16 +130,20 @@ import json
 import os
 import re
 import stat
+import symtable
 from dataclasses import dataclass
 from functools import lru_cache
 from itertools import combinations
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
+from .._text import name_problem, printable
+
 __all__ = [
-    "NOISE", "THRESHOLD", "MIN_SIZE", "SOLUTION", "CODE_STUB", "MAX_NOTEBOOK_BYTES", "MAX_ANSWER_CHARS", "SimilarPair", "Exercise",
-    "answer_sources", "exercise_algorithms", "exercises_from", "similar_pairs", "report",
-    "write_csv", "write_html", "reference_label",
+    "NOISE", "THRESHOLD", "MIN_SIZE", "SOLUTION", "CODE_STUB", "MAX_NOTEBOOK_BYTES", "MAX_ANSWER_CHARS", "ADDED",
+    "ALL_ADDED", "MAX_PARSED_CHARS", "SimilarPair", "Exercise", "Answer",
+    "answer_sources", "exercise_algorithms", "exercises_from", "student_code", "added_cells_exercise", "similar_pairs",
+    "report", "write_csv", "write_html", "reference_label", "exercise_label",
 ]
 
 #: length of the k-grams (normalised characters) fingerprinted: the shortest match that counts
@@ -89,6 +160,14 @@ CODE_STUB = "# YOUR CODE HERE\nraise NotImplementedError()"
 MAX_NOTEBOOK_BYTES = 64 * 2**20
 #: answers are compared (and shown) up to this many characters
 MAX_ANSWER_CHARS = 100_000
+#: the pseudo-exercise of a notebook that holds all of a student's added code (prefixed by the
+#: notebook's stem, as exercises are, when the assignment has several notebooks)
+ADDED = "(added cells)"
+#: :attr:`SimilarPair.added` of a pair of :data:`ADDED` texts
+ALL_ADDED = "all added cells"
+#: characters of a student's code cells (answers and added cells, in notebook order) parsed per
+#: notebook to find the definitions answers pull in; a cell that does not fit defines nothing
+MAX_PARSED_CHARS = 1_000_000
 
 _SOLUTION_REGION = re.compile(r"^([ \t]*)### BEGIN SOLUTION[^\n]*\n(.*?)^[ \t]*### END SOLUTION[^\n]*$",
                               re.MULTILINE | re.DOTALL)
@@ -114,6 +193,10 @@ class SimilarPair:
         The two texts compared.
     assignment : str
         The assignment, when known.
+    added : str
+        What of the two texts is added code: ``""`` (answer cells only), :data:`ALL_ADDED` (a
+        pair of :data:`ADDED` texts), or whose answer pulls in which definitions from added
+        cells, e.g. ``"ann: _helper; bob: _kernel _inner"``.
     """
 
     exercise: str
@@ -123,6 +206,7 @@ class SimilarPair:
     a_source: str
     b_source: str
     assignment: str = ""
+    added: str = ""
 
 
 @dataclass(frozen=True)
@@ -139,12 +223,33 @@ class Exercise:
         How the reference is named, e.g. ``"cvkit.filters.gaussian"``.
     solution : str or None
         The instructor's solution.
+    added_cells : bool
+        Whether this is a notebook's :data:`ADDED` pseudo-exercise (its ``stub``: every code
+        cell the instructor released).
     """
 
     stub: str = ""
     reference: str | None = None
     reference_name: str = ""
     solution: str | None = None
+    added_cells: bool = False
+
+
+@dataclass(frozen=True)
+class Answer:
+    """A student's code for one exercise, as it is compared (:func:`student_code`).
+
+    Attributes
+    ----------
+    text : str
+        The answer cell, followed by the definitions it pulls in from added cells; for
+        :data:`ADDED`, all the student's added cells.
+    pulled : tuple of str
+        The names of the definitions pulled in, in notebook order (empty: the cell alone).
+    """
+
+    text: str
+    pulled: tuple[str, ...] = ()
 
 
 def reference_label(name: str) -> str:
@@ -175,6 +280,13 @@ def _answer_cell(cell: Mapping) -> bool:
     return cell.get("cell_type") == "code" and _nbgrader(cell).get("solution") is True
 
 
+def _test_cell(cell: Mapping) -> bool:
+    """A test cell as the grader's worker tells them (:func:`cvkit.grading.runtime.cells.is_test_cell`:
+    graded, not an answer), read from metadata that may be malformed."""
+    meta = _nbgrader(cell)
+    return bool(meta.get("grade")) and not bool(meta.get("solution"))
+
+
 def answer_sources(notebook: Mapping) -> dict[str, str]:
     """The answer cells of a notebook: ``{grade_id: source}``.
 
@@ -199,22 +311,28 @@ def answer_sources(notebook: Mapping) -> dict[str, str]:
     return answers
 
 
-def exercise_algorithms(notebook: Mapping) -> dict[str, str]:
-    """``{answer grade_id: algorithm id}``: the first argument of the first ``check("<id>", ...)``
-    in the graded cells that follow each answer cell (up to the next answer cell)."""
+def _exercise_calls(notebook: Mapping) -> dict[str, list[Any]]:
+    """``{answer grade_id: [CheckCall, ...]}``: the ``check(...)`` calls of the graded cells that
+    follow each answer cell (up to the next answer cell), in order."""
     from .trusted import check_calls
 
-    found: dict[str, str] = {}
+    found: dict[str, list[Any]] = {}
     current = None
     for cell in _cells(notebook):
         meta = _nbgrader(cell)
         if _answer_cell(cell):
             current = meta.get("grade_id") if isinstance(meta.get("grade_id"), str) else None
-        elif current is not None and current not in found and cell.get("cell_type") == "code" and meta.get("grade"):
+        elif current is not None and cell.get("cell_type") == "code" and meta.get("grade"):
             calls = check_calls(_source(cell) or "", str(meta.get("grade_id", "")))
             if calls:
-                found[current] = calls[0].algorithm_id
+                found.setdefault(current, []).extend(calls)
     return found
+
+
+def exercise_algorithms(notebook: Mapping) -> dict[str, str]:
+    """``{answer grade_id: algorithm id}``: the first argument of the first ``check("<id>", ...)``
+    in the graded cells that follow each answer cell (up to the next answer cell)."""
+    return {grade_id: calls[0].algorithm_id for grade_id, calls in _exercise_calls(notebook).items()}
 
 
 def _released(text: str) -> str:
@@ -272,6 +390,269 @@ def exercises_from(source_notebook: Mapping, release_notebook: Mapping | None = 
     return result
 
 
+# ------------------------------------------------------------------------------- student code
+@dataclass(frozen=True)
+class _Unit:
+    """Top-level statements of a cell (those sharing a line together): the module-level names
+    they define, the module-level names they use, their text."""
+
+    defines: frozenset[str]
+    uses: frozenset[str]
+    text: str
+
+
+def _without_magics(source: str) -> str:
+    """The cell as the grader's worker compiles it: IPython's ``%`` and ``!`` lines made ``pass``."""
+    return "\n".join("pass  # magic" if line.lstrip().startswith(("%", "!")) else line
+                     for line in source.splitlines())
+
+
+def _changed(statements: list[ast.stmt]) -> set[str]:
+    """Names whose value module-level statements change without binding them: the root name of
+    an attribute or item they assign or delete (``d[k] = f``, ``o.x = f``), and the object of a
+    method call that is a statement (``d.update(k=f)``). Function and class bodies are not
+    module level."""
+    found: set[str] = set()
+    for statement in statements:
+        call = statement.value if isinstance(statement, ast.Expr) else None
+        method = call.func if isinstance(call, ast.Call) else None
+        if isinstance(method, ast.Attribute) and isinstance(method.value, ast.Name):
+            found.add(method.value.id)
+        stack: list[ast.AST] = [statement]
+        while stack:
+            node = stack.pop()
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef, ast.Lambda)):
+                stack += [*getattr(node, "decorator_list", ()), *getattr(node, "bases", ())]
+                continue
+            if isinstance(node, (ast.Attribute, ast.Subscript)) and isinstance(node.ctx, (ast.Store, ast.Del)):
+                root = node.value
+                while isinstance(root, (ast.Attribute, ast.Subscript)):
+                    root = root.value
+                if isinstance(root, ast.Name):
+                    found.add(root.id)
+            stack.extend(ast.iter_child_nodes(node))
+    return found
+
+
+def _scopes(text: str) -> tuple[set[str], set[str]] | None:
+    """(defined, used) module-level names of ``text``, as :mod:`symtable` resolves them; None
+    if it does not compile on its own."""
+    try:
+        top = symtable.symtable(text, "<cell>", "exec")
+    except (SyntaxError, ValueError, RecursionError, MemoryError):
+        return None
+    defines: set[str] = set()
+    uses: set[str] = set()
+    tables = [top]
+    while tables:
+        table = tables.pop()
+        for symbol in table.get_symbols():
+            name = symbol.get_name()
+            if symbol.is_referenced() and (table is top or symbol.is_global()):
+                uses.add(name)
+            if symbol.is_assigned() and not symbol.is_imported() and (table is top or symbol.is_declared_global()):
+                defines.add(name)
+        tables.extend(table.get_children())
+    return defines, uses
+
+
+def _units(source: str) -> list[_Unit]:
+    """The top-level statements of a cell with what they define and use; ``[]`` for a cell
+    that does not compile (it does not run in the grader, so it defines nothing)."""
+    code = _without_magics(source)
+    try:
+        tree = ast.parse(code)
+        compile(tree, "<cell>", "exec", dont_inherit=True)
+    except (SyntaxError, ValueError, TypeError, RecursionError, MemoryError):
+        return []
+    lines = code.split("\n")
+    groups: list[tuple[int, int, list[ast.stmt]]] = []  # (first line, last line, statements), 1-based
+    for statement in tree.body:
+        first = min([statement.lineno] + [d.lineno for d in getattr(statement, "decorator_list", ())])
+        last = statement.end_lineno or statement.lineno
+        if groups and first <= groups[-1][1]:
+            groups[-1] = (groups[-1][0], max(last, groups[-1][1]), groups[-1][2] + [statement])
+        else:
+            groups.append((first, last, [statement]))
+    units = []
+    for first, last, statements in groups:
+        text = "\n".join(lines[first - 1:last])
+        names = _scopes(text)
+        if names is not None:
+            defines, uses = names
+            units.append(_Unit(frozenset(defines | _changed(statements)), frozenset(uses), text))
+    return units
+
+
+def _instructor_code(*notebooks: Mapping | None) -> set[str]:
+    """The text (ends stripped) of every non-answer code cell of the instructor's notebooks."""
+    found = set()
+    for notebook in notebooks:
+        for cell in _cells(notebook):
+            source = _source(cell)
+            if cell.get("cell_type") == "code" and not _answer_cell(cell) and source is not None:
+                found.add(source.strip())
+    return found
+
+
+@dataclass(frozen=True)
+class _Release:
+    """What the instructor's notebooks tell about students' cells (read once per notebook):
+    the exercises' grade ids, the functions each exercise's test cells check, and the text of
+    the instructor's non-answer code cells."""
+
+    exercise_ids: frozenset[str]
+    checked: Mapping[str, frozenset[str]]
+    instructors: frozenset[str]
+
+    @classmethod
+    def of(cls, source_notebook: Mapping, release_notebook: Mapping | None = None) -> _Release:
+        if not isinstance(source_notebook, Mapping):
+            raise TypeError(f"source_notebook must be a notebook dict, got {type(source_notebook).__name__}")
+        calls = _exercise_calls(source_notebook)
+        return cls(frozenset(answer_sources(source_notebook)),
+                   {grade_id: frozenset(call.function for call in found) for grade_id, found in calls.items()},
+                   frozenset(_instructor_code(source_notebook, release_notebook)))
+
+
+def student_code(notebook: Mapping, source_notebook: Mapping,
+                 release_notebook: Mapping | None = None) -> dict[str, Answer]:
+    """What a student wrote in one notebook, as the report compares it (module docstring,
+    *Added code*).
+
+    Parameters
+    ----------
+    notebook : dict
+        The student's notebook (as read by :func:`json.load`).
+    source_notebook : dict
+        The instructor's source notebook: its answer cells are the exercises, its test cells
+        name the checked functions, its other code cells are not the student's.
+    release_notebook : dict, optional
+        The released notebook: its code cells are not the student's either.
+
+    Returns
+    -------
+    dict
+        ``{grade_id: Answer}`` for each exercise the notebook has an answer cell for (the cell,
+        then the definitions it pulls in from added code), or whose checked function its added
+        code defines (an answer moved out of its cell); and ``{ADDED: Answer}`` (all the added
+        cells, up to :data:`MAX_ANSWER_CHARS`) when the student added or changed code cells.
+        Malformed cells are left out; a notebook that is not a dict gives ``{}``.
+    """
+    return _student_code(notebook, _Release.of(source_notebook, release_notebook))
+
+
+def _student_code(notebook: Mapping, release: _Release) -> dict[str, Answer]:
+    """:func:`student_code`, the instructor's notebooks read once (``release``)."""
+    checked = release.checked
+    answers: dict[str, tuple[int, str]] = {}  # grade_id -> (cell position, source)
+    added: list[tuple[int, str]] = []
+    for position, cell in enumerate(_cells(notebook)):
+        source = _source(cell)
+        if cell.get("cell_type") != "code" or source is None or _test_cell(cell):
+            continue
+        grade_id = _nbgrader(cell).get("grade_id")
+        if _answer_cell(cell) and isinstance(grade_id, str) and grade_id in release.exercise_ids \
+                and grade_id not in answers:
+            answers[grade_id] = (position, source)
+        elif source.strip() not in release.instructors:  # not a release cell left as it is
+            added.append((position, source))
+    budget = MAX_PARSED_CHARS
+    units: dict[int, list[_Unit]] = {}
+
+    def parse(position: int, source: str) -> list[_Unit]:
+        nonlocal budget
+        if position not in units:
+            units[position] = _units(source) if len(source) <= budget else []
+            budget -= len(source) if len(source) <= budget else 0
+        return units[position]
+
+    # what can be pulled in: (position, answer cell's grade_id or None, unit), in notebook order
+    pool: list[tuple[tuple[int, int], str | None, _Unit]] = []
+    sources = sorted([(position, grade_id, source) for grade_id, (position, source) in answers.items()]
+                     + [(position, None, source) for position, source in added], key=lambda item: item[0])
+    for position, origin, source in sources:
+        if origin is not None and _only_defines(source, checked.get(origin, frozenset())):
+            continue  # an answer cell with nothing beside its answer function: parsed below if needed
+        found = parse(position, source)
+        pool += [((position, index), origin, unit) for index, unit in enumerate(found)
+                 if origin is None or not unit.defines & checked.get(origin, frozenset())]
+    result = {grade_id: Answer(source) for grade_id, (_, source) in answers.items()}
+    if pool:
+        defined_by: dict[str, list[int]] = {}
+        for index, (_, _, unit) in enumerate(pool):
+            for name in unit.defines:
+                defined_by.setdefault(name, []).append(index)
+        for grade_id in sorted(release.exercise_ids):
+            # no answer cell: the checked function may be defined in added code
+            position, source = answers.get(grade_id, (-1, ""))
+            pending = set(checked.get(grade_id, frozenset()))
+            for unit in parse(position, source) if source else []:
+                pending |= unit.uses | unit.defines
+            seen: set[str] = set()
+            matched: set[str] = set()
+            chosen: set[int] = set()
+            while pending:
+                name = pending.pop()
+                seen.add(name)
+                for index in defined_by.get(name, ()):
+                    _, origin, unit = pool[index]
+                    if origin != grade_id:
+                        matched.add(name)
+                        if index not in chosen:
+                            chosen.add(index)
+                            pending |= unit.uses - seen
+            if chosen or grade_id in answers:
+                result[grade_id] = _with_pulled(source, [pool[index][2] for index in sorted(chosen)], matched)
+    if added:
+        text, size = [], 0
+        for _, part in added:
+            text.append(part[:MAX_ANSWER_CHARS - size])
+            size += len(text[-1]) + 2
+            if size >= MAX_ANSWER_CHARS:
+                break
+        result[ADDED] = Answer("\n\n".join(text))
+    return result
+
+
+_DEF_LINE = re.compile(r"(?:async[ \t]+)?(?:def|class)[ \t]+(\w+)")
+
+
+def _only_defines(source: str, names: frozenset[str]) -> bool:
+    """Whether every line of ``source`` that may start a top-level statement (a line, as the
+    grader's worker splits them, starting with neither white space, ``#`` nor ``@``) is the
+    ``def`` or ``class`` line of one of ``names``: then the cell has nothing beside its answer
+    (a test that spares parsing it; a top-level statement always starts in column 0)."""
+    for line in source.splitlines():
+        if line and line[0] not in " \t#@":
+            definition = _DEF_LINE.match(line)
+            if definition is None or definition.group(1) not in names:
+                return False
+    return True
+
+
+def _with_pulled(source: str, units: list[_Unit], matched: set[str]) -> Answer:
+    """The answer cell followed by the units it pulls in, after a comment naming them."""
+    if not units:
+        return Answer(source)
+    names = tuple(dict.fromkeys(name for unit in units for name in sorted(unit.defines) if name in matched))
+    comment = "# ---- pulled in from the student's other cells: " + " ".join(names) + " ----"
+    pulled = "\n\n".join(unit.text for unit in units)
+    return Answer((source + "\n\n" if source else "") + comment + "\n" + pulled, names)
+
+
+def added_cells_exercise(source_notebook: Mapping, release_notebook: Mapping | None = None) -> Exercise:
+    """A notebook's :data:`ADDED` pseudo-exercise: compared between students only, with every
+    code cell the instructor released as boilerplate (the non-answer code cells of both
+    notebooks and the answer stubs: the release's, or made from the source as nbgrader does)."""
+    if not isinstance(source_notebook, Mapping):
+        raise TypeError(f"source_notebook must be a notebook dict, got {type(source_notebook).__name__}")
+    released = answer_sources(release_notebook) if isinstance(release_notebook, Mapping) else {}
+    stubs = [released.get(grade_id, _released(text)) for grade_id, text in answer_sources(source_notebook).items()]
+    return Exercise(stub="\n\n".join(sorted(_instructor_code(source_notebook, release_notebook)) + stubs),
+                    added_cells=True)
+
+
 # ------------------------------------------------------------------------------- comparison
 @lru_cache(maxsize=4096)
 def _normalised(text: str) -> str:
@@ -288,10 +669,51 @@ def _fingerprint(normalised: str, boilerplate: Any = None) -> Any:
     return CodeFingerprint("answer.py", NOISE, 1, boilerplate, filter=False, fp=io.StringIO(normalised))
 
 
-def _boilerplate(stub: str) -> Any:
+def _wrappers(stub: str) -> list[str]:
+    """The released answer cell as a student who moves the whole answer into a helper of their
+    own writes it: the function's body a call of the helper with the function's parameters,
+    then the helper's ``def`` line (the stub's signature, or the parameter names alone), with
+    and without a docstring. Two such wrappers alike say nothing, as two stubs alike say nothing."""
+    try:
+        tree = ast.parse(stub)
+    except (SyntaxError, ValueError, RecursionError, MemoryError):
+        return []
+    lines = stub.split("\n")
+    texts = []
+    for node in tree.body:
+        if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) or not node.body:
+            continue
+        first = node.body[0]
+        documented = isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) \
+            and isinstance(first.value.value, str)
+        head = "\n".join(lines[:(first.end_lineno or first.lineno) if documented else first.lineno - 1])
+        signature = "\n".join(lines[node.lineno - 1:first.lineno - 1]).strip()
+        signature = re.sub(r"^(async\s+)?def\s+\w+", "def _helper", signature)
+        if "\n" in signature or not signature.endswith(":"):  # a def line written on several lines, or a one-liner
+            signature = ""
+        arguments = node.args
+        names = [a.arg for a in arguments.posonlyargs + arguments.args]
+        keywords = [a.arg for a in arguments.kwonlyargs]
+        rest = [f"**{arguments.kwarg.arg}"] if arguments.kwarg else []
+        star = [f"*{arguments.vararg.arg}"] if arguments.vararg else []
+        passed = names + star + [f"{k}={k}" for k in keywords] + rest
+        plain = names + (star or (["*"] if keywords else [])) + keywords + rest
+        indent = " " * first.col_offset
+        call = f"{head}\n{indent}return _helper({', '.join(passed)})\n\n\n"
+        for define in ([signature] if signature else []) + [f"def _helper({', '.join(plain)}):"]:
+            texts += [call + define, call + define + '\n    """The answer."""']
+    return texts
+
+
+def _boilerplate(stub: str, wrappers: bool = True) -> Any:
+    """The hashes of the k-grams that are nobody's own code: the stub's, and its wrappers' (:func:`_wrappers`)."""
     import numpy as np
 
-    return np.array(sorted(_fingerprint(_normalised(stub)).hashes)) if stub.strip() else None
+    if not stub.strip():
+        return None
+    texts = [stub] + (_wrappers(stub) if wrappers else [])
+    return np.unique(np.concatenate([np.array(sorted(_fingerprint(_normalised(text)).hashes), dtype=np.int64)
+                                     for text in texts]))
 
 
 class _Document:
@@ -327,8 +749,8 @@ class _Comparer:
     """The fingerprints of one exercise's texts (one per distinct normalised text: copies are
     fingerprinted and compared once) and their pairwise similarities."""
 
-    def __init__(self, stub: str) -> None:
-        self.boilerplate = _boilerplate(stub)
+    def __init__(self, stub: str, wrappers: bool = True) -> None:
+        self.boilerplate = _boilerplate(stub, wrappers)
         self.documents: dict[str, _Document] = {}
         self.values: dict[tuple[str, str], float] = {}
 
@@ -368,15 +790,16 @@ def _check_threshold(threshold: Any, min_size: Any) -> None:
         raise ValueError(f"min_size must be an integer >= 0 (normalised characters), got {min_size!r}")
 
 
-def similar_pairs(answers: Mapping[str, Mapping[str, str]], exercises: Mapping[str, Exercise], *,
+def similar_pairs(answers: Mapping[str, Mapping[str, str | Answer]], exercises: Mapping[str, Exercise], *,
                   threshold: float = THRESHOLD, min_size: int = MIN_SIZE, assignment: str = "") -> list[SimilarPair]:
     """The pairs of answers to one assignment's exercises whose similarity is at least ``threshold``.
 
     Parameters
     ----------
     answers : mapping
-        ``{student: {grade_id: answer source}}`` (e.g. :func:`answer_sources` of each
-        student's notebook). Grade ids not in ``exercises`` are ignored.
+        ``{student: {grade_id: answer source or Answer}}`` (e.g. :func:`student_code` or
+        :func:`answer_sources` of each student's notebook). Grade ids not in ``exercises`` are
+        ignored.
     exercises : mapping
         ``{grade_id: Exercise}`` (e.g. :func:`exercises_from`): the stub, the reference's
         source and the instructor's solution of each exercise.
@@ -393,7 +816,8 @@ def similar_pairs(answers: Mapping[str, Mapping[str, str]], exercises: Mapping[s
     list of SimilarPair
         Student–student pairs (ids in sorted order), then student–reference and
         student–solution pairs, all sorted by decreasing similarity (ties by exercise, ids).
-        Unanswered cells are never compared.
+        Unanswered cells are never compared. A pair's ``added`` says which of its texts
+        include added code.
     """
     if not isinstance(answers, Mapping) or not all(isinstance(a, Mapping) for a in answers.values()):
         raise TypeError("answers must be a mapping {student: {grade_id: source}}")
@@ -403,13 +827,16 @@ def similar_pairs(answers: Mapping[str, Mapping[str, str]], exercises: Mapping[s
     pairs = []
     for grade_id in sorted(exercises):
         exercise = exercises[grade_id]
-        comparer = _Comparer(exercise.stub)
+        comparer = _Comparer(exercise.stub, wrappers=not exercise.added_cells)
         texts: dict[str, tuple[str, str]] = {}  # name -> (text, normalised), large enough to compare
+        pulled: dict[str, tuple[str, ...]] = {}
         for student in sorted(answers, key=str):
-            text = answers[student].get(grade_id)
-            if isinstance(text, str) and not _blank(text, exercise.stub):
-                text = text[:MAX_ANSWER_CHARS]
-                texts[str(student)] = (text, _normalised(text))
+            given = answers[student].get(grade_id)
+            answer = given if isinstance(given, Answer) else Answer(given) if isinstance(given, str) else None
+            if answer is not None and isinstance(answer.text, str) and not _blank(answer.text, exercise.stub):
+                cut = answer.text[:MAX_ANSWER_CHARS]
+                texts[str(student)] = (cut, _normalised(cut))
+                pulled[str(student)] = tuple(answer.pulled)
         students = [name for name in texts if comparer.size(texts[name][1]) >= max(min_size, 1)]
         targets = []
         for name, text in ((reference_label(exercise.reference_name or "implementation"), exercise.reference),
@@ -422,8 +849,19 @@ def similar_pairs(answers: Mapping[str, Mapping[str, str]], exercises: Mapping[s
         for a, b in comparisons:
             value = comparer.similarity(texts[a][1], texts[b][1], threshold)
             if value >= threshold:
-                pairs.append(SimilarPair(grade_id, a, b, round(value, 6), texts[a][0], texts[b][0], assignment))
+                added = ALL_ADDED if exercise.added_cells else _added_note(a, pulled.get(a, ()), b, pulled.get(b, ()))
+                pairs.append(SimilarPair(grade_id, a, b, round(value, 6), texts[a][0], texts[b][0], assignment, added))
     return sorted(pairs, key=lambda p: (-p.similarity, p.exercise, p.a, p.b))
+
+
+def _added_note(a: str, a_names: tuple[str, ...], b: str, b_names: tuple[str, ...]) -> str:
+    """``"ann: _helper; bob: _kernel _inner"``: whose text pulls in which definitions (at most
+    six names each, names cut at 40 characters)."""
+    def names(found: tuple[str, ...]) -> str:
+        shown = [name if len(name) <= 40 else name[:39] + "…" for name in found[:6]]
+        return " ".join(shown) + (f" (+{len(found) - 6} more)" if len(found) > 6 else "")
+
+    return "; ".join(f"{who}: {names(found)}" for who, found in ((a, a_names), (b, b_names)) if found)
 
 
 # ------------------------------------------------------------------------------- course folders
@@ -482,15 +920,19 @@ def report(course_root: str | os.PathLike, source_dir: str | os.PathLike, assign
     Returns
     -------
     list of SimilarPair
-        As :func:`similar_pairs`, sorted by decreasing similarity. With several notebooks in
-        the assignment, exercises are named ``"<notebook stem>:<grade_id>"``.
+        As :func:`similar_pairs`, sorted by decreasing similarity: each answer with the code it
+        pulls in from the student's added cells (:func:`student_code`), and each notebook's
+        added cells (:data:`ADDED`). With several notebooks in the assignment, exercises are
+        named ``"<notebook stem>:<grade_id>"`` (and ``"<notebook stem>:(added cells)"``).
 
     Notes
     -----
     Of the submissions, only regular files in plain folders are read: symbolic links (and
     what they point at), hard links to other files, devices and pipes are skipped, as are
     notebooks that are not valid JSON, larger than :data:`MAX_NOTEBOOK_BYTES`, and student
-    folders whose name starts with a dot. The course's own folders (``submitted``,
+    folders whose name starts with a dot or is refused by :func:`cvkit._text.name_problem`
+    (not valid UTF-8, control or invisible characters: such submissions are not graded either).
+    The files it writes show every name printable (:func:`cvkit._text.printable`). The course's own folders (``submitted``,
     ``release``, the sources) may be links. Nothing is written.
     """
     for name, value in (("course_root", course_root), ("source_dir", source_dir)):
@@ -502,10 +944,11 @@ def report(course_root: str | os.PathLike, source_dir: str | os.PathLike, assign
     root, sources = Path(course_root), Path(source_dir) / assignment
     names = sorted(p.name for p in sources.glob("*.ipynb") if not p.name.startswith(".")) if sources.is_dir() else []
     submitted = root / "submitted"
-    students = sorted(p.name for p in submitted.iterdir() if not p.name.startswith(".") and _plain_folder(p)) \
+    students = sorted(p.name for p in submitted.iterdir()
+                      if not p.name.startswith(".") and name_problem(p.name) is None and _plain_folder(p)) \
         if submitted.is_dir() else []
     exercises: dict[str, Exercise] = {}
-    answers: dict[str, dict[str, str]] = {student: {} for student in students}
+    answers: dict[str, dict[str, str | Answer]] = {student: {} for student in students}
     for name in names:
         source = _read_notebook(sources / name, links=True)
         if source is None:
@@ -513,11 +956,13 @@ def report(course_root: str | os.PathLike, source_dir: str | os.PathLike, assign
         release = _read_notebook(root / "release" / assignment / name, links=True)
         prefix = f"{Path(name).stem}:" if len(names) > 1 else ""
         exercises.update({prefix + key: value for key, value in exercises_from(source, release).items()})
+        exercises[prefix + ADDED] = added_cells_exercise(source, release)
+        facts = _Release.of(source, release)
         for student in students:
             folder = submitted / student / assignment
             notebook = _read_notebook(folder / name) if _plain_folder(folder) else None
             if notebook is not None:
-                answers[student].update({prefix + key: text for key, text in answer_sources(notebook).items()})
+                answers[student].update({prefix + key: code for key, code in _student_code(notebook, facts).items()})
     return similar_pairs(answers, exercises, threshold=threshold, min_size=min_size, assignment=assignment)
 
 
@@ -529,22 +974,32 @@ def _pairs(pairs: Iterable[SimilarPair]) -> list[SimilarPair]:
     return sorted(items, key=lambda p: (-p.similarity, p.assignment, p.exercise, p.a, p.b))
 
 
+def exercise_label(pair: SimilarPair) -> str:
+    """A pair's exercise as the CSV and the page show it: the exercise, followed, when an
+    answer pulls in added code, by whose and what (``"mean_kernel_answer + added code (ann:
+    _helper)"``); a pair of :data:`ADDED` texts is named by its pseudo-exercise."""
+    if pair.added and pair.added != ALL_ADDED:
+        return f"{pair.exercise} + added code ({pair.added})"
+    return pair.exercise
+
+
 def write_csv(pairs: Iterable[SimilarPair], path: str | os.PathLike) -> Path:
     """Write ``pairs`` as CSV (``exports/similarity.csv``) and return the path.
 
     Columns ``assignment, exercise, student_a, student_b, similarity`` (three decimals), by
-    decreasing similarity. Cells that a spreadsheet would read as a formula are escaped by
+    decreasing similarity; the exercise is :func:`exercise_label` (it says which pairs come
+    from added code). Cells that a spreadsheet would read as a formula are escaped by
     :func:`cvkit.grading.safety.csv_safe`. Missing parent folders are created.
     """
     from .safety import csv_safe
 
-    rows = [(p.assignment, p.exercise, p.a, p.b, f"{p.similarity:.3f}") for p in _pairs(pairs)]
+    rows = [(p.assignment, exercise_label(p), p.a, p.b, f"{p.similarity:.3f}") for p in _pairs(pairs)]
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="", encoding="utf-8", errors="surrogateescape") as handle:
+    with path.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle, lineterminator="\n")
         writer.writerow(["assignment", "exercise", "student_a", "student_b", "similarity"])
-        writer.writerows([csv_safe(cell) for cell in row] for row in rows)
+        writer.writerows([csv_safe(printable(cell)) for cell in row] for row in rows)
     return path
 
 
@@ -562,7 +1017,10 @@ pre {{ background: #f4f4f4; padding: 0.6em; overflow-x: auto; white-space: pre; 
 <h1>Similar answers</h1>
 <p>{count} pair(s). Similarity: the mean over the two answers of the share of each one's own code
 (the released stub left out) that the other contains, after names, strings and numbers are
-abstracted (copydetect's winnowing). A signal to look at, never a score.</p>
+abstracted (copydetect's winnowing). An answer is its answer cell and the definitions it pulls
+in from the cells the student added or changed (&ldquo;+ added code&rdquo;: whose, and which
+names); &ldquo;{added}&rdquo; compares all of two students' added cells. A signal to look at,
+never a score.</p>
 {index}
 {sections}
 </body></html>
@@ -574,10 +1032,12 @@ def write_html(pairs: Iterable[SimilarPair], path: str | os.PathLike) -> Path:
     decreasing similarity) and return the path. Every text is HTML-escaped; the page has no
     script and a Content-Security-Policy that allows none. Missing parent folders are created."""
     ordered = _pairs(pairs)
-    e = html.escape
+    def e(text: object) -> str:
+        return html.escape(printable(text, newlines=True))
     rows, sections = [], []
     for number, p in enumerate(ordered, 1):
-        where = f"{p.assignment} / {p.exercise}" if p.assignment else p.exercise
+        label = exercise_label(p)
+        where = f"{p.assignment} / {label}" if p.assignment else label
         rows.append(f'<tr><td><a href="#pair-{number}">{p.similarity:.0%}</a></td><td>{e(where)}</td>'
                     f"<td>{e(p.a)}</td><td>{e(p.b)}</td></tr>")
         sections.append(
@@ -588,6 +1048,6 @@ def write_html(pairs: Iterable[SimilarPair], path: str | os.PathLike) -> Path:
              + "".join(rows) + "</table>") if rows else "<p>No pair above the threshold.</p>"
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(_PAGE.format(count=len(ordered), index=index, sections="\n".join(sections)), encoding="utf-8",
-                    errors="surrogateescape")
+    path.write_text(_PAGE.format(count=len(ordered), index=index, sections="\n".join(sections), added=e(ADDED)),
+                    encoding="utf-8")
     return path
