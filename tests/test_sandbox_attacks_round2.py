@@ -1,14 +1,17 @@
 """The attack suite, round 2 (issue 32): a determined student against ``cvkit course grade``.
 
-Every attack is a real submission, graded with honest students in one batch through
-:meth:`Course.grade` (what ``cvkit course grade`` runs) with two workers, on a tiny chapter of
-three exercises: ``filters.median``, ``noise.add_gaussian`` and ``filters.mean_kernel``. Each
-attack asserts its exact grades, and the honest students keep full marks. The attacks that
+A class of 40: every attack of the round is a real submission, graded with honest students in
+one batch through :meth:`Course.grade` (what ``cvkit course grade`` runs) with two workers, on a
+tiny chapter of three exercises: ``filters.median``, ``noise.add_gaussian`` and
+``filters.mean_kernel``. Each attack asserts its exact grades (or that it is listed as not
+graded, with the reason), and every honest student keeps full marks. The attacks that
 need no course (a channel flood, the notebook's total time, a lookup table of hidden cases
 learned from an earlier attempt) are graded through :func:`~cvkit.grading.trusted.grade_notebook`
 and :func:`~cvkit.grading.sandbox.run_calls`, the trusted path every submission takes.
 """
+import csv
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -145,6 +148,26 @@ def _duplicated_grade_id():
     return nb
 
 
+# the same copied helper in an added cell, called by answer cells that differ
+STACK_MEDIAN = '''\
+def _stack_median(img, k, border):
+    img = np.asarray(img, dtype=float)
+    how = {"reflect101": "reflect", "reflect": "symmetric", "replicate": "edge", "wrap": "wrap",
+           "constant": "constant", "zero": "constant"}[border]
+    h = k // 2
+    big = np.pad(img, [(h, h), (h, h)] + [(0, 0)] * (img.ndim - 2), mode=how)
+    rows, cols = img.shape[:2]
+    layers = [big[dy:dy + rows, dx:dx + cols] for dy in range(k) for dx in range(k)]
+    return np.median(np.stack(layers), axis=0)
+'''
+STACK_MEDIAN_COPY = (STACK_MEDIAN.replace("_stack_median", "_my_filter").replace("img", "picture")
+                     .replace("layers", "planes").replace("big", "framed").replace("how", "mode_name"))
+COPIER_A = '@student("filters.median")\ndef median(image, size, border="reflect101"):\n    return _stack_median(image, size, border)'
+COPIER_B = ('@student("filters.median")\ndef median(image, size, border="reflect101"):\n'
+            '    """My median filter."""\n    result = _my_filter(np.asarray(image), int(size), border)\n    return result')
+ESCAPER = ('@student("filters.mean_kernel")\ndef mean_kernel(size):\n'
+           '    raise ValueError("\\x1b[2J\\x1b[3Jcleared")')
+
 SUBMISSIONS = {
     "ada": lambda: submission(),
     "bea": lambda: submission(),
@@ -155,7 +178,14 @@ SUBMISSIONS = {
     "flooder": lambda: submission(mean_kernel=FLOOD),
     "duplicated_id": _duplicated_grade_id,
     "driver_memory": lambda: submission(added=[DRIVER_MEMORY]),
+    "copier_a": lambda: submission(median=COPIER_A, added=[STACK_MEDIAN]),
+    "copier_b": lambda: submission(median=COPIER_B, added=[STACK_MEDIAN_COPY]),
+    "escaper": lambda: submission(mean_kernel=ESCAPER),
+    "odd_files": lambda: submission(),
+    "forged_time": lambda: submission(),
+    "garbage_time": lambda: submission(),
 }
+HONEST_CLASSMATES = [f"honest_{i:02d}" for i in range(40 - len(SUBMISSIONS) - 3)]
 EXPECTED = {
     "helper_answer": dict(FULL, add_gaussian_visible=0, add_gaussian_hidden=0),
     "served_time": dict(FULL, median_visible=0, median_hidden=0),
@@ -164,7 +194,15 @@ EXPECTED = {
     "flooder": dict(FULL, mean_kernel_visible=0, mean_kernel_hidden=0),
     "duplicated_id": FULL,
     "driver_memory": FULL,
+    "copier_a": FULL,
+    "copier_b": FULL,
+    "escaper": dict(FULL, mean_kernel_visible=0, mean_kernel_hidden=0),
+    "odd_files": FULL,
+    "forged_time": FULL,
+    "garbage_time": FULL,
 }
+#: folders refused for their names: listed as not graded, never given to nbgrader
+REFUSED = {"st\udcffudent": "is not valid UTF-8", "ada\u200b": "looks like student 'ada'"}
 
 
 @pytest.fixture(scope="module")
@@ -198,6 +236,19 @@ def graded(bubblewrap, project, tmp_path_factory):
     name = f"{ASSIGNMENT}.ipynb"
     for student, make in SUBMISSIONS.items():
         course.submit(student, ASSIGNMENT, {name: make()})
+    for student in HONEST_CLASSMATES + ["ada\u200b"]:
+        course.submit(student, ASSIGNMENT, {name: submission()})
+    # names of any bytes: a link and a pipe whose names are not UTF-8, a folder that is not UTF-8
+    odd = bytes(course.root / "submitted" / "odd_files" / ASSIGNMENT)
+    os.symlink(b"/etc/passwd", odd + b"/\xff\xfe.ipynb")
+    os.mkfifo(odd + b"/bad\xff")
+    bad_folder = bytes(course.root / "submitted") + b"/st\xffudent/" + ASSIGNMENT.encode()
+    os.makedirs(bad_folder)
+    with open(bad_folder + b"/" + name.encode(), "w") as handle:
+        json.dump(submission(), handle)
+    # a student's own timestamp.txt: forged, and garbage
+    (course.root / "submitted" / "forged_time" / ASSIGNMENT / "timestamp.txt").write_text("1970-01-01 00:00:00.000000 UTC")
+    (course.root / "submitted" / "garbage_time" / ASSIGNMENT / "timestamp.txt").write_text("not a date \x1b[2J")
     # a second notebook beside the assignment's: neither run nor checked, and flagged
     scratch = submission(mean_kernel='@student("filters.mean_kernel")\ndef mean_kernel(size):\n    return 0')
     course.submit("extra_notebook", ASSIGNMENT, {name: submission(), "scratch.ipynb": scratch})
@@ -244,14 +295,44 @@ def _autograded(course, student):
 def test_every_attack_gets_exactly_what_it_deserves(graded):
     course, results, calls_here = graded
     assert all(r.ok for r in results), [(r.student, r.log[-500:]) for r in results if not r.ok]
-    assert not course.not_graded()
+    not_graded = course.not_graded()
+    assert sorted(not_graded) == sorted(f"{student}/{ASSIGNMENT}" for student in REFUSED)
+    for student, why in REFUSED.items():
+        assert why in not_graded[f"{student}/{ASSIGNMENT}"]
     grades = _grades(course)
-    for student in ("ada", "bea", "extra_notebook"):
+    assert len(grades) + len(REFUSED) == 40
+    for student in ("ada", "bea", "extra_notebook", *HONEST_CLASSMATES):
         assert grades[student] == pytest.approx(FULL), student
     for student, expected in EXPECTED.items():
         assert grades[student] == pytest.approx(expected), student
     assert not calls_here  # the writer ran no student code (the duplicated grade id included)
     assert not _flags(course, "ada") and not _flags(course, "bea")
+
+
+def test_names_and_texts_of_any_bytes_stop_nothing_and_print_safely(graded):
+    course, _, _ = graded
+    flags = _flags(course, "odd_files")
+    assert any("\\xff\\xfe.ipynb: a symbolic link" in f for f in flags), flags
+    assert any("bad\\xff: not a regular file" in f for f in flags), flags
+    table = course.table(ASSIGNMENT)
+    for text in [table] + [(course.root / "exports" / n).read_text(encoding="utf-8")
+                           for n in ("grades.csv", "exercises.csv", "similarity.csv")]:
+        assert "\x1b" not in text and not any(0xD800 <= ord(c) <= 0xDFFF for c in text)
+    assert "\\x1b[2J\\x1b[3Jcleared" in table
+
+
+def test_submission_time_is_the_graders_and_a_students_claim_is_only_checked(graded):
+    course, _, _ = graded
+    assert any("submission time" in f for f in _flags(course, "forged_time"))
+    assert any("submission time" in f for f in _flags(course, "garbage_time"))
+    assert not any("submission time" in f for f in _flags(course, "ada"))
+
+
+def test_copied_code_in_added_cells_is_in_the_similarity_report(graded):
+    course, _, _ = graded
+    rows = list(csv.DictReader((course.root / "exports" / "similarity.csv").open(encoding="utf-8")))
+    pairs = {(r["student_a"], r["student_b"]): r["exercise"] for r in rows}
+    assert "added" in pairs.get(("copier_a", "copier_b"), ""), pairs
 
 
 def test_a_helper_that_is_the_answer_is_refused_by_name(graded):
