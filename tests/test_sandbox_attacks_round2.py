@@ -544,3 +544,19 @@ def test_hidden_view_keeps_only_the_students_own_frames():
     hidden_view(case, odd, cells, 20.0, {"a"})
     assert "0.5" not in case.message and "0.5" not in case.traceback.replace("line 3", "")
     assert re.search(r"raised an exception", case.message)
+
+
+def test_a_cell_may_load_data_but_not_compute_a_building_block(bubblewrap):
+    """A demo cell the student added (``img = data.step_signal(5)``) is served the data
+    sources, like a case; a building block at the top level of a cell is refused by name."""
+    from cvkit import data
+
+    cells = ["from cvkit import data, filters\nSIGNAL = data.step_signal(5)\ndef f(x):\n    return SIGNAL",
+             "from cvkit import filters\nPADDED = filters.pad(np.ones((2, 2)), 1)"]
+    result = sandbox.run_calls(["import numpy as np"] + cells,
+                               [{"function": "f", "args": (np.ones(2),), "kwargs": {}, "time_limit": 20.0}],
+                               blocks=("filters.pad",))
+    assert result.outcomes[0].ok and np.array_equal(result.outcomes[0].value, data.step_signal(5))
+    assert any("cell 2: RuntimeError" in e and "filters.pad is not allowed" in e for e in result.cell_errors), \
+        result.cell_errors
+    assert not result.crashed

@@ -20,8 +20,11 @@ One job per module:
   (:func:`execute_submission`, :func:`grade_submission`, :func:`feedback_submissions`) and
   their driving on local processes or Dask;
 - :mod:`.writer`, :mod:`.journal` and :mod:`.stamps` — the single writer of the gradebook
-  (repairs, not-graded submissions, flags for the formgrader) and its bookkeeping (journal with
-  the due date and checks each grade was decided under, not-graded list, flags);
+  (not-graded submissions, flags for the formgrader; it never runs student code: repairs are
+  graded in worker processes) and its bookkeeping (journal with the due date and checks each
+  grade was decided under, not-graded list, flags);
+- :mod:`.received` — when a submission was received: trusted data (the instructor's list,
+  nbgrader's exchange, cvkit's own records), never the student's ``timestamp.txt``;
 - :mod:`.results` and :mod:`.exports` — scores, mistakes and flags per exercise, the audit,
   the grade table, the CSV exports and the similarity report;
 - :mod:`.progress` — each phase's count and time left.
