@@ -163,6 +163,11 @@ def _summary(course, jobs) -> list[str]:
                 shown = ", ".join(students[:6]) + (f" and {len(students) - 6} more" if len(students) > 6 else "")
                 lines.append(f"  {assignment}: {len(students)} under an older {what} ({shown})")
             lines.append(f"    → cvkit course grade --regrade {assignment}")
+    from .grading import isolation
+
+    note = None if isolation.sandbox_disabled() else isolation.limits_fallback()
+    if note:
+        lines.append(f"sandbox: {note}")
     return lines + similarity_summary(course)
 
 

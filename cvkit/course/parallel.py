@@ -136,6 +136,9 @@ def grade(course: Course, assignments: Iterable[str] | None = None, workers: int
     if sandbox:
         isolation.require()
         os.environ.pop("CVKIT_NO_SANDBOX", None)
+        from ..grading.sandbox import require_worker
+
+        require_worker()  # the worker itself starts here: never a class of "ended early" zeros
     else:
         os.environ["CVKIT_NO_SANDBOX"] = "1"  # inherited by the grading workers
     found = course.submissions(assignments)

@@ -262,6 +262,24 @@ class _ControlGroup:
                     time.sleep(0.02)
 
 
+_fallback: dict = {}
+
+
+def limits_fallback() -> str | None:
+    """None where each sandbox gets its control group (``pids``, and ``memory`` where
+    available); else, in words, the documented fallback in force — for the run's summary, so
+    that a weaker limit is never silent."""
+    if "note" not in _fallback:
+        group = _ControlGroup(Limits())
+        active = group.active
+        group.remove()
+        _fallback["note"] = None if active else (
+            "no control group per sandbox (they need root and a delegated cgroup hierarchy): processes are "
+            "limited by RLIMIT_NPROC inside each sandbox's user namespace, memory by each process's address-space "
+            "limit")
+    return _fallback["note"]
+
+
 def _preexec(limits: Limits, group: _ControlGroup):
     def limit() -> None:
         import resource

@@ -126,6 +126,47 @@ def _runtime_paths(sandboxed: bool) -> tuple[list, str, str | None]:
     return [], links, links
 
 
+def worker_interpreter() -> tuple[str, list[tuple[str, str]], list[str]]:
+    """The Python the grading worker runs, the read-only binds it needs besides the system's,
+    and the package folders hidden from it (behind an empty tmpfs: only NumPy is bound, at
+    :data:`INSIDE`).
+
+    The base installation's interpreter (``sys._base_executable``) brings no virtual
+    environment's packages along. Where this user cannot reach it — a virtual environment made
+    with ``--copies`` from a Python in another user's home — the environment's own interpreter
+    runs instead, its folder bound read-only and its package folders hidden."""
+    hidden = isolation.site_packages_of_the_system()
+    base = getattr(sys, "_base_executable", None)
+    if base and os.access(os.path.realpath(base), os.X_OK):
+        return os.path.realpath(base), [], hidden
+    prefix = os.path.realpath(sys.prefix)
+    packages = [str(path) for pattern in ("lib/python*/site-packages", "lib64/python*/site-packages")
+                for path in sorted(Path(prefix).glob(pattern)) if path.is_dir()]
+    return os.path.realpath(sys.executable), [(prefix, prefix)], hidden + packages
+
+
+_worker_checked: dict = {}
+
+
+def require_worker() -> None:
+    """Raise :class:`~cvkit.grading.isolation.SandboxUnavailable`, with what the sandbox said,
+    unless the grading worker starts and answers a call in the sandbox on this machine (checked
+    once per process). Grading refuses to start rather than record every answer as a worker
+    that "ended early"."""
+    if isolation.sandbox_disabled():
+        return
+    if "reason" not in _worker_checked:
+        result = run_calls(["def _cvkit_probe(x):\n    return x + 1"],
+                           [{"function": "_cvkit_probe", "args": (1,), "kwargs": {}, "time_limit": 60.0}],
+                           max_restarts=0)
+        outcome = result.outcomes[0]
+        _worker_checked["reason"] = None if outcome.ok and outcome.value == 2 else (
+            f"the grading worker cannot run in the sandbox on this machine ({outcome.error}); the sandbox said: "
+            f"{result.output.strip()[-500:] or 'nothing'}")
+    if _worker_checked["reason"]:
+        raise isolation.SandboxUnavailable(_worker_checked["reason"])
+
+
 class _Session:
     """One sandboxed worker and the threads that read its streams."""
 
@@ -133,16 +174,15 @@ class _Session:
         self.deadline = deadline
         mounts, path, self._links = _runtime_paths(sandboxed)
         read_fd, write_fd = os.pipe()
-        python = getattr(sys, "_base_executable", None) or sys.executable
+        python, binds, masked = worker_interpreter()
         bootstrap = f"import sys; sys.path.insert(0, {path!r}); from cvkit_runtime.worker import main; main()"
         env = {"CVKIT_PROTOCOL_FD": str(write_fd), "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
                "MKL_NUM_THREADS": "1", "PYTHONDONTWRITEBYTECODE": "1", "LANG": "C.UTF-8"}
         limits = isolation.Limits(memory_mb=memory_mb, cpu_seconds=3600, processes=16, file_mb=16, tmpfs_mb=64)
-        masked = isolation.site_packages_of_the_system()
         try:
             self.box = isolation.Sandbox(
-                [os.path.realpath(python), "-I", "-S", "-B", "-c", bootstrap],
-                mounts=isolation.Mounts(read_only=mounts, with_environment=False, masked=masked),
+                [python, "-I", "-S", "-B", "-c", bootstrap],
+                mounts=isolation.Mounts(read_only=binds + mounts, with_environment=False, masked=masked),
                 limits=limits, env=env, sandboxed=sandboxed,
                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, pass_fds=(write_fd,),
             )
