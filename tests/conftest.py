@@ -1,13 +1,14 @@
 """Test-session set-up shared by every test module.
 
 Grading runs student code inside bubblewrap (``cvkit.grading.isolation``). On a fresh Debian
-machine the suite installs it with apt-get, as the browser test installs Chromium; where that
-is impossible the grading tests fail with the installation hint (they are never skipped: a
-grader without its sandbox is not a working grader).
+machine the suite installs it with apt-get, as the browser test installs Chromium, and in the
+same way as ``scripts/demo`` and ``scripts/lab`` (``scripts/_system.py``); where that is
+impossible the grading tests fail with the installation hint (they are never skipped: a grader
+without its sandbox is not a working grader).
 """
-import os
+import importlib.util
 import shutil
-import subprocess
+from pathlib import Path
 
 import pytest
 
@@ -18,22 +19,20 @@ from cvkit.grading.startup import skip_unused_schema_grammars
 skip_unused_schema_grammars()
 
 
-def _install_bubblewrap() -> str:
-    if shutil.which("bwrap") or not shutil.which("apt-get") or not hasattr(os, "geteuid") or os.geteuid() != 0:
-        return ""
-    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-    command = ["apt-get", "-o", "DPkg::Lock::Timeout=900", "install", "-y", "-q", "--no-install-recommends", "bubblewrap"]
-    done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=900)
-    if done.returncode != 0:  # stale package lists: refresh them once
-        subprocess.run(["apt-get", "-o", "DPkg::Lock::Timeout=900", "update", "-q"], capture_output=True, env=env, timeout=600)
-        done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=900)
-    return done.stdout[-1000:] + done.stderr[-1000:]
+def _system_helpers():
+    """``scripts/_system.py``, which ``scripts/demo`` and ``scripts/lab`` use too (one way to
+    install bubblewrap), loaded by its path: ``scripts/`` is not a package."""
+    path = Path(__file__).resolve().parent.parent / "scripts" / "_system.py"
+    spec = importlib.util.spec_from_file_location("cvkit_scripts_system", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 @pytest.fixture(scope="session", autouse=True)
 def grading_sandbox():
     """bubblewrap on this machine (installed once per session when missing)."""
-    log = _install_bubblewrap()
+    log = _system_helpers().install_bubblewrap()
     from cvkit.grading import isolation
 
     isolation._probe.clear()

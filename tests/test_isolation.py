@@ -40,20 +40,31 @@ def test_unprivileged_and_alone():
 def test_sees_no_course_no_lectures_no_host_tmp(tmp_path):
     secret = tmp_path / "salt"
     secret.write_text("s3cret")
-    # paths that exist on this machine (the runtime's own folders, e.g. /root/.pyenv, are mounted)
+    # what the sandbox binds (the runtime's own folders, e.g. /root/.pyenv, and this environment,
+    # which may lie under /tmp: then /tmp holds the folders leading to it, and nothing else)
+    bound = [target for _, target in isolation.system_mounts()]
     candidates = [str(secret), str(ROOT / "lectures"), str(ROOT / "autograders"), "/var/tmp", "/etc/shadow",
                   "/etc/passwd", "/root/.bashrc", "/home", "/srv", "/opt"]
-    present = [p for p in candidates if os.path.exists(p) and not os.path.realpath(sys.base_prefix).startswith(p)]
+    present = [p for p in candidates if os.path.exists(p) and not any(isolation.within(t, p) for t in bound)]
     assert len(present) >= 4
+    private = sorted(t for t in bound if any(isolation.within(t, f) for f in isolation.PRIVATE_FOLDERS))
     status, out = run(f"""\
         import os
         for path in {present!r}:
             print(path, os.path.exists(path))
-        print('tmp', os.listdir('/tmp'), 'shm', os.listdir('/dev/shm'))""")
+        seen = []
+        for top in ('/tmp', '/dev/shm'):
+            for folder, folders, files in os.walk(top):
+                if folder in {private!r}:
+                    folders[:] = []
+                    continue
+                seen += [os.path.join(folder, name) for name in folders + files]
+        print(sorted(seen))""")
     assert status == 0, out
     for line in out.splitlines()[:-1]:
         assert line.endswith("False"), line
-    assert out.splitlines()[-1] == "tmp [] shm []"
+    for path in eval(out.splitlines()[-1]):  # only the bound folders and the empty folders leading to them
+        assert any(isolation.within(target, path) for target in private), (path, private)
 
 
 def test_no_network():
@@ -187,3 +198,60 @@ def test_read_only_binds_into_the_private_tmp(tmp_path):
     with pytest.raises(ValueError, match="read_only_in_tmp"):
         isolation.command(["true"], isolation.Mounts(read_only_in_tmp=[(str(shared), "/etc/list.json")]),
                           isolation.Limits(), {})
+
+
+def test_binds_under_a_private_folder_come_after_its_tmpfs():
+    """bubblewrap applies mounts in order: an environment under /tmp bound before the private
+    tmpfs would be hidden by it (issue 33), a masked folder must come after the bind around it."""
+    mounts = isolation.Mounts(read_only=[("/srv/env", "/tmp/a kit/.venv")], masked=["/tmp/a kit/.venv/lib/site-packages"],
+                              writable=[("/srv/shared", "/dev/shm/work")])
+    args = isolation.command(["true"], mounts, isolation.Limits(), {"HOME": "/tmp"})
+
+    def at(*operation):
+        found = [i for i in range(len(args)) if args[i:i + len(operation)] == list(operation)]
+        assert len(found) == 1, operation
+        return found[0]
+
+    assert at("--size", str(256 << 20), "--tmpfs", "/tmp") < at("--ro-bind", "/srv/env", "/tmp/a kit/.venv") \
+        < at("--tmpfs", "/tmp/a kit/.venv/lib/site-packages")
+    assert at("--tmpfs", "/dev/shm") < at("--bind", "/srv/shared", "/dev/shm/work")
+    assert at("--ro-bind", "/usr", "/usr") < at("--tmpfs", "/tmp")
+    # the host's /tmp itself is never bound: only folders inside the private one
+    assert not any(args[i] in ("--bind", "--ro-bind") and args[i + 2] in ("/tmp", "/dev/shm") for i in range(len(args) - 2))
+
+
+@pytest.mark.parametrize("target", ["/tmp", "/tmp/", "/dev/shm", "/dev", "/"])
+def test_a_bind_that_would_cover_a_private_folder_is_refused(target):
+    with pytest.raises(isolation.SandboxUnavailable, match="folder of its own"):
+        isolation.command(["true"], isolation.Mounts(read_only=[("/srv/env", target)]), isolation.Limits(), {})
+
+
+def test_a_python_that_lives_in_tmp_itself_is_explained_by_the_probe(monkeypatch):
+    monkeypatch.setattr(isolation, "system_mounts", lambda with_environment=True: [("/usr", "/usr"), ("/tmp", "/tmp")])
+    monkeypatch.setattr(isolation, "_probe", {})
+    reason = isolation.probe()
+    assert reason and "cannot bind /tmp at /tmp" in reason
+
+
+def test_a_folder_under_tmp_is_bound_into_the_private_tmp(tmp_path):
+    """A folder of the host's /tmp bound read-only is seen at its own path; what lies beside it
+    is not, and the private /tmp stays writable."""
+    shared = tmp_path / "a kit" / ".venv"
+    shared.mkdir(parents=True)
+    (shared / "pyvenv.cfg").write_text("home = /usr/bin\n")
+    (tmp_path / "a kit" / "secret.txt").write_text("s3cret")
+    mounts = isolation.Mounts(read_only=[(str(shared), str(shared))])
+    status, out = run(f"""\
+        import os
+        print(open({str(shared / 'pyvenv.cfg')!r}).read().strip())
+        print(sorted(os.listdir({str(tmp_path / 'a kit')!r})))
+        try:
+            open({str(shared / 'x')!r}, 'w')
+            print('wrote the bind')
+        except OSError:
+            print('read-only')
+        open('/tmp/own', 'w').write('ok')
+        print(open('/tmp/own').read())""", mounts=mounts)
+    assert status == 0, out
+    assert out.splitlines() == ["home = /usr/bin", "['.venv']", "read-only", "ok"]
+    assert not (shared / "x").exists()

@@ -71,6 +71,8 @@ def execute_in_sandbox(files: dict, name: str, wall_seconds: float = EXECUTION_W
 
     sandboxed = not isolation.sandbox_disabled()
     package = str(Path(__file__).resolve().parent.parent)
+    # cvkit as Python found it (a path through a symbolic link, say), and its real folder
+    known_as = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     with tempfile.TemporaryDirectory(prefix="cvkit-execute-") as scratch:
         folder = Path(scratch) / "submission"
         folder.mkdir()
@@ -82,7 +84,8 @@ def execute_in_sandbox(files: dict, name: str, wall_seconds: float = EXECUTION_W
         if os.environ.get(CELL_TIMEOUT_VARIABLE):
             env[CELL_TIMEOUT_VARIABLE] = os.environ[CELL_TIMEOUT_VARIABLE]
         inside = "/submission" if sandboxed else str(folder)
-        mounts = isolation.Mounts(read_only=[(package, package)], writable=[(str(folder), inside)], chdir=inside)
+        read_only = [(package, target) for target in dict.fromkeys((package, known_as))]
+        mounts = isolation.Mounts(read_only=read_only, writable=[(str(folder), inside)], chdir=inside)
         try:
             fonts = matplotlib_font_list() if sandboxed else None
         except Exception:  # noqa: BLE001 - the list only saves time: never a reason not to run a notebook

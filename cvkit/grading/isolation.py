@@ -5,7 +5,10 @@ PID, network, IPC, UTS and mount namespaces, an unprivileged uid (65534), ``--di
 and ``--new-session``. Its file system holds only what the caller binds read-only (the Python
 runtime and the packages it needs), an optional writable copy of one submission, and a private
 tmpfs for ``/tmp`` (``/dev/shm`` is private too); no course folder, no ``lectures/``, no
-gradebook, no grading salt, no other submission, no network.
+gradebook, no grading salt, no other submission, no network. The binds keep their host paths,
+wherever those are: a kit or an environment under ``/tmp`` or ``/dev/shm`` is bound *into* the
+private tmpfs after it is made (bubblewrap applies its mounts in order), so the sandbox sees
+those folders and the empty folders leading to them, and nothing else of the host's ``/tmp``.
 
 Limits: address space, CPU time, file size and open files are resource limits set before
 bubblewrap starts (inherited by everything inside); the number of processes is limited inside
@@ -128,8 +131,11 @@ _probe: dict = {}
 
 def system_mounts(with_environment: bool = True) -> list[tuple[str, str]]:
     """The read-only base every sandbox needs: /usr (and /lib… where they are not links into
-    /usr), and the Python installation when it lives elsewhere (pyenv, conda); with
-    ``with_environment``, also the grader's virtual environment (its packages)."""
+    /usr), and the Python installation when it lives elsewhere (pyenv, conda, a copy under
+    /opt or /tmp); with ``with_environment``, also the grader's virtual environment (its
+    packages). Each installation is bound at its real path and, when it is reached through a
+    symbolic link (``/home`` → ``/var/home``), at the path Python knows it by as well, so that
+    ``sys.executable`` and the environment's own paths resolve inside."""
     mounts: list[tuple[str, str]] = [("/usr", "/usr")]
     for name in ("/lib", "/lib64", "/lib32", "/bin", "/sbin"):
         if os.path.isdir(name) and not os.path.islink(name):
@@ -137,58 +143,103 @@ def system_mounts(with_environment: bool = True) -> list[tuple[str, str]]:
     for name in ("/etc/ld.so.cache", "/etc/localtime"):
         if os.path.exists(name):
             mounts.append((os.path.realpath(name), name))
-    prefixes = {os.path.realpath(sys.base_prefix)}
-    if with_environment:
-        prefixes.add(os.path.realpath(sys.prefix))
-    for prefix in sorted(prefixes):
-        if not prefix.startswith("/usr/"):
-            mounts.append((prefix, prefix))
+    prefixes = [sys.base_prefix] + ([sys.prefix] if with_environment else [])
+    for prefix in prefixes:
+        real = os.path.realpath(prefix)
+        for target in dict.fromkeys((real, os.path.abspath(prefix))):
+            if not within(target, "/usr") and (real, target) not in mounts:
+                mounts.append((real, target))
     return mounts
 
 
 def site_packages_of_the_system() -> list[str]:
     """Package folders of the base Python and the distribution (hidden where only NumPy may be)."""
+    import site
+
     version = f"python{sys.version_info.major}.{sys.version_info.minor}"
-    candidates = [os.path.join(os.path.realpath(sys.base_prefix), "lib", version, "site-packages"),
+    base = os.path.realpath(sys.base_prefix)
+    candidates = [os.path.join(base, "lib", version, "site-packages"),
                   "/usr/lib/python3/dist-packages", f"/usr/lib/{version}/site-packages",
                   f"/usr/local/lib/{version}/dist-packages", f"/usr/local/lib/{version}/site-packages"]
-    return [path for path in candidates if os.path.isdir(path)]
+    try:  # where this Python's own site module looks in the base installation (Debian: dist-packages)
+        candidates += site.getsitepackages([base])
+    except (AttributeError, TypeError):  # pragma: no cover - a site module without it
+        pass
+    return [path for path in dict.fromkeys(candidates) if os.path.isdir(path)]
 
 
-def _symlinks() -> list[str]:
-    args = []
+#: folders every sandbox gets fresh and empty (a size-limited tmpfs of its own), whatever the host
+#: keeps there; a bind whose target lies inside one is applied after it (:func:`command`)
+PRIVATE_FOLDERS = ("/tmp", "/dev/shm")
+
+
+def within(path: str, folder: str) -> bool:
+    """``path`` is ``folder`` or lies inside it (both absolute and normalised)."""
+    return path == folder or path.startswith(folder.rstrip("/") + "/")
+
+
+def _depth(path: str) -> int:
+    return len([part for part in os.path.normpath(path).split("/") if part])
+
+
+def _symlinks() -> list[tuple[str, list[str]]]:
+    links = []
     for name in ("/lib", "/lib64", "/lib32", "/bin", "/sbin"):
         if os.path.islink(name):
-            args += ["--symlink", os.readlink(name), name]
-    return args
+            links.append((name, ["--symlink", os.readlink(name), name]))
+    return links
+
+
+def _bind(kind: str, source, target) -> tuple[str, list[str]]:
+    """A bind as a mount operation; refused when it would cover a folder the sandbox makes itself
+    (a Python environment that *is* ``/tmp``, say): the host's content would replace it."""
+    target = os.path.normpath(str(target))
+    covered = [own for own in ("/proc", "/dev", *PRIVATE_FOLDERS) if within(own, target)]
+    if covered:
+        raise SandboxUnavailable(
+            f"cannot bind {source} at {target} in the grading sandbox: it would cover the sandbox's own "
+            f"{covered[-1]} (move the kit or its Python environment into a folder of its own)")
+    return target, [kind, str(source), target]
 
 
 def command(argv: list[str], mounts: Mounts, limits: Limits, env: dict[str, str]) -> list[str]:
-    """The ``bwrap`` command line that runs ``argv`` in a fresh sandbox."""
+    """The ``bwrap`` command line that runs ``argv`` in a fresh sandbox.
+
+    bubblewrap applies its mounts in the order given, and a mount hides whatever an earlier one
+    put beneath its target; so the mounts are given parents first (by the depth of their
+    target, in the order below among equals): a kit, an environment or a Python under ``/tmp``
+    or ``/dev/shm`` is bound into the sandbox's private tmpfs once it is made (and only those
+    folders are seen there), a masked package folder is hidden after the installation around
+    it is bound. A bind that would cover a private folder (an environment *in* ``/tmp``)
+    is refused."""
     bwrap = bwrap_path()
     if bwrap is None:
         raise SandboxUnavailable("bubblewrap (bwrap) is not installed. " + INSTALL_HINT)
     args = [bwrap, "--unshare-user", "--unshare-pid", "--unshare-net", "--unshare-ipc", "--unshare-uts",
             "--unshare-cgroup-try", "--disable-userns", "--uid", str(SANDBOX_UID), "--gid", str(SANDBOX_UID),
             "--hostname", "sandbox", "--die-with-parent", "--new-session", "--cap-drop", "ALL"]
+    operations: list[tuple[str, list[str]]] = []  # (target, arguments)
     seen = set()
     for source, target in system_mounts(mounts.with_environment) + list(mounts.read_only):
-        if target in seen:
+        operation = _bind("--ro-bind", source, target)
+        if operation[0] in seen:
             continue
-        seen.add(target)
-        args += ["--ro-bind", str(source), str(target)]
-    args += _symlinks()
+        seen.add(operation[0])
+        operations.append(operation)
+    operations += _symlinks()
     for path in mounts.masked:
-        args += ["--tmpfs", str(path)]
-    args += ["--proc", "/proc", "--dev", "/dev",
-             "--size", str(limits.tmpfs_mb * 1024 * 1024), "--tmpfs", "/tmp",
-             "--size", str(64 * 1024 * 1024), "--tmpfs", "/dev/shm"]
-    for source, target in mounts.read_only_in_tmp:  # after /tmp is made, or its tmpfs would hide them
+        operations.append((os.path.normpath(str(path)), ["--tmpfs", str(path)]))
+    operations += [("/proc", ["--proc", "/proc"]), ("/dev", ["--dev", "/dev"]),
+                   ("/tmp", ["--size", str(limits.tmpfs_mb * 1024 * 1024), "--tmpfs", "/tmp"]),
+                   ("/dev/shm", ["--size", str(64 * 1024 * 1024), "--tmpfs", "/dev/shm"])]
+    for source, target in mounts.read_only_in_tmp:
         if not str(target).startswith("/tmp/"):
             raise ValueError(f"read_only_in_tmp targets must lie in /tmp, got {target!r}")
-        args += ["--ro-bind", str(source), str(target)]
+        operations.append(_bind("--ro-bind", source, target))
     for source, target in mounts.writable:
-        args += ["--bind", str(source), str(target)]
+        operations.append(_bind("--bind", source, target))
+    for _, arguments in sorted(operations, key=lambda operation: _depth(operation[0])):  # stable: parents first
+        args += arguments
     args += ["--chdir", mounts.chdir, "--clearenv"]
     for key, value in sorted(env.items()):
         args += ["--setenv", key, value]
@@ -306,7 +357,6 @@ class Sandbox:
         env.setdefault("TMPDIR", "/tmp")
         env["CVKIT_SANDBOX_NPROC"] = str(self.limits.processes)
         self.sandboxed = sandboxed
-        self.group = _ControlGroup(self.limits, enabled=sandboxed)
         self._scratch = None
         if sandboxed:
             cwd, full, outer_env = "/", command(argv, self.mounts, self.limits, env), {"PATH": "/usr/bin:/bin"}
@@ -315,6 +365,7 @@ class Sandbox:
             cwd = next((source for source, target in self.mounts.writable if target == self.mounts.chdir), self._scratch)
             env.update(HOME=self._scratch, TMPDIR=self._scratch)
             full, outer_env = argv, env
+        self.group = _ControlGroup(self.limits, enabled=sandboxed)  # once the command line is made
         try:
             self.process = subprocess.Popen(full, cwd=cwd, env=outer_env, preexec_fn=_preexec(self.limits, self.group),
                                             **popen)
@@ -379,6 +430,8 @@ def probe(force: bool = False) -> str | None:
                 reason = ("bubblewrap cannot create a sandbox here: "
                           + (err.decode(errors="replace").strip()[-300:] or f"exit status {box.process.returncode}")
                           + ". " + INSTALL_HINT)
+        except SandboxUnavailable as exc:  # where this Python lives cannot be bound (it says why)
+            reason = str(exc)
         except (OSError, subprocess.SubprocessError) as exc:
             reason = f"bubblewrap cannot create a sandbox here ({exc}). " + INSTALL_HINT
     _probe["result"] = reason

@@ -126,19 +126,35 @@ def _runtime_paths(sandboxed: bool) -> tuple[list, str, str | None]:
     return [], links, links
 
 
+def base_python() -> str:
+    """The base installation's own interpreter (real path), which the worker runs: a virtual
+    environment is not bound into the worker's sandbox, only the installation it was made from
+    (:func:`cvkit.grading.isolation.system_mounts`). ``sys._base_executable`` names it from
+    Python 3.11 on; before (3.10) it is the environment's own ``python``, a file of the
+    environment in a ``--copies`` one (as ``scripts/_venv.py`` makes them): then the
+    installation's ``bin/pythonX.Y``."""
+    base = os.path.realpath(sys.base_prefix)
+    version = f"python{sys.version_info.major}.{sys.version_info.minor}"
+    for candidate in (getattr(sys, "_base_executable", None), os.path.join(base, "bin", version),
+                      os.path.join(base, "bin", f"python{sys.version_info.major}")):
+        if candidate and os.path.isfile(candidate) and isolation.within(os.path.realpath(candidate), base):
+            return os.path.realpath(candidate)
+    return os.path.realpath(getattr(sys, "_base_executable", None) or sys.executable)
+
+
 def worker_interpreter() -> tuple[str, list[tuple[str, str]], list[str]]:
     """The Python the grading worker runs, the read-only binds it needs besides the system's,
     and the package folders hidden from it (behind an empty tmpfs: only NumPy is bound, at
     :data:`INSIDE`).
 
-    The base installation's interpreter (``sys._base_executable``) brings no virtual
+    The base installation's interpreter (:func:`base_python`) brings no virtual
     environment's packages along. Where this user cannot reach it — a virtual environment made
     with ``--copies`` from a Python in another user's home — the environment's own interpreter
     runs instead, its folder bound read-only and its package folders hidden."""
     hidden = isolation.site_packages_of_the_system()
-    base = getattr(sys, "_base_executable", None)
-    if base and os.access(os.path.realpath(base), os.X_OK):
-        return os.path.realpath(base), [], hidden
+    base = base_python()
+    if os.access(base, os.X_OK):
+        return base, [], hidden
     prefix = os.path.realpath(sys.prefix)
     packages = [str(path) for pattern in ("lib/python*/site-packages", "lib64/python*/site-packages")
                 for path in sorted(Path(prefix).glob(pattern)) if path.is_dir()]
