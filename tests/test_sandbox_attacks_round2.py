@@ -254,6 +254,7 @@ def graded(bubblewrap, project, tmp_path_factory):
     course.submit("extra_notebook", ASSIGNMENT, {name: submission(), "scratch.ipynb": scratch})
     (course.root / "submitted" / "extra_notebook" / ASSIGNMENT / "garbage.ipynb").write_text('{"cells": [')
     calls_here = []
+    sandbox.require_worker()  # the grader's own check that the worker starts (no student code), done once
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("CVKIT_CELL_TIMEOUT", "60")
         patch.setenv("CVKIT_ANSWER_CELL_TIMEOUT", "20")
