@@ -49,6 +49,7 @@ def grading_sandbox():
 LONGEST_FILES = {
     "tests/test_hidden_cases_reference.py": 490,
     "tests/test_browser.py": 160,
+    "tests/test_fresh_clone.py": 150,
     "tests/test_notebooks.py": 150,
     "tests/test_release.py": 145,
     "tests/test_sandbox_attacks_round2.py": 120,
