@@ -200,6 +200,7 @@ def _cmd_grade(args) -> int:
         for key, reason in sorted(course.refused_submissions(args.assignment or None).items()):
             _show(f"  {key}: not graded: {reason}")
         return 1
+    from .course.parallel import ClusterUnavailable
     from .grading.isolation import SandboxUnavailable
 
     regrade = _regrade_option(args.regrade)
@@ -214,6 +215,9 @@ def _cmd_grade(args) -> int:
                                progress=True, regrade=regrade, sandbox=not args.no_sandbox)
     except SandboxUnavailable as error:
         print(f"cvkit course grade: cannot grade safely: {error}", file=sys.stderr)
+        return 2
+    except ClusterUnavailable as error:
+        print(f"cvkit course grade: cannot grade on the cluster: {error}", file=sys.stderr)
         return 2
     graded = [r for r in results if not r.not_graded]
     print(f"autograded {len(graded)} submission{'s' * (len(graded) != 1)} in {time.perf_counter() - start:.0f} s")
@@ -325,7 +329,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = csub.add_parser("grade", help="autograde every submission, write feedback and grades.csv")
     course_options(p)
     p.add_argument("--workers", type=int, default=2, help="parallel autograde processes (default 2)")
-    p.add_argument("--scheduler", help="Dask distributed scheduler address (workers must share the course folder)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="grade on the workers of this Dask scheduler, e.g. tcp://host:8786 (they need cvkit's "
+                        "environment and bubblewrap, never the course folder: docs/scale-out.md)")
     p.add_argument("--regrade", action="append", metavar="CHAPTER",
                    help="grade this chapter's submissions again, e.g. after its due date or a check changed "
                         "(repeatable; 'all' for every chapter); new and changed submissions are always graded")

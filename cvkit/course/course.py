@@ -479,7 +479,10 @@ class Course:
 
         The parallel phase (:func:`~cvkit.course.grade_submission`: execution in isolation,
         then the trusted checks) runs in ``workers`` local processes, or on the workers of the
-        Dask distributed ``scheduler`` (they need the project, not this course folder). Results
+        Dask distributed ``scheduler`` (they need cvkit's environment and bubblewrap, never this
+        course folder; a scheduler that cannot be reached, has no workers, or whose workers
+        would grade otherwise raises :class:`~cvkit.course.parallel.ClusterUnavailable` before
+        anything is graded: ``docs/scale-out.md``). Results
         come back to this process, which alone writes the gradebook, in batches of ``batch``
         submissions (default ``max(2, workers)``). Local workers get a few submissions at a
         time, so that the feedback pages of each recorded batch are written by the workers

@@ -127,10 +127,11 @@ def grade_submission(project: Any, student: str, assignment: str, files: dict[st
     trusted checks (:func:`cvkit.grading.nbgrader_plugins.apply_trusted_checks`, every line of
     student code again in the sandbox): the parallel phase of :meth:`Course.grade`, run by a
     local worker process or a Dask worker. ``sources`` are the instructor's source notebooks
-    (JSON text by file name); ``salt`` is the course's grading salt, so Dask workers must be
-    the instructor's own. A notebook that could not run is graded from its answers as
-    submitted (sanitized as nbgrader does); one that is not a notebook at all comes back
-    ``not_graded`` with the reason — never as a zero.
+    (JSON text by file name); ``salt`` is the course's grading salt, kept in this process
+    (hidden cases are drawn here and sent into the sandbox one at a time), so Dask workers
+    must be the instructor's own trusted machines (``docs/scale-out.md``). A notebook that
+    could not run is graded from its answers as submitted (sanitized as nbgrader does); one
+    that is not a notebook at all comes back ``not_graded`` with the reason — never as a zero.
 
     A notebook nbgrader would refuse (:func:`needs_repair`: graded cells deleted, duplicated
     or retyped), or every notebook when ``repair``, is graded here from a repaired copy
@@ -192,12 +193,80 @@ def _valid_cell_metadata(nb: Any) -> bool:
 
 
 def payload(course: Any, student: str, assignment: str) -> tuple[Any, ...]:
-    """Arguments of :func:`grade_submission` for one submission of ``course``: plain data only."""
+    """Arguments of :func:`grade_submission` for one submission of ``course``: plain data only
+    — everything a Dask worker needs besides cvkit's environment (the project path travels
+    along but is never opened there: the release and source notebooks come as texts)."""
     def texts(folder: Path) -> dict[str, str]:
         return {str(p.relative_to(folder)): p.read_text() for p in sorted(folder.rglob("*.ipynb"))}
 
     return (str(course.project), student, assignment, course._submission_files(student, assignment),
             texts(course.root / "release" / assignment), texts(course.source_dir / assignment), course.salt())
+
+
+def checks_fingerprints(sources: dict[str, dict[str, str]]) -> dict[str, str]:
+    """The fingerprint of the checks that grade each assignment (:func:`~.stamps.checks_fingerprint`)
+    here, from its source notebooks' texts (``{assignment: {file name: JSON text}}``): equal on
+    two machines when they grade those notebooks with the same cvkit, checks and course packages."""
+    import tempfile
+
+    from .stamps import checks_fingerprint
+
+    found: dict[str, str] = {}
+    with tempfile.TemporaryDirectory(prefix="cvkit-checks-") as scratch:
+        for assignment, texts in sorted(sources.items()):
+            folder = Path(scratch) / str(len(found))
+            folder.mkdir()
+            for name, text in texts.items():
+                if "/" not in name:  # as the course reads them: the notebooks of the chapter's folder
+                    (folder / name).write_text(text)
+            found[assignment] = checks_fingerprint(folder.glob("*.ipynb"))
+    return found
+
+
+def sandbox_problem() -> str | None:
+    """None when this machine grades in the sandbox (bubblewrap, and the grading worker inside
+    it: :func:`cvkit.grading.sandbox.require_worker`), else why not (checked once per process)."""
+    from ..grading import isolation
+    from ..grading.sandbox import require_worker
+
+    try:
+        isolation.require()
+        require_worker()
+    except isolation.SandboxUnavailable as error:
+        return str(error)
+    return None
+
+
+def worker_report(sources: dict[str, dict[str, str]]) -> dict[str, Any]:
+    """What a Dask worker says before it grades (run on every worker by the instructor's
+    process): whether it can grade in the sandbox (:func:`sandbox_problem`), and the
+    fingerprints of its checks (:func:`checks_fingerprints`), to be compared with the
+    instructor's; with its user, to name it in a message."""
+    import getpass
+    import socket
+
+    try:
+        user = getpass.getuser()
+    except (KeyError, OSError):  # a uid with no name
+        import os
+
+        user = str(os.getuid())
+    return {"sandbox": sandbox_problem(), "checks": checks_fingerprints(sources),
+            "where": f"{user}@{socket.gethostname()}"}
+
+
+def grade_on_worker(*job: Any) -> ExecutedSubmission:
+    """:func:`grade_submission` of ``job`` (a :func:`payload`) on a Dask worker, once this
+    worker is known to grade in the sandbox; else it raises
+    :class:`~cvkit.grading.isolation.SandboxUnavailable` and the instructor's process grades
+    the submission locally — never a class of "ended early" zeros from a worker that joined
+    with a broken sandbox."""
+    from ..grading.isolation import SandboxUnavailable
+
+    problem = sandbox_problem()
+    if problem:
+        raise SandboxUnavailable(problem)
+    return grade_submission(*job)
 
 
 def _grade_job(job: tuple[Any, ...], repair: bool) -> ExecutedSubmission:

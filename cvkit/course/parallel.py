@@ -5,12 +5,16 @@ report. Each phase shows its count and the time left (:class:`.progress.Phase`):
 recording per submission, feedback per page, exports per file, similarity per assignment.
 
 Local workers are processes started with ``spawn``: a script that calls :meth:`Course.grade`
-needs the usual ``if __name__ == "__main__":`` guard.
+needs the usual ``if __name__ == "__main__":`` guard. On a Dask cluster (``--scheduler``) every
+worker shows that it grades as this process would before anything is graded (:func:`_connect`),
+and what the cluster could not grade — a job whose workers died, a lost scheduler — is graded
+on this machine (``docs/scale-out.md``).
 """
 from __future__ import annotations
 
 import concurrent.futures
 import os
+import sys
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Iterable
 
@@ -84,16 +88,83 @@ class _Batches:
         self.feedback_done()
 
 
-def _on_dask(batches: _Batches, payloads: list[tuple[Any, ...]], scheduler: str) -> None:
-    from dask.distributed import Client, wait
+class ClusterUnavailable(RuntimeError):
+    """``--scheduler``: the Dask scheduler cannot be reached, has no workers, or a worker would
+    not grade as this process does (no working sandbox, other checks). Raised before anything
+    is graded; the message names the address and what to do."""
 
-    with Client(scheduler) as client:
-        batches.owners.update({client.submit(grade_submission, *p, pure=False): p[1:3] for p in payloads})
-        pending = set(batches.owners)
+
+def _connect(scheduler: str, payloads: list[tuple[Any, ...]]) -> Any:
+    """A Dask client of ``scheduler`` whose workers are ready to grade ``payloads``, or
+    :class:`ClusterUnavailable`. Waits at most Dask's connection timeout
+    (``distributed.comm.timeouts.connect``, 30 s unless configured, e.g. with
+    ``DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=5s``) for the scheduler, then as long for a
+    first worker. Every worker then says whether it grades in the sandbox and with which
+    checks (:func:`.jobs.worker_report`): one that would not grade as this process does stops
+    the run before anything is graded."""
+    import dask
+    from dask.distributed import Client
+    from dask.utils import parse_timedelta
+
+    seconds = parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"), "s")
+    advice = (f"start the scheduler (`dask scheduler`) and its workers (`dask worker {scheduler}`, see "
+              "docs/scale-out.md), or grade on this machine without --scheduler; nothing was graded")
+    try:
+        client = Client(scheduler, timeout=seconds)
+    except Exception as error:  # noqa: BLE001 - refused, timed out, a malformed address: one clear message
+        raise ClusterUnavailable(f"cannot reach the Dask scheduler at {scheduler} ({error}): {advice}") from None
+    try:
+        try:
+            client.wait_for_workers(1, timeout=seconds)
+        except TimeoutError:
+            raise ClusterUnavailable(f"the Dask scheduler at {scheduler} has no workers (none joined in {seconds:g} s): "
+                                     f"{advice}") from None
+        sources = {p[2]: p[5] for p in payloads}
+        reports = client.run(jobs.worker_report, sources, on_error="return")
+        expected = jobs.checks_fingerprints(sources)
+        problems = []
+        for address, report in sorted(reports.items()):
+            if not isinstance(report, dict):  # cvkit not importable there, the worker lost: say what happened
+                problems.append(f"the worker {address} could not report whether it can grade ({report!r})")
+                continue
+            worker = f"the worker {address} ({report['where']})"
+            if report["sandbox"]:
+                problems.append(f"{worker} cannot grade in the sandbox: {report['sandbox']}")
+            differ = sorted(a for a in expected if report["checks"].get(a) != expected[a])
+            if differ:
+                problems.append(f"{worker} would grade {', '.join(differ)} with other checks than this machine "
+                                "(another cvkit version, checks or course packages: install the same environment there)")
+        if problems:
+            raise ClusterUnavailable(f"the Dask cluster at {scheduler} cannot grade: " + "; ".join(problems)
+                                     + "; nothing was graded")
+    except BaseException:
+        client.close()
+        raise
+    return client
+
+
+def _on_dask(batches: _Batches, payloads: list[tuple[Any, ...]], client: Any) -> tuple[list[tuple[Any, ...]], str]:
+    """The jobs on the workers of ``client`` (:func:`_connect`). A job whose worker dies is
+    given to another worker by the scheduler; one that still fails (Dask's ``KilledWorker``
+    after ``distributed.scheduler.allowed-failures``, a worker whose sandbox broke) is graded
+    by this process in a worker process of its own (:meth:`.writer.Writer.record_many`).
+    Returns the jobs left when the scheduler is lost (none otherwise), and why."""
+    from dask.distributed import wait
+
+    with client:
+        submitted = {client.submit(jobs.grade_on_worker, *p, pure=False): p for p in payloads}
+        batches.owners.update({future: job[1:3] for future, job in submitted.items()})
+        pending = set(submitted)
         while pending:
-            done = wait(pending, return_when="FIRST_COMPLETED").done
+            try:
+                done = wait(pending, return_when="FIRST_COMPLETED").done
+            except Exception as error:  # noqa: BLE001 - the scheduler lost: the rest is graded here
+                batches.drain([], 0)  # what arrived is recorded first
+                why = " ".join(f"{type(error).__name__}: {error}".split())[:300]
+                return [submitted[future] for future in submitted if future in pending], why
             pending -= done
             batches.drain(done, len(pending))
+    return [], ""
 
 
 def _on_local_pool(batches: _Batches, payloads: list[tuple[Any, ...]], workers: int) -> None:
@@ -147,15 +218,25 @@ def grade(course: Course, assignments: Iterable[str] | None = None, workers: int
     todo = _regrading(course, jobs, regrade)
     payloads = [payload(course, s, a) for s, a in todo]
     size = max(1, batch if batch is not None else max(2, workers))
+    client = _connect(scheduler, payloads) if scheduler and payloads else None  # before anything is written
     if payloads:
-        course.nbgrader_api()  # load nbgrader and the configuration while the workers start
-        course.sync_due_dates()
+        try:
+            course.nbgrader_api()  # load nbgrader and the configuration while the workers start
+            course.sync_due_dates()
+        except BaseException:
+            if client is not None:
+                client.close()
+            raise
     bars = {"grade": Phase("grade", len(payloads), progress_bar and bool(payloads), unit="submission", position=0),
             "record": Phase("record", len(payloads), progress_bar and bool(payloads), unit="submission", position=1),
             "feedback": Phase("feedback", len(payloads), progress_bar and bool(payloads), unit="page", position=2)}
     batches = _Batches(course, size, workers, bars)
-    if scheduler and payloads:
-        _on_dask(batches, payloads, scheduler)
+    if client is not None:
+        left, why = _on_dask(batches, payloads, client)
+        if left:  # never a lost submission: the local pool grades what the cluster did not
+            print(f"cvkit: lost the Dask scheduler at {scheduler} ({why}); grading the "
+                  f"{len(left)} submission{'s' * (len(left) != 1)} left on this machine", file=sys.stderr, flush=True)
+            _on_local_pool(batches, left, workers)
     elif payloads:
         _on_local_pool(batches, payloads, workers)
     bars["grade"].close()
