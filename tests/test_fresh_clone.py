@@ -8,15 +8,14 @@ folder with Debian's ``/usr/bin/python3``. Each must grade its sample submission
 sandbox and finish without problems.
 """
 import os
-import pwd
-import shutil
 import subprocess
 import sys
 import tempfile
-import uuid
 from pathlib import Path
 
 import pytest
+
+from user_helpers import make_user, remove_user, runuser
 
 pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parent.parent
@@ -38,15 +37,11 @@ def _demo_succeeded(done: subprocess.CompletedProcess) -> None:
 
 @pytest.fixture
 def ordinary_user():
-    if not hasattr(os, "geteuid") or os.geteuid() != 0 or shutil.which("useradd") is None:
-        pytest.skip("making a local account needs root and useradd (the suite's CI runs as root)")
-    name = f"cvk{uuid.uuid4().hex[:8]}"
-    subprocess.run(["useradd", "--create-home", "--shell", "/bin/sh", name], check=True, capture_output=True)
+    user = make_user()
     try:
-        yield pwd.getpwnam(name)
+        yield user
     finally:
-        subprocess.run(["pkill", "-KILL", "-u", name], capture_output=True)
-        subprocess.run(["userdel", "--remove", name], capture_output=True)
+        remove_user(user)
 
 
 def test_the_demo_runs_from_a_fresh_clone_under_tmp():
@@ -67,9 +62,8 @@ def test_the_demo_runs_for_an_ordinary_user_with_debians_python(ordinary_user):
     kit = Path(ordinary_user.pw_dir) / "kit"
     _clone(kit)
     subprocess.run(["chown", "-R", f"{ordinary_user.pw_uid}:{ordinary_user.pw_gid}", str(kit)], check=True)
-    runuser = shutil.which("runuser") or shutil.which("runuser", path="/usr/sbin:/sbin")
-    env = {"PATH": "/usr/bin:/bin", "HOME": ordinary_user.pw_dir, "LANG": "C.UTF-8"}
-    done = subprocess.run([runuser, "-u", ordinary_user.pw_name, "--", str(DEBIAN_PYTHON), "scripts/demo",
+        env = {"PATH": "/usr/bin:/bin", "HOME": ordinary_user.pw_dir, "LANG": "C.UTF-8"}
+    done = subprocess.run([runuser(), "-u", ordinary_user.pw_name, "--", str(DEBIAN_PYTHON), "scripts/demo",
                            "--workers", "2"], cwd=kit, env=env, capture_output=True, text=True, timeout=1500)
     _demo_succeeded(done)
     assert "sandbox: no control group per sandbox" in done.stdout  # the fallback is said, never silent

@@ -8,14 +8,13 @@ the user's reach (here: a pyenv Python in ``/root``, the environment made with `
 the grading worker then runs the environment's own interpreter with its packages hidden.
 """
 import os
-import pwd
-import shutil
 import subprocess
 import sys
-import uuid
 from pathlib import Path
 
 import pytest
+
+from user_helpers import make_user, remove_user, runuser
 
 pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parent.parent
@@ -23,22 +22,17 @@ ROOT = Path(__file__).resolve().parent.parent
 
 @pytest.fixture(scope="module")
 def instructor():
-    if not hasattr(os, "geteuid") or os.geteuid() != 0 or shutil.which("useradd") is None:
-        pytest.skip("making a local account needs root and useradd (the suite's CI runs as root)")
-    name = f"cvk{uuid.uuid4().hex[:8]}"
-    subprocess.run(["useradd", "--create-home", "--shell", "/bin/sh", name], check=True, capture_output=True)
+    user = make_user()
     try:
-        yield pwd.getpwnam(name)
+        yield user
     finally:
-        subprocess.run(["pkill", "-KILL", "-u", name], capture_output=True)
-        subprocess.run(["userdel", "--remove", name], capture_output=True)
+        remove_user(user)
 
 
 def _as(user, *argv, timeout=900):
     env = {"PATH": f"{Path(sys.executable).parent}:/usr/bin:/bin", "HOME": user.pw_dir, "LANG": "C.UTF-8",
            "MPLBACKEND": "Agg"}
-    runuser = shutil.which("runuser") or shutil.which("runuser", path="/usr/sbin:/sbin")
-    return subprocess.run([runuser, "-u", user.pw_name, "--", *argv], cwd=user.pw_dir, env=env,
+    return subprocess.run([runuser(), "-u", user.pw_name, "--", *argv], cwd=user.pw_dir, env=env,
                           capture_output=True, text=True, timeout=timeout)
 
 

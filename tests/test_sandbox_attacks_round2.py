@@ -29,6 +29,8 @@ from cvkit.grading.runtime.guard import Outcome
 from cvkit.grading import trusted
 from cvkit.grading.trusted import grade_notebook, submission_version
 
+from test_course_scaling import ROOT, _cell
+
 pytestmark = pytest.mark.slow
 
 ASSIGNMENT = "ch98_round2"
@@ -36,19 +38,6 @@ SALT = "round-2-salt"
 FULL = {"median_visible": 1, "median_hidden": 2, "add_gaussian_visible": 1, "add_gaussian_hidden": 2,
         "mean_kernel_visible": 1, "mean_kernel_hidden": 2}
 REAL_IMPORT = "__imp = np.__builtins__['__import__']\n"
-
-
-def _cell(source, grade_id=None, *, solution=False, grade=False, points=None, cell_type="code"):
-    meta = {}
-    if grade_id:
-        meta["nbgrader"] = {"grade_id": grade_id, "solution": solution, "grade": grade, "locked": not solution,
-                            "schema_version": 3}
-        if points is not None:
-            meta["nbgrader"]["points"] = points
-    cell = {"cell_type": cell_type, "source": source, "metadata": meta}
-    if cell_type == "code":
-        cell.update(outputs=[], execution_count=None)
-    return cell
 
 
 MEDIAN_CODE = '''\
@@ -216,8 +205,6 @@ def bubblewrap():
 
 @pytest.fixture(scope="module")
 def project(tmp_path_factory):
-    from test_course_scaling import ROOT
-
     folder = tmp_path_factory.mktemp("project-round2")
     (folder / "autograders").mkdir()
     shutil.copy(ROOT / "autograders" / "nbgrader_config.py", folder / "autograders" / "nbgrader_config.py")
