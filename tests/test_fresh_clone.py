@@ -62,7 +62,7 @@ def test_the_demo_runs_for_an_ordinary_user_with_debians_python(ordinary_user):
     kit = Path(ordinary_user.pw_dir) / "kit"
     _clone(kit)
     subprocess.run(["chown", "-R", f"{ordinary_user.pw_uid}:{ordinary_user.pw_gid}", str(kit)], check=True)
-        env = {"PATH": "/usr/bin:/bin", "HOME": ordinary_user.pw_dir, "LANG": "C.UTF-8"}
+    env = {"PATH": "/usr/bin:/bin", "HOME": ordinary_user.pw_dir, "LANG": "C.UTF-8"}
     done = subprocess.run([runuser(), "-u", ordinary_user.pw_name, "--", str(DEBIAN_PYTHON), "scripts/demo",
                            "--workers", "2"], cwd=kit, env=env, capture_output=True, text=True, timeout=1500)
     _demo_succeeded(done)
