@@ -5,7 +5,8 @@ is the assignment ``chNN_topic``. Generated folders (release/, submitted/, autog
 feedback/) and the gradebook live next to this file (or in ``$CVKIT_COURSE_ROOT``) and are
 never committed.
 
-Environment overrides (set by ``cvkit course ...``):
+Environment overrides (set by ``cvkit course ...``, and by the ``nbgrader_config.py`` cvkit
+writes in a course folder of its own, so that plain ``nbgrader`` commands run there work on it):
   CVKIT_COURSE_ROOT  course folder (default: this folder)
   CVKIT_SOURCE_DIR   source notebooks (default: ../lectures)
   CVKIT_DB_URL       any SQLAlchemy URL for the gradebook, e.g.
@@ -24,7 +25,7 @@ c = get_config()  # noqa: F821  (provided by nbgrader when it loads this file)
 HERE = Path(__file__).resolve().parent
 ROOT = Path(os.environ.get("CVKIT_COURSE_ROOT") or HERE).resolve()
 
-c.CourseDirectory.course_id = "cvkit-ipcv"
+c.CourseDirectory.course_id = "cvkit-ipcv"  # the plan's [course] id replaces it (configure_nbgrader below)
 c.CourseDirectory.root = str(ROOT)
 c.CourseDirectory.source_directory = str(Path(os.environ.get("CVKIT_SOURCE_DIR") or HERE.parent / "lectures").resolve())
 c.CourseDirectory.db_url = os.environ.get("CVKIT_DB_URL") or f"sqlite:///{ROOT / 'gradebook.db'}"
@@ -58,7 +59,8 @@ from cvkit.grading.nbgrader_plugins import (  # noqa: E402
 )
 from cvkit.grading.safety import mathjax_post_convert_hook  # noqa: E402
 
-# plan.toml → nbgrader: the gradebook's due dates (Assignment.duedate, what autograde and the
+# plan.toml → nbgrader: the course id (its [course] id: the folder of nbgrader's exchange on a
+# hub, see docs/deploy-jupyterhub.md), the gradebook's due dates (Assignment.duedate, what autograde and the
 # formgrader use for late submissions) and the late penalties (AssignLatePenalties.plugin_class)
 configure_nbgrader(c, ROOT, HERE.parent, c.CourseDirectory.source_directory, c.CourseDirectory.db_url,
                    c.CourseDirectory.course_id)

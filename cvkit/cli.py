@@ -10,6 +10,9 @@
     cvkit course table              the grade table of what has been graded
     cvkit demo                      the whole pipeline on three sample submissions of a few chapters
     cvkit demo --all                ... of every chapter
+    cvkit hub init                  a JupyterHub for one or more courses (run as root; docs/deploy-jupyterhub.md)
+    cvkit hub check                 what is wrong with a hub made by cvkit hub init
+    cvkit hub start                 start that hub (as root), after checking it can
 """
 from __future__ import annotations
 
@@ -163,12 +166,44 @@ def _summary(course, jobs) -> list[str]:
                 shown = ", ".join(students[:6]) + (f" and {len(students) - 6} more" if len(students) > 6 else "")
                 lines.append(f"  {assignment}: {len(students)} under an older {what} ({shown})")
             lines.append(f"    → cvkit course grade --regrade {assignment}")
+    from .course.results import late_penalties
+
+    not_graded = course.not_graded()
+    for (student, assignment), (points, seconds) in late_penalties(
+            course, [(s, a) for s, a in jobs if f"{s}/{a}" not in not_graded]).items():
+        late = f"{int(seconds // 3600)} h {int(seconds % 3600 // 60):02d} min"
+        lines.append(f"late: {student} {assignment}: −{points:g} point{'s' * (points != 1)} (handed in {late} after "
+                     f"the due date; the table shows the points before it)")
     from .grading import isolation
 
     note = None if isolation.sandbox_disabled() else isolation.limits_fallback()
     if note:
         lines.append(f"sandbox: {note}")
-    return lines + similarity_summary(course)
+    assignments = {a for _, a in jobs}
+    return lines + _without_notebooks(course, None) + _exchange_notes(course, assignments) \
+        + similarity_summary(course)
+
+
+def _without_notebooks(course, assignments) -> list[str]:
+    """A line for each submission folder of ``assignments`` that holds no notebook."""
+    lines = []
+    for key, files in sorted(course.without_notebooks(assignments).items()):
+        student, _, assignment = key.partition("/")
+        expected = ", ".join(p.name for p in course.release_notebooks(assignment)) or "the assignment's notebooks"
+        shown = ", ".join(files[:5]) + (f" and {len(files) - 5} more" if len(files) > 5 else "") if files else "nothing"
+        lines.append(f"not graded: {key} holds no notebook ({shown}): nothing to grade; ask {student} to hand in "
+                     f"{expected} (nbgrader submit hands in the assignment's folder as fetched)")
+    return lines
+
+
+def _exchange_notes(course, assignments) -> list[str]:
+    """The notes about nbgrader's exchange of a course on a hub (none for other courses)."""
+    from .course.hub import exchange_notes
+
+    try:
+        return exchange_notes(course, assignments)
+    except OSError as error:  # an exchange this account cannot read: say so, never stop the report
+        return [f"exchange: cannot read it ({error}); run cvkit hub check as root"]
 
 
 def _print_results(course, results, jobs) -> int:
@@ -199,6 +234,9 @@ def _cmd_grade(args) -> int:
         print(f"no submissions in {course.root / 'submitted'}")
         for key, reason in sorted(course.refused_submissions(args.assignment or None).items()):
             _show(f"  {key}: not graded: {reason}")
+        for line in _without_notebooks(course, args.assignment) + _exchange_notes(course, args.assignment
+                                                                                   or course.assignments()):
+            _show(line)
         return 1
     from .course.parallel import ClusterUnavailable
     from .grading.isolation import SandboxUnavailable
@@ -296,6 +334,77 @@ def _cmd_demo(args) -> int:
     return status
 
 
+def _hub_settings(args):
+    from .course import project_root
+    from .course.hub import HubSettings, courses_from_options
+
+    students = list(args.student or [])
+    if args.students_file:
+        lines = Path(args.students_file).read_text().splitlines()
+        students += [line.strip() for line in lines if line.strip() and not line.lstrip().startswith("#")]
+    courses = courses_from_options(args.course or [], args.instructor or [], students, args.course_dir or [])
+    hub = Path(args.hub_dir)
+    return HubSettings(folder=str(hub), courses=courses, exchange=args.exchange or str(hub / "exchange"),
+                       ip=args.ip, port=args.port, hub_port=args.hub_port, proxy_api_port=args.proxy_api_port,
+                       subdomain_host=(args.subdomain_host or "").rstrip("/"),
+                       project=str(Path(args.project).resolve() if args.project else project_root()))
+
+
+def _cmd_hub_init(args) -> int:
+    from .course.hub import course_folder, init_hub, load_settings
+
+    written, warnings = init_hub(_hub_settings(args))
+    settings = load_settings(args.hub_dir)
+    for path in written:
+        print(f"wrote {path}")
+    for warning in warnings:
+        _show(f"!! {warning}")
+    print(f"\nthe hub: {settings.url}  (students and instructors log in with their Unix passwords)")
+    print(f"next: 1. start it (as root): cvkit hub start --hub-dir {settings.folder}\n"
+          f"         or with systemd: systemctl link {Path(settings.folder) / 'jupyterhub.service'} && "
+          "systemctl start jupyterhub")
+    for course in settings.courses:
+        folder = course_folder(course)
+        print(f"      2. {course.id}: as {course.instructor}, in {folder}: cvkit course build --course-dir . "
+              "--assignment CHAPTER, then nbgrader release_assignment CHAPTER")
+        formgrader = (f"{settings.subdomain_host.replace('://', f'://{course.instructor}.', 1)}/user/"
+                      if settings.subdomain_host else f"{settings.url}/user/")
+        print(f"         formgrader: {formgrader}{course.instructor}/formgrader"
+              + ("" if settings.subdomain_host else " (in a browser tab of its own: see docs/deploy-jupyterhub.md)"))
+    print("      3. students: the Assignments panel of JupyterLab (Nbgrader menu → Assignment List)")
+    return 0
+
+
+def _cmd_hub_check(args) -> int:
+    from .course.hub import check_hub, load_settings
+
+    problems = check_hub(load_settings(args.hub_dir), ports=not args.running)
+    for problem in problems:
+        _show(f"!! {problem}")
+    if not problems:
+        print(f"the hub in {args.hub_dir} is set up as cvkit hub init made it")
+    return 1 if problems else 0
+
+
+def _cmd_hub_start(args) -> int:
+    from ._text import printable
+    from .course.hub import check_hub, load_settings
+
+    settings = load_settings(args.hub_dir)
+    problems = check_hub(settings)
+    if problems:
+        print("cvkit hub start: the hub cannot start (safely):", file=sys.stderr)
+        for problem in problems:
+            print(f"  {printable(problem)}", file=sys.stderr)
+        return 2
+    config = Path(settings.folder) / "jupyterhub_config.py"
+    program = Path(settings.python_bin) / "jupyterhub"
+    os.chdir(settings.folder)
+    sys.stdout.flush()
+    os.execv(str(program), [str(program), "-f", str(config), *args.jupyterhub_args])
+    return 0  # pragma: no cover - execv does not return
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="cvkit", description="cvkit course kit: algorithms, grading, nbgrader course")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -354,6 +463,37 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-sandbox", action="store_true",
                    help="grade the sample submissions without the bubblewrap sandbox (marked in the table)")
     p.set_defaults(func=_cmd_demo)
+
+    hub = sub.add_parser("hub", help="a course on JupyterHub (docs/deploy-jupyterhub.md)")
+    hsub = hub.add_subparsers(dest="hub_command", required=True)
+    p = hsub.add_parser("init", help="write a JupyterHub, nbgrader's exchange and the course folders (as root)")
+    p.add_argument("--hub-dir", default="/srv/cvkit-hub", help="the hub's folder (default /srv/cvkit-hub)")
+    p.add_argument("--course", action="append", metavar="ID", help="a course id (repeatable)")
+    p.add_argument("--instructor", action="append", metavar="[COURSE=]USER",
+                   help="the instructor account of a course (one per course; COURSE= with several courses)")
+    p.add_argument("--student", action="append", metavar="[COURSE=]USER[,USER...]",
+                   help="student accounts (repeatable; COURSE= with several courses)")
+    p.add_argument("--students-file", help="a file of students, one [COURSE=]USER a line")
+    p.add_argument("--course-dir", action="append", metavar="[COURSE=]FOLDER",
+                   help="the course folder (default ~INSTRUCTOR/COURSE)")
+    p.add_argument("--exchange", help="nbgrader's exchange (default HUB_DIR/exchange)")
+    p.add_argument("--ip", default="127.0.0.1",
+                   help="the address the hub listens on (default 127.0.0.1, behind a TLS reverse proxy)")
+    p.add_argument("--port", type=int, default=8000, help="its port (default 8000)")
+    p.add_argument("--hub-port", type=int, default=8081, help="the hub's API port on 127.0.0.1 (default 8081)")
+    p.add_argument("--proxy-api-port", type=int, default=8001, help="the proxy's API port on 127.0.0.1 (default 8001)")
+    p.add_argument("--subdomain-host", help="e.g. https://hub.example.org: a subdomain per user (needs wildcard "
+                                            "DNS and TLS); the formgrader then shows inside JupyterLab")
+    p.add_argument("--project", help="the cvkit project (default: this checkout)")
+    p.set_defaults(func=_cmd_hub_init)
+    p = hsub.add_parser("check", help="what is wrong with a hub made by cvkit hub init")
+    p.add_argument("--hub-dir", default="/srv/cvkit-hub")
+    p.add_argument("--running", action="store_true", help="the hub is running: do not check that its ports are free")
+    p.set_defaults(func=_cmd_hub_check)
+    p = hsub.add_parser("start", help="check the hub, then run JupyterHub (as root, in the foreground)")
+    p.add_argument("--hub-dir", default="/srv/cvkit-hub")
+    p.add_argument("jupyterhub_args", nargs="*", help="passed on to jupyterhub (after --)")
+    p.set_defaults(func=_cmd_hub_start)
     return parser
 
 

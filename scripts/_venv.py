@@ -16,7 +16,8 @@ VENV = ROOT / ".venv"
 BIN = VENV / ("Scripts" if os.name == "nt" else "bin")
 STAMP = VENV / ".cvkit-installed"
 # What each extra brings along (pyproject.toml): ``test`` includes ``course``, ``learn`` and ``data``.
-_INCLUDES = {"test": {"test", "course", "learn", "data", "distributed"}, "course": {"course", "data"}}
+_INCLUDES = {"test": {"test", "course", "learn", "data", "distributed", "hub"}, "course": {"course", "data"},
+             "hub": {"hub", "course", "data"}}
 
 
 def _covered(extras: str) -> set[str]:

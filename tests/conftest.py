@@ -55,6 +55,7 @@ LONGEST_FILES = {
     "tests/test_sandbox_attacks_round2.py": 120,
     "tests/test_sandbox_attacks.py": 115,
     "tests/test_course_scaling.py": 100,
+    "tests/test_hub_round_trip.py": 100,
     "tests/test_checks_ch08.py": 95,
     "tests/test_course.py": 75,
     "tests/test_checks_ch05.py": 70,

@@ -27,7 +27,10 @@ One job per module:
   nbgrader's exchange, cvkit's own records), never the student's ``timestamp.txt``;
 - :mod:`.results` and :mod:`.exports` — scores, mistakes and flags per exercise, the audit,
   the grade table, the CSV exports and the similarity report;
-- :mod:`.progress` — each phase's count and time left.
+- :mod:`.progress` — each phase's count and time left;
+- :mod:`.hub` — the course on JupyterHub: what ``cvkit hub init`` writes (the hub, nbgrader's
+  exchange, the course folders), what ``cvkit hub check`` verifies, and what the exchange tells
+  the instructor at grading time (hand-ins not collected, hand-ins without their secret).
 
 Local parallel grading uses worker processes started with ``spawn``: a script that calls
 :meth:`Course.grade` needs the usual ``if __name__ == "__main__":`` guard.

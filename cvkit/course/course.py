@@ -88,6 +88,21 @@ def _project_of(root: str | os.PathLike[str] | None) -> Path | None:
     return None
 
 
+def course_config(project_config: Path, root: Path) -> str:
+    """The ``nbgrader_config.py`` of a course folder ``root`` made by cvkit outside the project:
+    the project's configuration (``project_config``), rooted at ``root`` while it loads (the
+    project's file reads its course folder from ``CVKIT_COURSE_ROOT``), so that plain
+    ``nbgrader`` commands run in ``root`` (release, collect, release_feedback, the formgrader)
+    work on this course."""
+    return (_GENERATED_CONFIG
+            + "import os as _os\n"
+            + "_saved = _os.environ.get('CVKIT_COURSE_ROOT')\n"
+            + f"_os.environ['CVKIT_COURSE_ROOT'] = {str(root)!r}\n"
+            + f"load_subconfig({str(project_config)!r})  # noqa: F821\n"
+            + "if _saved is None:\n    _os.environ.pop('CVKIT_COURSE_ROOT', None)\n"
+            + "else:\n    _os.environ['CVKIT_COURSE_ROOT'] = _saved\n")
+
+
 def refused_student_ids(ids: Iterable[str]) -> dict[str, str]:
     """The rule for student ids (the folder names in ``submitted/``): id → why its submissions
     are not graded (printable), for the ids refused.
@@ -155,7 +170,7 @@ class Course:
         self.root.mkdir(parents=True, exist_ok=True)  # its permissions are the instructor's (module docstring)
         config = self.root / "nbgrader_config.py"
         if self.root != base and not config.exists():
-            config.write_text(_GENERATED_CONFIG + f"load_subconfig({str(base / 'nbgrader_config.py')!r})  # noqa: F821\n")
+            config.write_text(course_config(base / "nbgrader_config.py", self.root))
         self.db_url: str = db_url or os.environ.get("CVKIT_DB_URL") or f"sqlite:///{self.root / 'gradebook.db'}"
         self._nbgrader_config: Config | None = None
         self._fingerprints: dict[str, str] = {}
@@ -372,6 +387,23 @@ class Course:
                 continue
             if any(folder.glob("*.ipynb")):
                 found.append((folder.parent.name, folder.name))
+        return found
+
+    def without_notebooks(self, assignments: Iterable[str] | None = None) -> dict[str, list[str]]:
+        """``"student/assignment"`` → the names of its files, for each plain folder
+        ``submitted/*/*`` that holds no notebook (a student handed in something else, e.g. a PDF
+        or an empty folder): nothing to grade there, so it is never given to nbgrader nor shown
+        as a zero; ``cvkit course grade`` names it. nbgrader's own ``timestamp.txt`` and
+        ``submission_secret.txt`` are not listed."""
+        wanted = set(assignments) if assignments else None
+        found: dict[str, list[str]] = {}
+        for folder in sorted((self.root / "submitted").glob("*/*")):
+            if folder.parent.is_symlink() or folder.is_symlink() or not folder.is_dir():
+                continue
+            if (wanted is not None and folder.name not in wanted) or any(folder.glob("*.ipynb")):
+                continue
+            found[f"{folder.parent.name}/{folder.name}"] = sorted(
+                p.name for p in folder.iterdir() if p.name not in ("timestamp.txt", "submission_secret.txt"))
         return found
 
     def refused_submissions(self, assignments: Iterable[str] | None = None) -> dict[str, str]:

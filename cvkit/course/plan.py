@@ -36,7 +36,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10: every chapter of 
     tomllib = None
 
 __all__ = ["LATE_POLICIES", "Plan", "PlannedAssignment", "LatePolicy", "plan_path", "read_plan", "parse_due",
-           "not_in_plan", "sync_due_dates", "configure_nbgrader"]
+           "plan_toml", "not_in_plan", "sync_due_dates", "configure_nbgrader"]
 
 #: the late-submission policies of ``[late] policy``
 LATE_POLICIES = ("none", "zero", "per_hour")
@@ -278,8 +278,52 @@ def read_plan(path: str | os.PathLike[str], chapters: Iterable[str] = ()) -> Pla
     course = data.get("course", {})
     if not isinstance(course, Mapping):
         raise ValueError(f"{name}: [course] must be a table (id, title)")
+    if "id" in course and (not isinstance(course["id"], str) or not _ID.match(course["id"])):
+        raise ValueError(f"{name}: [course] id must be letters, digits, '_', '.' and '-' (nbgrader's course id, "
+                         f"a folder name of its exchange), got {course['id']!r}")
     return Plan(_assignments(data.get("assignment", []), name), _late_policy(data.get("late"), name),
                 str(course.get("id", "")), str(course.get("title", "")), path)
+
+
+def _toml_string(text: str) -> str:
+    """``text`` as a TOML basic string (JSON's escapes are TOML's)."""
+    import json
+
+    return json.dumps(text, ensure_ascii=False)
+
+
+def plan_toml(plan: Plan, course_id: str | None = None) -> str:
+    """``plan`` written as a ``plan.toml`` (due dates in UTC), with ``course_id`` as its
+    ``[course] id`` when given: the plan of a course folder made from the project's plan.
+
+    Examples
+    --------
+    >>> print(plan_toml(Plan((PlannedAssignment("ch03", "Filters", parse_due("2027-03-01 23:59:00 UTC")),)),
+    ...                  "ipcv-2027"), end="")
+    [course]
+    id = "ipcv-2027"
+    <BLANKLINE>
+    [[assignment]]
+    id = "ch03"
+    title = "Filters"
+    due = "2027-03-01 23:59:00 UTC"
+    <BLANKLINE>
+    [late]
+    policy = "none"
+    points_per_hour = 1.0
+    """
+    lines = ["[course]", f"id = {_toml_string(course_id or plan.course_id)}"]
+    if plan.title:
+        lines.append(f"title = {_toml_string(plan.title)}")
+    for planned in plan.assignments:
+        lines += ["", "[[assignment]]", f"id = {_toml_string(planned.id)}"]
+        if planned.title:
+            lines.append(f"title = {_toml_string(planned.title)}")
+        if planned.due is not None:
+            lines.append(f"due = \"{planned.due:%Y-%m-%d %H:%M:%S} UTC\"")
+    lines += ["", "[late]", f"policy = {_toml_string(plan.late.policy)}",
+              f"points_per_hour = {plan.late.points_per_hour!r}"]
+    return "\n".join(lines) + "\n"
 
 
 def not_in_plan(assignment: str, plan: Plan) -> str:
@@ -386,8 +430,9 @@ def configure_nbgrader(c: Any, root: str | os.PathLike[str], project: str | os.P
                        source_dir: str | os.PathLike[str], db_url: str, course_id: str | None = None) -> Plan:
     """What ``autograders/nbgrader_config.py`` takes from the plan, for every nbgrader command.
 
-    The gradebook's due dates become the plan's (:func:`sync_due_dates`, for the assignments
-    with a folder in ``source_dir``), and nbgrader's ``AssignLatePenalties`` uses
+    nbgrader's course id becomes the plan's ``[course] id`` when it has one, the gradebook's due
+    dates become the plan's (:func:`sync_due_dates`, for the assignments with a folder in
+    ``source_dir``), and nbgrader's ``AssignLatePenalties`` uses
     :class:`cvkit.grading.nbgrader_plugins.LatePenalty` with the plan's ``[late]`` policy.
 
     Parameters
@@ -400,7 +445,7 @@ def configure_nbgrader(c: Any, root: str | os.PathLike[str], project: str | os.P
     db_url : str
         The gradebook.
     course_id : str, optional
-        nbgrader's course id.
+        nbgrader's course id when the plan names none.
 
     Returns
     -------
@@ -410,6 +455,8 @@ def configure_nbgrader(c: Any, root: str | os.PathLike[str], project: str | os.P
 
     source = Path(source_dir)
     plan = read_plan(plan_path(root, project), sorted(p.name for p in source.glob("ch*_*") if p.is_dir()))
+    if plan.course_id:  # the plan names the course: nbgrader's course id (the exchange's folder) is its
+        course_id = c.CourseDirectory.course_id = plan.course_id
     sync_due_dates(db_url, plan, [a for a in plan.ids() if (source / a).is_dir()], course_id)
     c.AssignLatePenalties.plugin_class = LatePenalty
     c.LatePenalty.policy = plan.late.policy

@@ -27,6 +27,13 @@ nbgrader this time as the staged ``timestamp.txt`` (:func:`nbgrader_timestamp`):
 file never reaches nbgrader, and a missing or garbage one never keeps a submission from being
 graded.
 
+Once a submission is recorded, its collected ``timestamp.txt`` is made that trusted time too
+(:func:`settle_stamp`), the student's own file kept in ``<course>/.cvkit/claims/``: nbgrader
+takes the time in ``submitted/`` as the truth elsewhere (its formgrader lists a submission as
+autograded only when that file and the gradebook agree; ``nbgrader collect --update`` compares
+it with a newer hand-in), and on a hub the student's ``timestamp.txt`` (written when ``nbgrader
+submit`` started) never equals the exchange's record of the hand-in.
+
 The student's ``timestamp.txt`` is only a cross-check (:func:`cross_check`): read with a size
 limit, it flags the submission for the instructor — never lowering a penalty — when it is
 unreadable, before the assignment's release, later than the received time, or (where that
@@ -58,7 +65,7 @@ if TYPE_CHECKING:
 
 __all__ = ["LIST_NAME", "STAMP_FILE", "TOLERANCE", "Received", "SubmissionTimesError", "checked_time", "cross_check",
            "exchange_time", "listed_stamp", "nbgrader_timestamp", "read_claim", "read_list", "received_time",
-           "record_submitted", "release_time"]
+           "record_submitted", "release_time", "settle_stamp"]
 
 #: the instructor's list of submission times, in the course folder
 LIST_NAME = "submission_times.csv"
@@ -525,6 +532,60 @@ def read_claim(path: str | os.PathLike[str]) -> tuple[_dt.datetime | None, str]:
     return (claim, "") if isinstance(claim, _dt.datetime) else (None, "not a date and time")
 
 
+def _claim_copy(root: Path, student: str, assignment: str) -> Path:
+    """Where the student's own ``timestamp.txt`` is kept once :func:`settle_stamp` replaced it."""
+    return Path(root) / ".cvkit" / "claims" / student / assignment / STAMP_FILE
+
+
+def _read_stamp(path: Path) -> bytes | None:
+    """The bytes of ``path`` when it is a regular file (not a link), at most CLAIM_LIMIT + 1."""
+    try:
+        descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
+    except OSError:
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+            return None
+        with os.fdopen(os.dup(descriptor), "rb") as handle:
+            return handle.read(CLAIM_LIMIT + 1)
+    finally:
+        os.close(descriptor)
+
+
+def settle_stamp(root: str | os.PathLike[str], student: str, assignment: str, when: Received) -> bool:
+    """Make ``submitted/<student>/<assignment>/timestamp.txt`` say the trusted time ``when`` (the
+    time nbgrader recorded), keeping the student's own file in ``.cvkit/claims/`` for
+    :func:`cross_check` (see the module docstring). Returns True when the file was changed.
+    Something else than a file or a link in its place (a folder: refused and flagged by the
+    collection) is left alone, and a file that cannot be written never stops the recording."""
+    root = Path(root)
+    path = root / "submitted" / student / assignment / STAMP_FILE
+    ours = nbgrader_timestamp(when.at)
+    try:
+        info: os.stat_result | None = path.lstat()
+    except OSError:
+        info = None
+    if info is not None and not (stat.S_ISREG(info.st_mode) or stat.S_ISLNK(info.st_mode)):
+        return False
+    data = _read_stamp(path)
+    if data is not None and data.strip() == ours.encode():
+        return False
+    copy = _claim_copy(root, student, assignment)
+    scratch = path.with_name(f".{STAMP_FILE}.{os.getpid()}")
+    try:
+        if data is not None:
+            copy.parent.mkdir(parents=True, exist_ok=True)
+            copy.write_bytes(data)
+        elif copy.exists():
+            copy.unlink()
+        scratch.write_text(ours)
+        os.replace(scratch, path)  # a link in its place is replaced, never followed
+    except OSError:
+        scratch.unlink(missing_ok=True)
+        return False
+    return True
+
+
 def cross_check(course: Course, student: str, assignment: str, when: Received | None = None) -> list[str]:
     """Flags for the instructor (``"(notebook): submission time: …"``) when the student's
     ``timestamp.txt`` is implausible next to the trusted time ``when`` (default
@@ -533,6 +594,11 @@ def cross_check(course: Course, student: str, assignment: str, when: Received | 
     the collection, after the due date, while the claim is on time (the instructor may know
     better: their list wins). No file, no flag. The grade never depends on it."""
     claim, problem = read_claim(course.root / "submitted" / student / assignment / STAMP_FILE)
+    copy = _claim_copy(course.root, student, assignment)
+    if copy.is_file():  # the file says the trusted time (settle_stamp): the student's own is kept
+        when = when if when is not None else received_time(course, student, assignment)
+        if claim is not None and nbgrader_timestamp(claim) == nbgrader_timestamp(when.at):
+            claim, problem = read_claim(copy)
     if claim is None and not problem:
         return []
     when = when if when is not None else received_time(course, student, assignment)

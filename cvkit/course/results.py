@@ -206,3 +206,22 @@ def unsandboxed(course: Course) -> set[str]:
             if meta.get("sandboxed") is False:
                 found.add(f"{folder.parent.name}/{folder.name}")
     return found
+
+
+def late_penalties(course: Course, jobs: Iterable[tuple[str, str]]) -> dict[tuple[str, str], tuple[float, float]]:
+    """(student, assignment) → (points taken, seconds late) for the submissions of ``jobs`` that
+    nbgrader's gradebook records as late with a penalty: the grade table shows the points the
+    checks gave, and these come off them (as in ``grades.csv`` and the feedback page)."""
+    from nbgrader.api import Gradebook, MissingEntry
+
+    found: dict[tuple[str, str], tuple[float, float]] = {}
+    with Gradebook(course.db_url) as gb:
+        for student, assignment in sorted(set(jobs)):
+            try:
+                submission = gb.find_submission(assignment, student)
+            except MissingEntry:
+                continue
+            penalty = float(submission.late_submission_penalty or 0.0)
+            if penalty > 0:
+                found[(student, assignment)] = (penalty, float(submission.total_seconds_late or 0.0))
+    return found

@@ -158,8 +158,11 @@ class Writer:
             self.journal.set_not_graded(executed.student, assignment, None)
             for note in self.course._refused_files(executed.student, assignment):
                 self.journal.add_flag(executed.student, assignment, f"(notebook): {note}")
-            for flag in received.cross_check(self.course, executed.student, assignment):
+            when = received.received_time(self.course, executed.student, assignment)
+            for flag in received.cross_check(self.course, executed.student, assignment, when):
                 self.journal.add_flag(executed.student, assignment, flag)
+            # the collected timestamp.txt now says what nbgrader recorded (the student's file is kept)
+            received.settle_stamp(self.course.root, executed.student, assignment, when)
             if repair or executed.repaired:
                 log += "\ngraded from a repaired copy: the submission's graded cells had been tampered with"
                 self.journal.add_flag(executed.student, assignment, REPAIRED_FLAG)
