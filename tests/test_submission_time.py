@@ -16,6 +16,7 @@ import os
 import shutil
 
 import pytest
+from test_course_plan import DUE, PLAN  # the same plan: due 2030-01-01, 0.5 points per started hour
 from test_course_scaling import ASSIGNMENT, _answers, make_course
 from test_course_scaling import project  # noqa: F401  (the tiny chapter's project, a fixture)
 
@@ -27,16 +28,7 @@ from cvkit.course.received import (
 from cvkit.course.results import notebook_flags
 
 UTC = dt.timezone.utc
-DUE = dt.datetime(2030, 1, 1)
 NOTEBOOK = f"{ASSIGNMENT}.ipynb"
-PLAN = f"""[[assignment]]
-id = "{ASSIGNMENT}"
-due = "2030-01-01 00:00:00 UTC"
-
-[late]
-policy = "per_hour"
-points_per_hour = 0.5
-"""
 HEADER = "student_id,assignment,timestamp\n"
 
 
