@@ -342,7 +342,8 @@ def _hub_settings(args):
     if args.students_file:
         lines = Path(args.students_file).read_text().splitlines()
         students += [line.strip() for line in lines if line.strip() and not line.lstrip().startswith("#")]
-    courses = courses_from_options(args.course or [], args.instructor or [], students, args.course_dir or [])
+    courses = courses_from_options(args.course or [], args.instructor or [], students, args.course_dir or [],
+                                   args.grader or [])
     hub = Path(args.hub_dir)
     return HubSettings(folder=str(hub), courses=courses, exchange=args.exchange or str(hub / "exchange"),
                        ip=args.ip, port=args.port, hub_port=args.hub_port, proxy_api_port=args.proxy_api_port,
@@ -371,6 +372,9 @@ def _cmd_hub_init(args) -> int:
                       if settings.subdomain_host else f"{settings.url}/user/")
         print(f"         formgrader: {formgrader}{course.instructor}/formgrader"
               + ("" if settings.subdomain_host else " (in a browser tab of its own: see docs/deploy-jupyterhub.md)"))
+        if course.shared_formgrader:
+            print(f"         shared formgrader ({course.instructor} and {', '.join(course.graders)}): "
+                  f"{settings.url}/services/{course.id}/formgrader")
     print("      3. students: the Assignments panel of JupyterLab (Nbgrader menu → Assignment List)")
     return 0
 
@@ -474,6 +478,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--student", action="append", metavar="[COURSE=]USER[,USER...]",
                    help="student accounts (repeatable; COURSE= with several courses)")
     p.add_argument("--students-file", help="a file of students, one [COURSE=]USER a line")
+    p.add_argument("--grader", action="append", metavar="[COURSE=]USER[,USER...]",
+                   help="teaching assistants: they grade in the course's shared formgrader (/services/COURSE/formgrader)")
     p.add_argument("--course-dir", action="append", metavar="[COURSE=]FOLDER",
                    help="the course folder (default ~INSTRUCTOR/COURSE)")
     p.add_argument("--exchange", help="nbgrader's exchange (default HUB_DIR/exchange)")

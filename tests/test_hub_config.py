@@ -7,6 +7,7 @@ the trusted time (nbgrader's formgrader needs it), the student's own kept for th
 import datetime as dt
 import json
 import os
+import re
 from pathlib import Path
 
 import pytest
@@ -98,7 +99,7 @@ def test_each_role_sees_its_own_extensions(tmp_path):
     assert "c.CourseDirectory.course_id = 'ipcv'" in common and "c.Exchange.path_includes_course = True" in common
     formgrader = (tmp_path / "jupyter" / "users" / "grader" / "nbgrader_config.py").read_text()
     assert f"load_subconfig({str(tmp_path / 'ipcv' / 'nbgrader_config.py')!r})" in formgrader
-    assert len(written) == 6
+    assert len(written) == 8  # common, the instructor's formgrader, three roles' lab and server settings
 
 
 def test_subdomains_let_the_formgrader_show_in_the_instructors_jupyterlab(tmp_path):
@@ -139,6 +140,63 @@ def test_the_hub_configuration_runs(tmp_path):
     assert config.Spawner.environment["PATH"].startswith(f"{settings.python_bin}:")
     assert "list:services" in config.Spawner.server_token_scopes(Spawner("grader"))
     assert "list:services" not in config.Spawner.server_token_scopes(Spawner("ada"))
+
+
+def test_teaching_assistants_grade_in_the_courses_shared_formgrader(tmp_path):
+    """A course with graders: a service named after the course runs a JupyterLab as the
+    instructor account on its home (the course folder inside), which only formgrade-<course> opens;
+    the graders' own servers list the courses they grade and nothing else of nbgrader's."""
+    import pwd
+
+    from traitlets.config import Config
+
+    owner = pwd.getpwuid(os.getuid()).pw_name  # any account with a home: only its home is read
+    (shared, alone) = courses_from_options(["ipcv", "lab"], [f"ipcv={owner}", "lab=grader-lab"], ["ipcv=ada", "lab=ada"],
+                                           graders=["ipcv=tim,tia", "ipcv=tim"])
+    assert shared.graders == ("tim", "tia") and alone.graders == () and shared.shared_formgrader
+    shared = HubCourse(**{**shared.__dict__, "folder": str(tmp_path / "ipcv"), "formgrader_port": 8200})
+    alone = HubCourse(**{**alone.__dict__, "folder": str(tmp_path / "lab")})
+    settings = _settings(tmp_path, shared, alone)
+    config = Config()
+    namespace = {"get_config": lambda: config, "c": config, "load_subconfig": lambda name: None}
+    exec(compile(_hub_config(settings), "jupyterhub_config.py", "exec"), namespace)
+    assert config.Authenticator.allowed_users == {"ada", owner, "grader-lab", "tim", "tia"}
+    assert config.JupyterHub.load_groups["formgrade-ipcv"] == {"users": [owner, "tia", "tim"]}
+    assert config.JupyterHub.load_groups["formgrade-lab"] == {"users": ["grader-lab"]}
+    (service,) = config.JupyterHub.services
+    hub = tmp_path / "hub" / "jupyter"
+    assert service["name"] == "ipcv" and service["user"] == owner and service["url"] == "http://127.0.0.1:8200"
+    assert service["cwd"] == pwd.getpwnam(owner).pw_dir and service["oauth_no_confirm"] is True
+    assert service["command"][0].endswith("jupyterhub-singleuser") and "--ServerApp.port=8200" in service["command"]
+    assert service["environment"]["JUPYTER_CONFIG_PATH"] == f"{hub / 'users' / owner}:{hub / 'instructor'}:{hub / 'common'}"
+    roles = {role["name"]: role for role in config.JupyterHub.load_roles}
+    assert roles["formgrade-ipcv"]["groups"] == ["formgrade-ipcv"]
+    assert roles["formgrade-ipcv"]["scopes"] == ["access:services!service=ipcv"]
+    assert "formgrade-lab" not in roles  # no graders: the instructor's own formgrader, as before
+    assert roles["service-ipcv"]["services"] == ["ipcv"] and "list:services" in roles["service-ipcv"]["scopes"]
+
+    class Spawner:
+        def __init__(self, name):
+            self.user = type("User", (), {"name": name})()
+
+    path = config.Spawner.environment["JUPYTER_CONFIG_PATH"]
+    assert path(Spawner("tim")) == f"{hub / 'grader'}:{hub / 'common'}"
+    assert "list:services" in config.Spawner.server_token_scopes(Spawner("tim"))
+    _role_files(settings, hub, [])
+    grader = json.loads((hub / "grader" / "labconfig" / "page_config.json").read_text())["disabledExtensions"]
+    assert {k for k, v in grader.items() if v} == {"@jupyter/nbgrader:formgrader", "@jupyter/nbgrader:create-assignment"}
+    server = json.loads((hub / "grader" / "jupyter_server_config.json").read_text())["ServerApp"]["jpserver_extensions"]
+    assert server["nbgrader.server_extensions.course_list"] and not server["nbgrader.server_extensions.formgrader"]
+
+
+@pytest.mark.parametrize("graders, students, message", [
+    (["ipcv=ada"], ["ipcv=ada"], "ada cannot grade it and take it (--grader and --student)"),
+    (["ipcv=grader"], [], "grader is its instructor, who grades anyway: leave them out of --grader"),
+    (["other=tim"], [], "--grader other=tim: no course 'other'"),
+])
+def test_wrong_graders_say_what_to_write(graders, students, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        courses_from_options(["ipcv"], ["grader"], students, graders=graders)
 
 
 # ---------------------------------------------------------------------------- the course folder

@@ -81,6 +81,7 @@ RIGHT = ('@student("filters.temporal_mean")\ndef temporal_mean(frames):\n'
          '    for frame in stack:\n        total = total + frame\n    return total / len(stack)')
 SUMMED = RIGHT.replace("return total / len(stack)", "return total")  # the bank's "sum, not mean"
 MISTAKE = "sum, not mean"
+WRITTEN = "why_mean"  # a written answer, marked by a teaching assistant in the shared formgrader
 
 
 def _cell(source, grade_id=None, *, solution=False, grade=False, points=None, cell_type="code"):
@@ -102,6 +103,9 @@ def source_notebook():
         _cell('check("filters.temporal_mean", temporal_mean)', "temporal_mean_visible", grade=True, points=1),
         _cell('### BEGIN HIDDEN TESTS\ncheck("filters.temporal_mean", temporal_mean, hidden=True, points=2)\n'
               '### END HIDDEN TESTS', "temporal_mean_hidden", grade=True, points=2),
+        _cell("**Question.** Why does averaging frames reduce noise?", cell_type="markdown"),
+        _cell("**Model answer.** Independent noise averages out: its standard deviation falls as 1/√N.",
+              WRITTEN, solution=True, grade=True, points=1, cell_type="markdown"),
     ]
     for index, cell in enumerate(cells):
         cell["id"] = f"cell-{index}"
@@ -111,11 +115,11 @@ def source_notebook():
 
 
 def answered(notebook: dict, answer: str) -> dict:
-    """The fetched notebook with its answer cell written."""
+    """The fetched notebook with its answer cells written (the code, and a sentence)."""
     notebook = json.loads(json.dumps(notebook))
     for cell in notebook["cells"]:
         if cell["metadata"].get("nbgrader", {}).get("solution"):
-            cell["source"] = answer
+            cell["source"] = answer if cell["cell_type"] == "code" else "Noise of different frames cancels out."
     return notebook
 
 
@@ -142,10 +146,10 @@ def proxy():
 
 @pytest.fixture(scope="module")
 def accounts():
-    """Five local accounts (homes private, as cvkit hub check asks), removed afterwards."""
+    """Six local accounts (homes private, as cvkit hub check asks), removed afterwards."""
     made = {}
     try:
-        for role in ("ins", "lab", "ada", "bob", "cyd"):
+        for role in ("ins", "lab", "ada", "bob", "cyd", "tae"):
             made[role] = make_user()
             os.chmod(made[role].pw_dir, 0o700)
         yield made
@@ -247,7 +251,7 @@ def hub(proxy, accounts, place):
                  "--course", COURSE, "--course", OTHER,
                  "--instructor", f"{COURSE}={names['ins']}", "--instructor", f"{OTHER}={names['lab']}",
                  "--student", f"{COURSE}={names['ada']},{names['bob']}", "--student", f"{COURSE}={names['cyd']}",
-                 "--student", f"{OTHER}={names['ada']}",
+                 "--student", f"{OTHER}={names['ada']}", "--grader", f"{COURSE}={names['tae']}",
                  "--ip", "127.0.0.1", "--port", str(_free_port()), "--hub-port", str(_free_port()),
                  "--proxy-api-port", str(_free_port()))
     assert done.returncode == 0, done.stdout + done.stderr
@@ -255,7 +259,7 @@ def hub(proxy, accounts, place):
     token = secrets.token_hex(32)
     # the test drives the hub with an API token of its own: a service, as an administrator adds one
     (folder / "jupyterhub_config.d" / "90-test.py").write_text(
-        f"c.JupyterHub.services = [{{'name': 'cvkit-test', 'api_token': {token!r}}}]\n"
+        f"c.JupyterHub.services.append({{'name': 'cvkit-test', 'api_token': {token!r}}})  # noqa: F821\n"
         "c.JupyterHub.load_roles.append({'name': 'cvkit-test', 'services': ['cvkit-test'], 'scopes': "
         "['admin:users', 'admin:servers', 'tokens', 'read:users']})  # noqa: F821\n")
     log = place / "hub.log"
@@ -379,6 +383,38 @@ def _text(html: str) -> str:
     return html_module.unescape(re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html)))
 
 
+#: what the teaching assistant gives each written answer, and says
+MARKS = {"ada": (1.0, "Right: the noise's standard deviation falls as 1/sqrt(N)."),
+         "bob": (0.5, "Half right: say why the noise cancels."), "cyd": (1.0, "Good.")}
+
+
+def mark_written_answers(hub: Hub, users: dict) -> dict:
+    """The teaching assistant marks every written answer in the course's shared formgrader (a hub
+    service), with the formgrader's own API as its page uses it; a student tries the same."""
+    service = f"/services/{COURSE}/formgrader/api"
+    token = hub.user_token(users["tae"])
+    done: dict = {"refused": {}}
+    for who in ("bob", "lab"):  # a student of the course; the instructor of another course
+        try:
+            hub.api("GET", f"{service}/submissions/{ASSIGNMENT}", token=hub.user_token(users[who]))
+            done["refused"][who] = "allowed"
+        except urllib.error.HTTPError as error:
+            done["refused"][who] = error.code
+    notebooks = hub.api("GET", f"{service}/submitted_notebooks/{ASSIGNMENT}/{ASSIGNMENT}", token=token)
+    by_name = {users[role]: role for role in MARKS}
+    for notebook in notebooks:
+        role = by_name[notebook["student"]]
+        grades = hub.api("GET", f"{service}/grades?submission_id={notebook['id']}", token=token)
+        comments = hub.api("GET", f"{service}/comments?submission_id={notebook['id']}", token=token)
+        (grade,) = [g for g in grades if g["name"] == WRITTEN]
+        (comment,) = [c for c in comments if c["name"] == WRITTEN]
+        score, words = MARKS[role]
+        hub.api("PUT", f"{service}/grade/{grade['id']}", {"manual_score": score}, token=token)
+        hub.api("PUT", f"{service}/comment/{comment['id']}", {"manual_comment": words}, token=token)
+    done["listed"] = sorted(by_name[n["student"]] for n in notebooks)
+    return done
+
+
 @pytest.fixture(scope="module")
 def semester(hub):
     """Release, fetch, answer, submit, collect, grade, release and fetch feedback (module docstring)."""
@@ -435,6 +471,7 @@ def semester(hub):
     # the instructor: collect, grade (sandboxed, as the instructor), release the feedback
     seen["collect"] = hub.run_as("ins", "nbgrader", "collect", ASSIGNMENT, cwd=course)
     seen["grade"] = hub.run_as("ins", "cvkit", "course", "grade", "--course-dir", ".", "--workers", "2", cwd=course)
+    seen["marked"] = mark_written_answers(hub, users)
     # after marking written answers in the formgrader, the pages are written again by plain nbgrader
     # (with cvkit's configuration: sanitised, hidden tests removed), the secrets kept
     hub.run_as("ins", "nbgrader", "generate_feedback", ASSIGNMENT, "--force", cwd=course)
@@ -451,6 +488,8 @@ def semester(hub):
                                      headers={"Authorization": f"token {grader}"})
     with urllib.request.urlopen(request, timeout=120) as reply:
         seen["formgrader page"] = (reply.status, reply.headers.get("Content-Security-Policy"))
+    hub.start_server(users["tae"])
+    seen["ta formgraders"] = hub.api("GET", f"/user/{users['tae']}/formgraders", token=hub.user_token(users["tae"]))
 
     # the students fetch their feedback: ada in her JupyterLab, bob and cyd in a terminal
     hub.api("POST", f"/user/{ada}/assignments/fetch_feedback", {"course_id": COURSE, "assignment_id": ASSIGNMENT},
@@ -516,10 +555,11 @@ def test_grades_penalty_and_named_mistake(semester):
     assert seen["ada submit"]["success"] is True
     scores = seen["scores"]
     assert set(scores) == {users["ada"], users["bob"], users["cyd"]}
-    assert scores[users["ada"]]["raw"] == pytest.approx(3) and scores[users["ada"]]["penalty"] == 0
+    # 3 points of checks, and the written answer the teaching assistant marked (MARKS)
+    assert scores[users["ada"]]["raw"] == pytest.approx(3 + 1) and scores[users["ada"]]["penalty"] == 0
     # "sum, not mean": the visible test fails; of the ten hidden cases only the single frame passes
-    assert scores[users["bob"]]["raw"] == pytest.approx(0.2) and scores[users["bob"]]["penalty"] == 0
-    assert scores[users["cyd"]]["raw"] == pytest.approx(3)
+    assert scores[users["bob"]]["raw"] == pytest.approx(0.2 + 0.5) and scores[users["bob"]]["penalty"] == 0
+    assert scores[users["cyd"]]["raw"] == pytest.approx(3 + 1)
     assert scores[users["cyd"]]["penalty"] == pytest.approx(1)  # one started hour late, 1 point an hour
     assert scores[users["ada"]]["timestamp"] < semester["due"] < scores[users["cyd"]]["timestamp"]
     grade = seen["grade"].stdout
@@ -551,24 +591,47 @@ def test_the_instructor_grades_written_answers_in_the_formgrader(hub, semester):
     on one origin (frame-ancestors 'none'), so it opens in a browser tab of its own."""
     seen, users = semester["seen"], semester["users"]
     instructor = users["ins"]
+    shared = {"course_id": COURSE, "url": f"{hub.url}/services/{COURSE}/lab?formgrader=true", "kind": "jupyterhub"}
     assert seen["formgraders"] == {"success": True, "value": [
-        {"course_id": COURSE, "url": f"{hub.url}/user/{instructor}/formgrader", "kind": "local"}]}
+        {"course_id": COURSE, "url": f"{hub.url}/user/{instructor}/formgrader", "kind": "local"}, shared]}
     listed = {s["student"]: (s["autograded"], s["score"], s["max_score"]) for s in seen["formgrader"]}
     scores = seen["scores"]
-    assert listed == {users[r]: (True, pytest.approx(scores[users[r]]["raw"]), 3.0) for r in ("ada", "bob", "cyd")}
+    assert listed == {users[r]: (True, pytest.approx(scores[users[r]]["raw"]), 4.0) for r in ("ada", "bob", "cyd")}
     assert seen["formgrader page"] == (200, "frame-ancestors 'none'")
+
+
+def test_a_teaching_assistant_marks_written_answers_in_the_shared_formgrader(hub, semester):
+    """The course's teaching assistant (an account of their own, not the instructor's) finds the
+    course's shared formgrader in their course list and marks every written answer there; a
+    student and another course's instructor are refused; the marks and comments reach the
+    gradebook and the students' pages."""
+    seen, users = semester["seen"], semester["users"]
+    assert seen["ta formgraders"] == {"success": True, "value": [
+        {"course_id": COURSE, "url": f"{hub.url}/services/{COURSE}/lab?formgrader=true", "kind": "jupyterhub"}]}
+    assert seen["marked"]["listed"] == ["ada", "bob", "cyd"]
+    assert seen["marked"]["refused"] == {"bob": 403, "lab": 403}
+    from nbgrader.api import Gradebook
+
+    with Gradebook(f"sqlite:///{semester['course'] / 'gradebook.db'}") as gradebook:
+        for role, (score, words) in MARKS.items():
+            grade = gradebook.find_grade(WRITTEN, ASSIGNMENT, ASSIGNMENT, users[role])
+            comment = gradebook.find_comment(WRITTEN, ASSIGNMENT, ASSIGNMENT, users[role])
+            assert (grade.manual_score, grade.needs_manual_grade, comment.manual_comment) == (score, False, words)
+    for role, (score, words) in MARKS.items():
+        page = seen["feedback"][role][0]
+        assert words in page and all(w not in page for r, (_, w) in MARKS.items() if r != role)
 
 
 def test_each_student_fetches_their_own_feedback(semester):
     users, pages = semester["users"], semester["seen"]["feedback"]
     assert [len(pages[role]) for role in ("ada", "bob", "cyd")] == [1, 1, 1]
     ada, bob, cyd = pages["ada"][0], pages["bob"][0], pages["cyd"][0]
-    assert f"{ASSIGNMENT} (Score: 3.0 / 3.0)" in ada and MISTAKE not in ada
-    assert f"{ASSIGNMENT} (Score: 0.2 / 3.0)" in bob and MISTAKE in bob
-    assert f"{ASSIGNMENT} (Score: 2.0 / 3.0)" in cyd and "Late submission penalty (Score: -1.0)" in cyd
+    assert f"{ASSIGNMENT} (Score: 4.0 / 4.0)" in ada and MISTAKE not in ada
+    assert f"{ASSIGNMENT} (Score: 0.7 / 4.0)" in bob and MISTAKE in bob
+    assert f"{ASSIGNMENT} (Score: 3.0 / 4.0)" in cyd and "Late submission penalty (Score: -1.0)" in cyd
     assert "Late submission penalty" not in ada + bob
     for role, page in (("ada", ada), ("bob", bob), ("cyd", cyd)):
-        others = [users[r] for r in ("ada", "bob", "cyd", "ins") if r != role]
+        others = [users[r] for r in ("ada", "bob", "cyd", "ins", "tae") if r != role]
         assert not [name for name in others if name in page], role
 
 
@@ -659,8 +722,9 @@ def test_a_missing_secret_is_reported_and_everyone_elses_feedback_still_goes_out
             f"release everyone else's with: nbgrader release_feedback {ASSIGNMENT} "
             f"--CourseDirectory.student_id_exclude={bob}; for {bob}: ask them to submit again") in out
     scores = second_round["scores"]
-    # bob's new hand-in is right, and late; everyone else's grade is as it was
-    assert scores[bob]["raw"] == pytest.approx(3) and scores[bob]["penalty"] == pytest.approx(1)
+    # bob's new hand-in is right, and late; his written answer keeps the assistant's mark (nbgrader keeps
+    # hand marks when it grades a submission again); everyone else's grade is as it was
+    assert scores[bob]["raw"] == pytest.approx(3 + 0.5) and scores[bob]["penalty"] == pytest.approx(1)
     assert {s: v for s, v in scores.items() if s != bob} == {s: v for s, v in second_round["before"].items() if s != bob}
     plain = second_round["plain release"]
     assert plain.returncode != 0 and "submission_secret.txt" in plain.stdout + plain.stderr

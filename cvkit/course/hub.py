@@ -3,7 +3,11 @@ what ``cvkit course grade`` tells the instructor about nbgrader's exchange.
 
 One hub serves one or more courses. Each course has one instructor account (an ordinary Unix
 user, never root) who owns the course folder (``~instructor/<course id>`` by default) and the
-course's folders in nbgrader's exchange, and students (Unix accounts). The hub runs as root
+course's folders in nbgrader's exchange, students (Unix accounts) and, optionally, graders
+(teaching assistants, co-instructors: hub accounts). A course with graders gets nbgrader's
+*shared formgrader*: a JupyterHub service named after the course, a JupyterLab running as the
+instructor account on the course folder, which every member of ``formgrade-<course>`` (the
+instructor and the graders) opens at ``/services/<course>/formgrader``; nobody else may. The hub runs as root
 with JupyterHub's ``LocalProcessSpawner``: every user's JupyterLab runs as that user, from the
 Python environment cvkit is installed in (so ``cvkit`` and ``nbgrader`` are there for all).
 
@@ -32,6 +36,7 @@ import datetime as _dt
 import errno
 import json
 import os
+import pprint
 import re
 import shutil
 import socket
@@ -58,8 +63,12 @@ LAB_PLUGINS = ("formgrader", "assignment-list", "course-list", "create-assignmen
 SERVER_EXTENSIONS = ("formgrader", "assignment_list", "course_list", "validate_assignment")
 #: what each role sees: students fetch, validate, submit and fetch feedback; instructors also
 #: grade, create assignments and list their courses (and see the Assignments panel as students do)
-ROLE_PLUGINS = {"student": ("assignment-list", "validate-assignment"), "instructor": LAB_PLUGINS}
-ROLE_SERVER_EXTENSIONS = {"student": ("assignment_list", "validate_assignment"), "instructor": SERVER_EXTENSIONS}
+#: graders (TAs) grade in the course's shared formgrader; their own server only lists the courses
+#: they grade (nbgrader's course list links each shared formgrader)
+ROLE_PLUGINS = {"student": ("assignment-list", "validate-assignment"), "instructor": LAB_PLUGINS,
+                "grader": ("course-list", "assignment-list", "validate-assignment")}
+ROLE_SERVER_EXTENSIONS = {"student": ("assignment_list", "validate_assignment"), "instructor": SERVER_EXTENSIONS,
+                          "grader": ("course_list", "assignment_list", "validate_assignment")}
 #: the exchange's modes, as nbgrader's own release_assignment makes them (not group-shared)
 EXCHANGE_MODES = {"root": 0o1777, "course": 0o755, "outbound": 0o755, "inbound": 0o2733, "feedback": 0o711}
 #: the Debian package of the proxy (bookworm names it so; ``configurable-http-proxy`` on npm)
@@ -86,12 +95,24 @@ class HubCourse:
         Unix accounts of the students.
     folder : str
         The course folder (default ``~instructor/<id>``).
+    graders : tuple of str
+        Hub accounts that grade the course (teaching assistants) in its shared formgrader.
+    formgrader_port : int
+        The port on 127.0.0.1 of the shared formgrader (a course with graders; chosen by
+        :func:`init_hub` when 0).
     """
 
     id: str
     instructor: str
     students: tuple[str, ...]
     folder: str
+    graders: tuple[str, ...] = ()
+    formgrader_port: int = 0
+
+    @property
+    def shared_formgrader(self) -> bool:
+        """Graders share the course's formgrader (a JupyterHub service named after the course)."""
+        return bool(self.graders)
 
 
 @dataclass(frozen=True)
@@ -146,6 +167,11 @@ class HubSettings:
         return sorted({s for course in self.courses for s in course.students})
 
     @property
+    def graders(self) -> list[str]:
+        """Accounts that grade a course without owning one (their own server has the grader role)."""
+        return sorted({g for course in self.courses for g in course.graders} - set(self.instructors))
+
+    @property
     def url(self) -> str:
         return self.subdomain_host or f"http://{self.ip or '0.0.0.0'}:{self.port}"
 
@@ -160,7 +186,8 @@ def load_settings(folder: str | os.PathLike[str]) -> HubSettings:
     path = Path(folder) / SETTINGS_FILE
     try:
         data = json.loads(path.read_text())
-        courses = tuple(HubCourse(c["id"], c["instructor"], tuple(c["students"]), c["folder"])
+        courses = tuple(HubCourse(c["id"], c["instructor"], tuple(c["students"]), c["folder"],
+                                  tuple(c.get("graders", ())), int(c.get("formgrader_port", 0)))
                         for c in data.pop("courses"))
         data["proxy"] = tuple(data.get("proxy", ()))
         return HubSettings(courses=courses, **data)
@@ -191,7 +218,7 @@ def _split(values: Iterable[str], courses: Sequence[str], what: str) -> dict[str
 
 
 def courses_from_options(courses: Sequence[str], instructors: Sequence[str], students: Sequence[str],
-                         folders: Sequence[str] = ()) -> tuple[HubCourse, ...]:
+                         folders: Sequence[str] = (), graders: Sequence[str] = ()) -> tuple[HubCourse, ...]:
     """The courses of ``cvkit hub init``'s options.
 
     Parameters
@@ -202,6 +229,8 @@ def courses_from_options(courses: Sequence[str], instructors: Sequence[str], stu
         ``COURSE=USER`` (``USER`` alone with one course; ``USER1,USER2`` for several).
     folders : sequence of str
         ``COURSE=FOLDER`` (``FOLDER`` alone with one course); default ``~instructor/<course>``.
+    graders : sequence of str
+        ``COURSE=USER[,USER]`` (``USER`` alone with one course): teaching assistants.
 
     Raises
     ------
@@ -218,6 +247,7 @@ def courses_from_options(courses: Sequence[str], instructors: Sequence[str], stu
     teachers = _split(instructors, courses, "instructor")
     taught = _split(students, courses, "student")
     places = _split(folders, courses, "course-dir")
+    helpers = _split(graders, courses, "grader")
     made = []
     seen: dict[str, str] = {}
     for course in courses:
@@ -234,10 +264,17 @@ def courses_from_options(courses: Sequence[str], instructors: Sequence[str], stu
         both = sorted(set(taught[course]) & {instructor})
         if both:
             raise ValueError(f"course {course}: {both[0]} cannot be its instructor and one of its students")
+        both = sorted(set(taught[course]) & set(helpers[course]))
+        if both:
+            raise ValueError(f"course {course}: {both[0]} cannot grade it and take it (--grader and --student); "
+                             "a grader would see every classmate's work and the grading salt")
+        if instructor in helpers[course]:
+            raise ValueError(f"course {course}: {instructor} is its instructor, who grades anyway: leave them out "
+                             "of --grader")
         if len(places[course]) > 1:
             raise ValueError(f"course {course}: one --course-dir, got {len(places[course])}")
         folder = places[course][0] if places[course] else ""
-        made.append(HubCourse(course, instructor, tuple(taught[course]), folder))
+        made.append(HubCourse(course, instructor, tuple(taught[course]), folder, tuple(helpers[course])))
     return tuple(made)
 
 
@@ -347,9 +384,23 @@ def _port_problem(ip: str, port: int) -> str | None:
 
 def course_folder(course: HubCourse) -> Path:
     """The course folder of ``course``: its ``folder``, else ``~instructor/<course id>``."""
+    return Path(course.folder) if course.folder else Path(course_home(course)) / course.id
+
+
+def course_home(course: HubCourse) -> str:
+    """The home of the course's instructor account (the root of its formgraders' servers)."""
     import pwd
 
-    return Path(course.folder) if course.folder else Path(pwd.getpwnam(course.instructor).pw_dir) / course.id
+    return pwd.getpwnam(course.instructor).pw_dir
+
+
+def _free_port(taken: set[int]) -> int:
+    while True:
+        with socket.socket() as sock:
+            sock.bind(("127.0.0.1", 0))
+            port = sock.getsockname()[1]
+        if port not in taken:
+            return port
 
 
 # ---------------------------------------------------------------------------- writing
@@ -402,7 +453,7 @@ def _formgrader_config(course_config: Path) -> str:
 
 def _role_files(settings: HubSettings, base: Path, written: list[Path]) -> None:
     _write(base / "common" / "nbgrader_config.py", _nbgrader_common(settings), written=written)
-    for role in ("student", "instructor"):
+    for role in ROLE_PLUGINS:
         disabled = {f"@jupyter/nbgrader:{p}": p not in ROLE_PLUGINS[role] for p in LAB_PLUGINS}
         _write(base / role / "labconfig" / "page_config.json",
                json.dumps({"disabledExtensions": disabled}, indent=1) + "\n", written=written)
@@ -421,14 +472,34 @@ def _role_files(settings: HubSettings, base: Path, written: list[Path]) -> None:
 def _hub_config(settings: HubSettings) -> str:
     folder = Path(settings.folder)
     jupyter = folder / "jupyter"
-    users = sorted({c.instructor for c in settings.courses} | set(settings.students))
+    python_bin = settings.python_bin
+    users = sorted({c.instructor for c in settings.courses} | set(settings.students) | set(settings.graders))
     groups = {}
     for course in settings.courses:
         groups[f"nbgrader-{course.id}"] = {"users": sorted(course.students)}
-        groups[f"formgrade-{course.id}"] = {"users": [course.instructor]}
+        groups[f"formgrade-{course.id}"] = {"users": [course.instructor, *sorted(course.graders)]}
     instructors = sorted(settings.instructors)
+    graders = settings.graders
+    shared = [course for course in settings.courses if course.shared_formgrader]
+    services, service_roles = [], []
+    for course in shared:
+        services.append({
+            "name": course.id, "display": True, "oauth_no_confirm": True,
+            "url": f"http://127.0.0.1:{course.formgrader_port}",
+            "command": [str(Path(python_bin) / "jupyterhub-singleuser"), f"--ServerApp.port={course.formgrader_port}",
+                        "--ServerApp.ip=127.0.0.1"],
+            "user": course.instructor, "cwd": course_home(course),
+            "environment": {"JUPYTER_CONFIG_PATH": os.pathsep.join(
+                                str(jupyter / part) for part in ("users/" + course.instructor, "instructor", "common")),
+                            "PATH": f"{python_bin}:/usr/local/bin:/usr/bin:/bin", "LANG": "C.UTF-8",
+                            "JUPYTERHUB_DEFAULT_URL": "/formgrader"}})
+        service_roles.append({"name": f"formgrade-{course.id}", "groups": [f"formgrade-{course.id}"],
+                              "description": f"open the shared formgrader of {course.id}",
+                              "scopes": [f"access:services!service={course.id}"]})
+        service_roles.append({"name": f"service-{course.id}", "services": [course.id],
+                              "description": "nbgrader's course list in the shared formgrader",
+                              "scopes": ["list:services", "read:services", "read:users:name", "read:users:groups"]})
     bind = f"http://{settings.ip}:{settings.port}"
-    python_bin = settings.python_bin
     subdomains = (f"c.JupyterHub.subdomain_host = {settings.subdomain_host!r}" if settings.subdomain_host
                   else "# one origin for every user (cvkit hub init --subdomain-host gives each user a subdomain)")
     return f'''# generated by cvkit hub init on {_dt.date.today().isoformat()}: a JupyterHub for the course(s)
@@ -443,6 +514,7 @@ c = get_config()  # noqa: F821
 HUB = {str(folder)!r}
 JUPYTER = {str(jupyter)!r}
 INSTRUCTORS = {instructors!r}
+GRADERS = {graders!r}  # teaching assistants: they grade in the shared formgrader of their courses
 
 # ----------------------------------------------------------------- where the hub listens
 c.JupyterHub.bind_url = {bind!r}
@@ -476,6 +548,8 @@ def jupyter_config_path(spawner):
     name = spawner.user.name
     if name in INSTRUCTORS:
         parts = [os.path.join(JUPYTER, "users", name), os.path.join(JUPYTER, "instructor")]
+    elif name in GRADERS:
+        parts = [os.path.join(JUPYTER, "grader")]
     else:
         parts = [os.path.join(JUPYTER, "student")]
     return os.pathsep.join(parts + [os.path.join(JUPYTER, "common")])
@@ -493,18 +567,24 @@ c.Spawner.environment = {{
 c.JupyterHub.load_groups = {json.dumps(groups, indent=4)}
 # nbgrader's JupyterHubAuthPlugin asks the hub for the user's groups with the token of the user's
 # server (JupyterHub >= 2 lets every token read its own user's name and groups; listed below all
-# the same); nbgrader's course list, in an instructor's server, also asks for the hub's services
-# (GET /hub/api/services), which needs list:services: without it the list shows an error
+# the same); nbgrader's course list, in an instructor's or grader's server, also asks for the hub's
+# services (GET /hub/api/services) and their addresses, which needs list:services and read:services:
+# without them the list shows an error
 c.JupyterHub.load_roles = [
     {{"name": "cvkit-instructors", "description": "nbgrader's course list may list the hub's services",
-     "scopes": ["list:services"], "users": INSTRUCTORS}},
+     "scopes": ["list:services", "read:services"], "users": INSTRUCTORS + GRADERS}},
 ]
+# the shared formgrader of each course with graders: a JupyterLab running as the course's instructor
+# account on the course folder, a service only the members of formgrade-<course> may open
+# (nbgrader's "one class, multiple graders"); its own token may list the services and read names
+c.JupyterHub.services = {pprint.pformat(services, width=110, sort_dicts=False)}
+c.JupyterHub.load_roles += {pprint.pformat(service_roles, width=110, sort_dicts=False)}
 
 
 def server_token_scopes(spawner):
     scopes = ["users:activity!user", "access:servers!server", "read:users:name!user", "read:users:groups!user"]
-    if spawner.user.name in INSTRUCTORS:
-        scopes.append("list:services")
+    if spawner.user.name in INSTRUCTORS or spawner.user.name in GRADERS:
+        scopes += ["list:services", "read:services"]  # the shared formgraders' addresses (their prefix)
     return scopes
 
 
@@ -597,6 +677,16 @@ def init_hub(settings: HubSettings) -> tuple[list[Path], list[str]]:
         _account(course.instructor, f"the instructor of {course.id}")
         for student in course.students:
             _account(student, f"student of {course.id}")
+        for grader in course.graders:
+            _account(grader, f"grader of {course.id}")
+    taken = {settings.port, settings.hub_port, settings.proxy_api_port} | {c.formgrader_port for c in settings.courses}
+    courses = []
+    for course in settings.courses:
+        if course.shared_formgrader and not course.formgrader_port:
+            course = HubCourse(**{**asdict(course), "formgrader_port": _free_port(taken)})
+            taken.add(course.formgrader_port)
+        courses.append(course)
+    settings = HubSettings(**{**asdict(settings), "courses": tuple(courses)})
     proxy = settings.proxy or proxy_command(install=True)
     folder.mkdir(parents=True, exist_ok=True)
     for what, path in (("the hub folder", folder), ("the Python environment", Path(settings.python_bin)),
@@ -725,6 +815,12 @@ def start_problems(settings: HubSettings) -> list[str]:
         if problem:
             problems.append(f"{what}: {problem}: stop what uses it (a hub already running?) or run cvkit hub init "
                             f"again with another {option}")
+    for course in settings.courses:
+        problem = _port_problem("127.0.0.1", course.formgrader_port) if course.shared_formgrader else None
+        if problem:
+            problems.append(f"the shared formgrader of {course.id}: {problem}: stop what uses it (a hub already "
+                            f"running?) or set \"formgrader_port\" of {course.id} in {Path(settings.folder) / SETTINGS_FILE} "
+                            "to a free port and run cvkit hub init again")
     return problems
 
 
