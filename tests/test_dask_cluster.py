@@ -12,7 +12,8 @@ than the instructor — who is an ordinary user too (``docs/scale-out.md``).
   address, before anything is recorded.
 - A worker killed while it runs a submission loses nothing: the scheduler gives the job to
   another worker (or the instructor's process grades it), and every grade is the local one.
-  A scheduler killed during the run loses nothing either: the rest is graded locally.
+  A scheduler killed during the run loses nothing either, nor do workers that all die: the rest
+  is graded locally.
 - A worker that would not grade as the instructor's machine (no sandbox, other checks) stops
   the run before anything is graded; one whose sandbox fails when its job comes never grades
   it (a scheduler and worker in this process, whose reports the test chooses).
@@ -335,7 +336,34 @@ def test_a_scheduler_lost_mid_run_loses_no_submission(people, place, local_grade
         os.killpg(scheduler.pid, signal.SIGKILL)
         out, err = done.communicate(timeout=600)
     assert done.returncode == 0, out[-3000:] + err[-3000:]
-    assert f"lost the Dask scheduler at {address}" in err and "left on this machine" in err, err[-3000:]
+    assert f"lost the Dask cluster at {address}" in err and "left on this machine" in err, err[-3000:]
+    assert cell_grades(course) == local_grades
+    assert course.audit(course.submissions()) == []
+
+
+def test_every_worker_lost_mid_run_loses_no_submission(people, place, local_grades, tmp_path):
+    """Every worker dies (the scheduler lives on): the jobs would wait for a worker for ever;
+    after Dask's connection timeout without one, the rest is graded on the instructor's machine."""
+    _, worker = people
+    course = _course(people, place, "orphaned")
+    with _cluster(worker, tmp_path, workers=1) as (address, scheduler):
+        done = _grade(people, course, "--scheduler", address,
+                      extra_env={"DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "5s"})
+        deadline = time.monotonic() + 300
+        while _executing_on_a_worker(worker.pw_uid) is None and done.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert done.poll() is None, "the grading ended before any worker ran a submission"
+        for pid in [int(p) for p in os.listdir("/proc") if p.isdigit()]:  # every process of the workers' user
+            try:
+                if os.stat(f"/proc/{pid}").st_uid == worker.pw_uid and os.getpgid(pid) != scheduler.pid:
+                    os.kill(pid, signal.SIGKILL)
+            except (OSError, ProcessLookupError):
+                pass
+        out, err = done.communicate(timeout=600)
+        assert scheduler.poll() is None  # the scheduler lived on, without workers
+    assert done.returncode == 0, out[-3000:] + err[-3000:]
+    assert f"lost the Dask cluster at {address} (no worker left in the cluster for 5 s)" in err, err[-3000:]
+    assert "left on this machine" in err
     assert cell_grades(course) == local_grades
     assert course.audit(course.submissions()) == []
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import concurrent.futures
 import os
 import sys
+import time
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Iterable
 
@@ -148,20 +149,42 @@ def _on_dask(batches: _Batches, payloads: list[tuple[Any, ...]], client: Any) ->
     given to another worker by the scheduler; one that still fails (Dask's ``KilledWorker``
     after ``distributed.scheduler.allowed-failures``, a worker whose sandbox broke) is graded
     by this process in a worker process of its own (:meth:`.writer.Writer.record_many`).
-    Returns the jobs left when the scheduler is lost (none otherwise), and why."""
+    Returns the jobs left when the scheduler is lost, or when the cluster has had no worker for
+    Dask's connection timeout (its jobs would wait for one for ever), and why; none otherwise."""
+    import dask
     from dask.distributed import wait
+    from dask.utils import parse_timedelta
 
+    patience = parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"), "s")
     with client:
         submitted = {client.submit(jobs.grade_on_worker, *p, pure=False): p for p in payloads}
         batches.owners.update({future: job[1:3] for future, job in submitted.items()})
         pending = set(submitted)
+        alone_since: float | None = None
         while pending:
+            why = ""
             try:
-                done = wait(pending, return_when="FIRST_COMPLETED").done
+                done = wait(pending, timeout=min(5.0, patience), return_when="FIRST_COMPLETED").done
+            except TimeoutError:  # nothing finished meanwhile: is anyone still working?
+                done = set()
+                try:
+                    workers = client.scheduler_info().get("workers", {})
+                except Exception as error:  # noqa: BLE001 - the scheduler lost
+                    why = " ".join(f"{type(error).__name__}: {error}".split())[:300]
+                else:
+                    alone_since = None if workers else (alone_since or time.monotonic())
+                    if alone_since is not None and time.monotonic() - alone_since > patience:
+                        why = f"no worker left in the cluster for {patience:g} s"
             except Exception as error:  # noqa: BLE001 - the scheduler lost: the rest is graded here
-                batches.drain([], 0)  # what arrived is recorded first
                 why = " ".join(f"{type(error).__name__}: {error}".split())[:300]
-                return [submitted[future] for future in submitted if future in pending], why
+            if why:
+                batches.drain([], 0)  # what arrived is recorded first
+                left = [future for future in submitted if future in pending]
+                try:
+                    client.cancel(left)  # a worker joining later must not grade them as well
+                except Exception:  # noqa: BLE001 - a lost scheduler cancels nothing, and runs nothing
+                    pass
+                return [submitted[future] for future in left], why
             pending -= done
             batches.drain(done, len(pending))
     return [], ""
@@ -234,7 +257,7 @@ def grade(course: Course, assignments: Iterable[str] | None = None, workers: int
     if client is not None:
         left, why = _on_dask(batches, payloads, client)
         if left:  # never a lost submission: the local pool grades what the cluster did not
-            print(f"cvkit: lost the Dask scheduler at {scheduler} ({why}); grading the "
+            print(f"cvkit: lost the Dask cluster at {scheduler} ({why}); grading the "
                   f"{len(left)} submission{'s' * (len(left) != 1)} left on this machine", file=sys.stderr, flush=True)
             _on_local_pool(batches, left, workers)
     elif payloads:
