@@ -412,6 +412,10 @@ def mark_written_answers(hub: Hub, users: dict) -> dict:
         hub.api("PUT", f"{service}/grade/{grade['id']}", {"manual_score": score}, token=token)
         hub.api("PUT", f"{service}/comment/{comment['id']}", {"manual_comment": words}, token=token)
     done["listed"] = sorted(by_name[n["student"]] for n in notebooks)
+    request = urllib.request.Request(f"{hub.url}/services/{COURSE}/formgrader/manage_assignments",
+                                     headers={"Authorization": f"token {token}"})
+    with urllib.request.urlopen(request, timeout=120) as reply:  # the page, in a tab of its own
+        done["page"] = (reply.status, "formgrader" in reply.read().decode().lower())
     return done
 
 
@@ -610,6 +614,7 @@ def test_a_teaching_assistant_marks_written_answers_in_the_shared_formgrader(hub
         {"course_id": COURSE, "url": f"{hub.url}/services/{COURSE}/lab?formgrader=true", "kind": "jupyterhub"}]}
     assert seen["marked"]["listed"] == ["ada", "bob", "cyd"]
     assert seen["marked"]["refused"] == {"bob": 403, "lab": 403}
+    assert seen["marked"]["page"] == (200, True)
     from nbgrader.api import Gradebook
 
     with Gradebook(f"sqlite:///{semester['course'] / 'gradebook.db'}") as gradebook:
