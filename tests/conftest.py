@@ -65,6 +65,7 @@ LONGEST_FILES = {
     "tests/test_checks_ch09.py": 45,
     "tests/test_course_plan.py": 45,
     "tests/test_course_package.py": 35,
+    "tests/test_hand_marks.py": 35,
     "tests/test_checks_ch03.py": 30,
 }
 

@@ -19,7 +19,7 @@ import time
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Iterable
 
-from . import jobs
+from . import jobs, marks
 from .jobs import ExecutedSubmission, feedback_submissions, grade_submission
 from .progress import Phase, progress
 from .writer import JobResult
@@ -277,14 +277,18 @@ def grade(course: Course, assignments: Iterable[str] | None = None, workers: int
                           not_graded=outside[f"{s}/{a}"]) for s, a in found if f"{s}/{a}" in outside]
     retried = [(r.student, r.assignment) for r in results if r.ok and (r.student, r.assignment) in missing_before]
     not_graded = course.not_graded()
+    graded = [(s, a) for s, a in jobs if f"{s}/{a}" not in not_graded]
+    # pages missing, of a submission graded again, or whose hand marks changed since they were written
     pages = sorted({pair for pair in retried + [(s, a) for s, a in jobs if not (course.root / "feedback" / s / a).is_dir()]
-                    if f"{pair[0]}/{pair[1]}" not in not_graded})
+                    if f"{pair[0]}/{pair[1]}" not in not_graded} | set(marks.stale_pages(course, graded)))
     feedback = bars["feedback"]
     if pages and not feedback.enabled:
         feedback = Phase("feedback", 0, progress_bar, unit="page")
     feedback.set_total(feedback.done + len(pages))  # the estimate (a page per submission) made exact
     course.feedback(pages, feedback)
     feedback.close()
+    marks.remember_pages(course, [(s, a) for s, a in graded if (course.root / "feedback" / s / a).is_dir()])
+    marks.log_changes(course, graded)
     course.export(progress_bar)
     course.similarity(progress=progress_bar)
     return sorted(results, key=lambda r: (r.assignment, r.student))

@@ -13,7 +13,7 @@ import subprocess
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from . import received
+from . import marks, received
 from .cells import repaired_notebook
 
 if TYPE_CHECKING:
@@ -139,11 +139,16 @@ class Writer:
             "CourseDirectory.submitted_directory": str(staging), "SandboxedExecute.enabled": False,
             "ClearOutput.enabled": False, "TrustedChecks.enabled": False,
             **_recording_settings(config, True)})
+        # nbgrader sets every marked answer "to mark" again: the marks are put back after it
+        before = marks.snapshot(course, assignment, [e.student for e in group])
         try:
             outcome = api.autograde(assignment, group[0].student if len(group) == 1 else "*", force=True,
                                     create=True)
         except Exception as error:  # noqa: BLE001 - nbgrader's failure on one notebook must not stop the run
             outcome = {"success": False, "error": f"{type(error).__name__}: {error}"}
+        if outcome.get("success"):
+            for student, note in marks.restore(course, assignment, before, {e.student: e.notebooks for e in group}):
+                self.journal.add_flag(student, assignment, note)
         shutil.rmtree(staging, ignore_errors=True)
         return subprocess.CompletedProcess(["nbgrader", "autograde", assignment, *students],
                                            0 if outcome.get("success") else 1,
