@@ -8,6 +8,7 @@
     cvkit course grade              autograde all submissions in parallel, feedback, CSV, table
     cvkit course grade --regrade CHAPTER    ... and regrade a chapter (after a due date or check changed)
     cvkit course table              the grade table of what has been graded
+    cvkit course refresh            after marking in the formgrader: pages and exports, without grading
     cvkit demo                      the whole pipeline on three sample submissions of a few chapters
     cvkit demo --all                ... of every chapter
     cvkit hub init                  a JupyterHub for one or more courses (run as root; docs/deploy-jupyterhub.md)
@@ -262,6 +263,15 @@ def _cmd_grade(args) -> int:
     return _print_results(course, results, jobs)
 
 
+def _cmd_refresh(args) -> int:
+    course = _course(args)
+    pages = course.refresh(progress=True)
+    print(f"wrote {len(pages)} feedback page{'s' * (len(pages) != 1)} with new marks"
+          + (f" ({', '.join(f'{s}/{a}' for s, a in pages)})" if pages else "")
+          + f"; exports: {course.root / 'exports'}; marks: {course.root / '.cvkit' / 'marks.log'}")
+    return 0
+
+
 def _cmd_table(args) -> int:
     course = _course(args)
     for a in args.assignment or sorted({a for _, a in course.submissions()}):
@@ -455,6 +465,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = csub.add_parser("table", help="print the grade table")
     course_options(p)
     p.set_defaults(func=_cmd_table)
+    p = csub.add_parser("refresh", help="after marking in the formgrader: write the pages whose marks changed "
+                                        "and the exports again, without grading")
+    course_options(p)
+    p.set_defaults(func=_cmd_refresh)
 
     p = sub.add_parser("demo", help="build, make three sample submissions, autograde, print the grade table")
     p.add_argument("--dir", default="cvkit-demo", help="where the demo course is made (default ./cvkit-demo)")

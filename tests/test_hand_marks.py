@@ -11,11 +11,14 @@ gradebook). Then:
   comment and ``needs_manual_grade = False`` exactly — on SQLite and on PostgreSQL;
 - an answer changed after it was marked (a new hand-in) goes back to "to mark", with a note
   for the instructor; the unchanged one keeps its mark;
-- every mark seen is in the course's ``.cvkit/marks.log``.
+- every mark seen is in the course's ``.cvkit/marks.log``;
+- ``cvkit course refresh`` writes the pages whose marks changed and the exports, grading nothing.
 """
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 import json
 import shutil
 
@@ -24,6 +27,7 @@ import test_written_answers as written
 from test_course_scaling import postgres  # noqa: F401  (a PostgreSQL server of our own, a fixture)
 
 import test_course_scaling as tiny
+from cvkit.cli import main
 from cvkit.course import Course
 
 pytestmark = pytest.mark.slow
@@ -122,6 +126,16 @@ def _semester(course: Course) -> dict:
     seen.update({"changed": _state(course, "cyd"), "kept": _state(course, "ada"),
                  "changed table": course.table(tiny.ASSIGNMENT), "changed exercises": _exercises(course, "cyd"),
                  "log": _read(course.root / ".cvkit" / "marks.log")})
+    # a second look at ada's answer, then the pages and exports without grading anything
+    _mark(course, "ada", "question_99_1", 2.0, "On reflection: complete.")
+    before = {p: p.stat().st_mtime_ns for p in (course.root / "autograded").rglob("*.ipynb")}
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = main(["course", "refresh", "--course-dir", str(course.root)]
+                    + (["--db-url", course.db_url] if not course.db_url.startswith("sqlite") else []))
+    seen.update({"refresh": (code, out.getvalue()), "refreshed page": _page(course, "ada"),
+                 "refreshed exercises": _exercises(course, "ada"),
+                 "untouched": before == {p: p.stat().st_mtime_ns for p in (course.root / "autograded").rglob("*.ipynb")}})
     return seen
 
 
@@ -145,6 +159,10 @@ def _assert_semester(seen: dict) -> None:
     assert seen["changed"]["task_99"][1] is True
     assert seen["changed exercises"]["question_99_1"][1].startswith("to mark")
     assert "question_99_1: the answer changed since it was marked (1.5): to mark again" in seen["changed table"]
+    # cvkit course refresh: ada's page alone is written again, nothing is graded
+    assert seen["refresh"][0] == 0 and f"wrote 1 feedback page with new marks (ada/{tiny.ASSIGNMENT})" in seen["refresh"][1]
+    assert "On reflection: complete." in seen["refreshed page"] and seen["untouched"]
+    assert seen["refreshed exercises"]["question_99_1"] == ("2", "graded")
     log = [line.split("\t") for line in seen["log"].splitlines()]
     assert [(row[2], row[3].split(":")[1], row[4]) for row in log if row[2] == f"ada/{tiny.ASSIGNMENT}"] == [
         (f"ada/{tiny.ASSIGNMENT}", "question_99_1", "1.5, comment written"),

@@ -530,6 +530,13 @@ class Course:
         return parallel.grade(self, assignments, workers=workers, scheduler=scheduler, progress_bar=progress,
                               regrade=regrade, batch=batch, sandbox=sandbox)
 
+    def refresh(self, progress: bool = False) -> list[tuple[str, str]]:
+        """Bring the feedback pages and the exports up to the gradebook without grading anything:
+        after marking written answers in the formgrader, the page of every submission whose marks
+        changed is written again, ``.cvkit/marks.log`` records the marks, and the CSV exports are
+        written (:mod:`cvkit.course.marks`). Returns the (student, assignment) pages written."""
+        return parallel.refresh(self, progress)
+
     def feedback(self, submissions: Iterable[tuple[str, str]], bar: Phase | None = None) -> None:
         """nbgrader's ``generate_feedback`` (in this process) for these (student, assignment)
         pairs: HTML pages with the trusted reports, hidden tests' source removed (``bar``

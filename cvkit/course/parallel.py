@@ -314,3 +314,17 @@ def write_feedback(course: Course, submissions: Iterable[tuple[str, str]], bar: 
         log = course.root / ".cvkit" / "feedback_errors.log"
         log.parent.mkdir(parents=True, exist_ok=True)
         log.write_text("\n".join(failed))
+
+
+def refresh(course: Course, progress_bar: bool = False) -> list[tuple[str, str]]:
+    """See :meth:`Course.refresh`."""
+    not_graded = course.not_graded()
+    graded = [(s, a) for s, a in course.submissions() if f"{s}/{a}" not in not_graded and course.is_graded(s, a)]
+    pages = marks.stale_pages(course, graded)
+    bar = Phase("feedback", len(pages), progress_bar and bool(pages), unit="page")
+    course.feedback(pages, bar)
+    bar.close()
+    marks.remember_pages(course, [(s, a) for s, a in graded if (course.root / "feedback" / s / a).is_dir()])
+    marks.log_changes(course, graded)
+    course.export(progress_bar)
+    return pages
