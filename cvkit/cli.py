@@ -1,7 +1,7 @@
 """The ``cvkit`` command line.
 
     cvkit list [NAMESPACE]          algorithms, sections, packages, providers, check sizes
-    cvkit list --validate           ... and whether each reference passes its own public cases
+    cvkit list --validate           ... and whether each check is sound (reference, hidden cases, mistakes)
     cvkit list --markdown           the catalog of cvkit's algorithms (docs/catalog.md)
     cvkit new exercise ID           scaffold an exercise of an instructor's course package
     cvkit course build              nbgrader generate_assignment for the chapters
@@ -68,6 +68,45 @@ def _listing(namespace: str | None) -> list[dict]:
     return rows
 
 
+def _validate_rows(rows: list[dict], notes: list[str], seeds: int, quiet: bool) -> int:
+    """Validate the checks of ``rows`` (their ``check`` cell gets ``valid`` or ``REFUSED``),
+    adding the reasons to ``notes``; returns how many were refused.
+
+    A check is refused when its reference fails its own public cases
+    (:func:`cvkit.registry.validate`), or when it is not sound over ``seeds`` draws of hidden
+    cases (:func:`cvkit.grading.soundness.soundness`: a hidden case the reference cannot
+    compute, a mistake no case tells from the reference, two mistakes no case tells apart).
+    The reference's warnings are listed, naming the case, without refusing the check."""
+    from . import registry
+    from .course.progress import Phase
+    from .grading.soundness import soundness
+
+    def refusal(row: dict) -> str | None:
+        """Why the check of ``row`` is refused (None: valid), its warnings added to ``notes``."""
+        try:
+            registry.validate(row["id"])  # also refuses an algorithm without a check
+            found = soundness(row["id"], seeds=seeds)
+        except (ValueError, KeyError) as error:
+            return str(error.args[0])
+        notes.extend(f"{row['id']}: warning (not refused; grading silences it): {note}" for note in found.notes)
+        if found.problems:
+            return f"{registry.get(row['id']).package}: the check of {row['id']!r} is refused: " + "; ".join(found.problems)
+        row["check"] += ", valid" + (" (warnings below)" if found.notes else "")
+        return None
+
+    refused = 0
+    with Phase("validate", len(rows), enabled=not quiet and len(rows) > 1, unit="check") as bar:
+        for row in rows:
+            why = None if row.get("check_error") else refusal(row)
+            if row.get("check_error") or why is not None:
+                refused += 1
+            if why is not None:
+                row["check"] += ", REFUSED (see below)"
+                notes.append(why)
+            bar.update()
+    return refused
+
+
 def _cmd_list(args) -> int:
     from . import catalog, registry
 
@@ -81,16 +120,8 @@ def _cmd_list(args) -> int:
     for row in rows:
         row["providers"] = ["reference"] + [name for name, ids in offered.items() if row["id"] in ids]
         row["check"] = _check_status(row)
-        if args.validate and row.get("check_error"):
-            refused += 1
-        elif args.validate:
-            try:
-                registry.validate(row["id"])
-                row["check"] += ", valid"
-            except (ValueError, KeyError) as error:
-                refused += 1
-                row["check"] += ", REFUSED (see below)"
-                notes.append(str(error.args[0]))
+    if args.validate:
+        refused = _validate_rows(rows, notes, args.seeds, quiet=args.json)
     if args.json:
         import json
 
@@ -419,6 +450,16 @@ def _cmd_hub_start(args) -> int:
     return 0  # pragma: no cover - execv does not return
 
 
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="cvkit", description="cvkit course kit: algorithms, grading, nbgrader course")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -428,7 +469,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--markdown", action="store_true", help="the catalog of cvkit's algorithms (docs/catalog.md)")
     p.add_argument("--validate", action="store_true",
-                   help="run every reference on its check's public cases; exit status 1 when a check is refused")
+                   help="check every check: its reference passes its public cases and computes its hidden cases "
+                        "(over --seeds draws), every mistake differs from the reference and from every other "
+                        "mistake on some case; exit status 1 when a check is refused")
+    p.add_argument("--seeds", type=_positive_int, default=200,
+                   help="with --validate: how many draws of hidden cases to examine per check (default 200)")
     p.set_defaults(func=_cmd_list)
 
     p = sub.add_parser("new", help="scaffold an exercise of your own course package")
