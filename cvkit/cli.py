@@ -206,6 +206,17 @@ def _summary(course, jobs) -> list[str]:
         late = f"{int(seconds // 3600)} h {int(seconds % 3600 // 60):02d} min"
         lines.append(f"late: {student} {assignment}: −{points:g} point{'s' * (points != 1)} (handed in {late} after "
                      f"the due date; the table shows the points before it)")
+    from .course.results import environment
+
+    for cause, per in sorted(environment(course, {a for _, a in jobs}).items()):
+        count = sum(len(students) for students in per.values())
+        chapters = sorted(per)
+        fix = ("reinstall the package that lacks this file where grading runs" if cause.startswith("FileNotFoundError")
+               else "install what the chapters need where grading runs (pip install \"cvkit[course]\" brings every "
+                    "chapter of cvkit's)")
+        lines.append(f"environment: {cause}: the cells as released of {', '.join(chapters)} failed in {count} "
+                     f"submission{'s' * (count != 1)}, not the students' doing: {fix}, then "
+                     "cvkit course grade " + " ".join(f"--regrade {c}" for c in chapters))
     from .grading import isolation
 
     note = None if isolation.sandbox_disabled() else isolation.limits_fallback()

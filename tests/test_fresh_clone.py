@@ -6,7 +6,13 @@ machine would): one as root under ``/tmp`` (the sandbox used to hide an environm
 by an ordinary local user (made by the test with ``useradd``, removed after) in their home
 folder with Debian's ``/usr/bin/python3``. Each must grade its sample submissions in the
 sandbox and finish without problems.
+
+Every chapter runs in the environment a course gets (issue #34, item 2): in the virtual
+environment the first run's ``scripts/demo`` created (``cvkit[course]``, nothing of the test
+suite's), *Run All* on every released chapter reaches its end
+(``tests/run_all_released.py``).
 """
+import json
 import os
 import subprocess
 import sys
@@ -44,16 +50,50 @@ def ordinary_user():
         remove_user(user)
 
 
-def test_the_demo_runs_from_a_fresh_clone_under_tmp():
+def _fresh_env() -> dict[str, str]:
+    """This process's environment without its virtual environment and cvkit's settings."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("VIRTUAL_ENV", "PYTHON", "CVKIT_"))}
+    env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep) if ".venv" not in p)
+    return env
+
+
+@pytest.fixture(scope="module")
+def demo_under_tmp():
+    """A fresh clone under /tmp and its ``scripts/demo`` run (which creates the clone's .venv)."""
     with tempfile.TemporaryDirectory(prefix="cvkit fresh clone ", dir="/tmp") as folder:
         kit = Path(folder) / "kit"
         _clone(kit)
-        env = {k: v for k, v in os.environ.items() if not k.startswith(("VIRTUAL_ENV", "PYTHON", "CVKIT_"))}
-        env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep) if ".venv" not in p)
-        done = subprocess.run([sys.executable, "scripts/demo", "--workers", "2"], cwd=kit, env=env,
+        done = subprocess.run([sys.executable, "scripts/demo", "--workers", "2"], cwd=kit, env=_fresh_env(),
                               capture_output=True, text=True, timeout=1500)
-        _demo_succeeded(done)
-        assert (kit / ".venv").is_dir() and (kit / "cvkit-demo" / "exports" / "grades.csv").is_file()
+        yield kit, done
+
+
+def test_the_demo_runs_from_a_fresh_clone_under_tmp(demo_under_tmp):
+    kit, done = demo_under_tmp
+    _demo_succeeded(done)
+    assert (kit / ".venv").is_dir() and (kit / "cvkit-demo" / "exports" / "grades.csv").is_file()
+
+
+def test_every_released_chapter_runs_all_in_the_demos_environment(demo_under_tmp, tmp_path):
+    """*Run All* on each released chapter, with the kernel of the .venv ``scripts/demo`` made:
+    a chapter that needs a package the course's environment lacks stops with its ImportError."""
+    kit, done = demo_under_tmp
+    python = kit / ".venv" / "bin" / "python"
+    assert python.is_file(), done.stdout[-2000:] + done.stderr[-2000:]
+    home = tmp_path / "home"  # no kernel of this user's own shadows the environment's
+    home.mkdir()
+    env = dict(_fresh_env(), HOME=str(home), MPLBACKEND="Agg", CVKIT_STUDENT_ID="student")
+    result = tmp_path / "run_all.json"
+    ran = subprocess.run([str(python), str(kit / "tests" / "run_all_released.py"), str(result), "2"], cwd=tmp_path,
+                         env=env, capture_output=True, text=True, timeout=1500)
+    assert ran.returncode == 0, ran.stdout[-2000:] + ran.stderr[-4000:]
+    found = json.loads(result.read_text())
+    assert Path(found["prefix"]).resolve() == (kit / ".venv").resolve() == Path(found["python_prefix"]).resolve()
+    chapters = found["chapters"]
+    assert sorted(chapters) == sorted(p.parent.name for p in (kit / "lectures").glob("ch*/*.ipynb"))
+    assert len(chapters) == 12
+    stopped = {chapter: problems for chapter, problems in chapters.items() if problems}
+    assert not stopped, "\n".join(f"{chapter}: {'; '.join(problems)}" for chapter, problems in sorted(stopped.items()))
 
 
 def test_the_demo_runs_for_an_ordinary_user_with_debians_python(ordinary_user):

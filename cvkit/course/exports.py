@@ -17,21 +17,29 @@ from typing import TYPE_CHECKING, Iterable
 
 from .._text import printable
 from .progress import Phase
-from .results import ExerciseScore, unsandboxed
+from .results import ExerciseScore, environment, unsandboxed
 
 if TYPE_CHECKING:
     from .course import Course
 
 
 def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str] | None = None,
-                 not_graded: dict[str, str] | None = None, unsandboxed: Iterable[str] = ()) -> str:
+                 not_graded: dict[str, str] | None = None, unsandboxed: Iterable[str] = (),
+                 environment: dict[str, list[str]] | None = None) -> str:
     """A plain-text table: one row per exercise, one column per student, totals, mistakes;
     then the submissions that could not be graded (``not_graded``: student → reason, never
-    shown as zeros) and a loud warning for those graded without the sandbox. Every text is
-    shown printable, on its line (see the module docstring)."""
+    shown as zeros), a loud warning for those graded without the sandbox, and one line per
+    thing the grading environment lacked (``environment``: cause → the students whose cells as
+    released it stopped). Every text is shown printable, on its line (see the module docstring)."""
     refused = sorted((printable(s), printable(reason)) for s, reason in (not_graded or {}).items())
     unsandboxed = sorted(printable(s) for s in unsandboxed)
     tail = []
+    if environment:
+        tail.append("\n!! Not the students' doing: the chapter's own cells (as released) failed in the grading "
+                    "environment; install what it needs where grading runs, then grade again with --regrade:")
+        for cause, who in sorted(environment.items()):
+            shown = ", ".join(printable(s) for s in who[:6]) + (f" and {len(who) - 6} more" if len(who) > 6 else "")
+            tail.append(f"  {printable(cause)}: in {len(who)} submission{'s' * (len(who) != 1)} ({shown})")
     if unsandboxed:
         tail.append("\n!! GRADED WITHOUT THE SANDBOX (--no-sandbox): student code ran with the grader's rights for "
                     + ", ".join(unsandboxed))
@@ -126,7 +134,9 @@ def table(course: Course, assignment: str) -> str:
     """See :meth:`Course.table`."""
     not_graded = {k.partition("/")[0]: v for k, v in course.not_graded().items() if k.endswith(f"/{assignment}")}
     graded_unsandboxed = sorted(k.partition("/")[0] for k in unsandboxed(course) if k.endswith(f"/{assignment}"))
-    return format_table(course.scores(assignment), not_graded=not_graded, unsandboxed=graded_unsandboxed)
+    lacking = {cause: per[assignment] for cause, per in environment(course, [assignment]).items() if assignment in per}
+    return format_table(course.scores(assignment), not_graded=not_graded, unsandboxed=graded_unsandboxed,
+                        environment=lacking)
 
 
 def export(course: Course, progress: bool = False) -> Path:

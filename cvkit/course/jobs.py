@@ -5,6 +5,7 @@ with the trusted checks, write feedback pages.
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -46,6 +47,89 @@ def extra_notebook_flags(files: dict[str, Any], releases: dict[str, Any] | None)
     graded = set(graded_names(files, releases))
     return [f"(notebook): {name} is not a notebook of this assignment: not run and not graded"
             for name in _notebook_names(files) if name not in graded]
+
+
+#: exceptions of a cell that mean the grading environment lacks something (a package, a file)
+_ENVIRONMENT_ERRORS = ("ModuleNotFoundError", "ImportError", "FileNotFoundError")
+_ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
+_CELL_FRAME = re.compile(r"\bCell In\s*\[(\d+)\]")
+_MISSING_PATH = re.compile(r"No such file or directory: '([^']+)'")
+
+
+def _installed_folders() -> list[Path]:
+    """The folders of the kit and of the installed packages: a file missing there is the
+    environment's, never the student's."""
+    import sysconfig
+
+    import cvkit
+
+    folders = [Path(cvkit.__file__).resolve().parent]
+    for key in ("purelib", "platlib"):
+        try:
+            folders.append(Path(sysconfig.get_paths()[key]).resolve())
+        except (KeyError, OSError):
+            continue
+    return list(dict.fromkeys(folders))
+
+
+def environment_problems(executed: dict[str, Any], release: dict[str, Any] | None) -> list[str]:
+    """What stopped cells of an executed notebook that is not the student's doing: a package
+    that cannot be imported (``ModuleNotFoundError``, ``ImportError``) or a file of the kit or
+    of an installed package that is missing (``FileNotFoundError`` for a path there).
+
+    Only cells as released count (the set-up and demo cells: not an answer cell, and its source
+    that of a cell of ``release``; with no release, only locked cells), and only when the error
+    was raised by that cell's own code or the libraries it called (the last notebook frame of
+    the traceback is the cell itself, not an answer the demo called).
+
+    Parameters
+    ----------
+    executed : dict
+        The notebook as executed in the sandbox (JSON).
+    release : dict or None
+        Its release notebook (JSON).
+
+    Returns
+    -------
+    list of str
+        One ``"<exception>: <first line of its message>"`` per cause, in the order met.
+    """
+    from ..grading.nbgrader_plugins import is_answer_cell
+
+    def text(cell: dict[str, Any]) -> str:
+        source = cell.get("source", "")
+        return source if isinstance(source, str) else "".join(source)
+
+    released = {text(c) for c in (release or {}).get("cells", []) if c.get("cell_type") == "code"}
+    folders: list[Path] | None = None
+    causes: list[str] = []
+    for cell in executed.get("cells", []):
+        if cell.get("cell_type") != "code" or is_answer_cell(cell):
+            continue
+        as_released = (text(cell) in released) if release is not None \
+            else bool(cell.get("metadata", {}).get("nbgrader", {}).get("locked"))
+        if not as_released:
+            continue
+        for output in cell.get("outputs", []):
+            name = output.get("ename") if output.get("output_type") == "error" else None
+            if name not in _ENVIRONMENT_ERRORS:
+                continue
+            frames = _CELL_FRAME.findall(_ANSI.sub("", "\n".join(map(str, output.get("traceback", [])))))
+            if frames and frames[-1] != str(cell.get("execution_count")):
+                continue  # raised in another cell's code (an answer the demo called)
+            value = str(output.get("evalue", "")).strip()
+            if name == "FileNotFoundError":
+                found = _MISSING_PATH.search(value)
+                if found is None:
+                    continue
+                folders = _installed_folders() if folders is None else folders
+                path = Path(found.group(1))
+                if not path.is_absolute() or not any(path.resolve().is_relative_to(f) for f in folders):
+                    continue
+            cause = f"{name}: {value.splitlines()[0] if value else ''}".rstrip(": ")[:300]
+            if cause not in causes:
+                causes.append(cause)
+    return causes
 
 
 def execute_submission(project: Any, student: str, assignment: str, files: dict[str, bytes],
@@ -164,7 +248,11 @@ def grade_submission(project: Any, student: str, assignment: str, files: dict[st
         try:
             nb = nbformat.reads(text, as_version=4)
             source = json.loads(sources[name]) if name in sources else None
+            # read before the trusted checks replace the test cells' outputs
+            environment = environment_problems(json.loads(text), releases_nb.get(name)) if executed.ok else []
             apply_trusted_checks(nb, student=student, salt=salt, source_notebook=source, memory_mb=memory_mb)
+            if environment:
+                nb.metadata["cvkit"] = dict(nb.metadata.get("cvkit", {}), environment=environment)
             notes = list(extra)
             if not executed.ok:
                 notes.append("(notebook): the notebook could not run to the end in the sandbox; graded from its answers")

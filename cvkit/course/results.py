@@ -118,6 +118,28 @@ def notebook_flags(path: Path) -> list[str]:
     return flags
 
 
+def environment(course: Course, assignments: Iterable[str]) -> dict[str, dict[str, list[str]]]:
+    """What the grading environment lacked when the submissions of ``assignments`` ran: cause
+    → assignment → the students whose notebook's cells as released it stopped
+    (:func:`cvkit.course.jobs.environment_problems`, kept in the autograded notebooks'
+    ``metadata.cvkit.environment``). Not the students' doing: the instructor fixes the
+    environment and regrades."""
+    found: dict[str, dict[str, list[str]]] = {}
+    for assignment in sorted(set(assignments)):
+        for folder in sorted((course.root / "autograded").glob(f"*/{assignment}")):
+            student = folder.parent.name
+            for path in sorted(folder.glob("*.ipynb")):
+                try:
+                    causes = json.loads(path.read_text()).get("metadata", {}).get("cvkit", {}).get("environment", [])
+                except (OSError, ValueError, AttributeError):
+                    continue
+                for cause in causes if isinstance(causes, list) else []:
+                    students = found.setdefault(str(cause), {}).setdefault(assignment, [])
+                    if student not in students:
+                        students.append(student)
+    return {cause: {a: sorted(s, key=student_order) for a, s in per.items()} for cause, per in found.items()}
+
+
 def reported_findings(folder: Path) -> dict[str, list[tuple[str, str]]]:
     """What the trusted checks found in the graded notebooks of ``folder``, per test cell.
 
