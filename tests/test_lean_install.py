@@ -42,3 +42,35 @@ def test_a_function_that_needs_scipy_imports_it_when_called():
             "print(before, 'scipy.fft' in sys.modules, abs(out[100, 100] - direct) < 1e-9)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.split() == ["False", "True", "True"]
+
+
+def _extras_closure(extras: dict[str, list[str]], name: str) -> set[str]:
+    """``name`` and every extra it brings along through ``cvkit[...]`` requirements."""
+    found, todo = set(), [name]
+    while todo:
+        extra = todo.pop()
+        if extra in found:
+            continue
+        found.add(extra)
+        for requirement in extras.get(extra, []):
+            if requirement.replace(" ", "").startswith("cvkit["):
+                todo += requirement.split("[", 1)[1].split("]", 1)[0].split(",")
+    return found
+
+
+def test_a_course_gets_what_every_chapter_needs_and_the_scripts_know_it():
+    """``cvkit[course]`` (what ``scripts/demo`` and ``scripts/lab`` install, and a course's hub)
+    brings the sample images (``data``) and Chapters 9-12's digits (``learn``: scikit-learn);
+    ``scripts/_venv.py``'s record of what each extra brings along is pyproject.toml's."""
+    import importlib.util
+
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    assert {"course", "data", "learn"} <= _extras_closure(extras, "course")
+    assert any(d.startswith("scikit-learn") for d in extras["learn"])
+    spec = importlib.util.spec_from_file_location("cvkit_scripts_venv", ROOT / "scripts" / "_venv.py")
+    venv = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(venv)
+    for extra, brought in venv._INCLUDES.items():
+        assert brought == _extras_closure(extras, extra), extra
+    for script in ("demo", "lab"):
+        assert 'extras="course"' in (ROOT / "scripts" / script).read_text(), script
