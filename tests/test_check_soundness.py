@@ -5,6 +5,7 @@ and the reference's warnings are reported naming the case, never written to stan
 cvkit's own checks all pass the same validation (on fewer seeds than the command's 200:
 ``tests/test_hidden_cases_reference.py`` sweeps the references over 200)."""
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -190,3 +191,26 @@ def test_every_builtin_check_passes_the_validation():
             warned.add(algorithm_id)
     assert refused == {}
     assert warned <= WARNING_ON_PURPOSE, warned - WARNING_ON_PURPOSE
+
+
+def test_nothing_of_the_references_warnings_reaches_stderr_outside_pytest(packages):
+    """In a plain Python process (pytest would catch the warnings itself): the command, and a
+    student's first check of the package's exercise (which validates the check's public cases)."""
+    import os
+    import subprocess
+    import sys
+
+    site = next(p for p in sys.path if p.endswith("site") and Path(p, "warncourse_pkg.py").is_file())
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([site, os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
+    programs = {
+        "the command": "import sys\nfrom cvkit.cli import main\n"
+                       "sys.exit(main(['list', 'warncourse', '--validate', '--seeds', '2']))",
+        "a student's check": "import numpy as np\nfrom cvkit.grading import check\n"
+                             "check('warncourse.double', lambda x: 2.0 * np.asarray(x, dtype=float))",
+    }
+    for what, program in programs.items():
+        done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, env=env, timeout=300)
+        assert done.returncode == 0, (what, done.stdout[-2000:], done.stderr[-2000:])
+        assert done.stderr == "", (what, done.stderr[-2000:])
+        assert "only an approximation" not in done.stdout or what == "the command", (what, done.stdout)
+    assert "passed" in done.stdout  # the student's check ran and passed
