@@ -38,8 +38,8 @@ def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str]
         tail.append("\n!! Not the students' doing: the chapter's own cells (as released) failed in the grading "
                     "environment; install what it needs where grading runs, then grade again with --regrade:")
         for cause, who in sorted(environment.items()):
-            shown = ", ".join(printable(s) for s in who[:6]) + (f" and {len(who) - 6} more" if len(who) > 6 else "")
-            tail.append(f"  {printable(cause)}: in {len(who)} submission{'s' * (len(who) != 1)} ({shown})")
+            named = ", ".join(printable(s) for s in who[:6]) + (f" and {len(who) - 6} more" if len(who) > 6 else "")
+            tail.append(f"  {printable(cause)}: in {len(who)} submission{'s' * (len(who) != 1)} ({named})")
     if unsandboxed:
         tail.append("\n!! GRADED WITHOUT THE SANDBOX (--no-sandbox): student code ran with the grader's rights for "
                     + ", ".join(unsandboxed))
