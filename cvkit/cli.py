@@ -382,6 +382,12 @@ def _cmd_demo(args) -> int:
         if got != 0:
             print(f"!! sample_blank scored {got} on {a}, expected 0")
             status = 1
+    from .course.results import environment
+
+    for cause, per in sorted(environment(course, assignments).items()):
+        # the demo's own environment must run every cell of its chapters as released
+        print(f"!! the grading environment lacks what {', '.join(sorted(per))} need: {cause}")
+        status = 1
     print(f"\ndemo finished in {time.perf_counter() - start:.0f} s" + ("" if status == 0 else " WITH PROBLEMS"))
     return status
 
