@@ -214,3 +214,28 @@ def test_nothing_of_the_references_warnings_reaches_stderr_outside_pytest(packag
         assert done.stderr == "", (what, done.stderr[-2000:])
         assert "only an approximation" not in done.stdout or what == "the command", (what, done.stdout)
     assert "passed" in done.stdout  # the student's check ran and passed
+
+
+def test_a_generator_that_warns_is_noted_not_refused(packages):
+    """The hidden-case generator's own warnings are caught too, and noted naming the seed."""
+    import warnings as w
+
+    from cvkit.grading import Case, Check, close
+
+    def warning_draw(rng):
+        w.warn("drawn from a coarse grid", UserWarning)
+        return [Case((rng.uniform(1.0, 2.0, 3),), {}, "random values")]
+
+    record = registry.get("soundcourse.double")
+    spec = record.check
+    saved = record._check
+    record._check = Check(public=spec.public, hidden=warning_draw, compare=spec.compare, mistakes=spec.mistakes)
+    try:
+        with w.catch_warnings():
+            w.simplefilter("error")  # a warning that escaped would raise here
+            found = soundness("soundcourse.double", seeds=2)
+    finally:
+        record._check = saved
+    assert found.problems == []
+    assert len(found.notes) == 2 and all("drawing the hidden cases warned UserWarning: drawn from a coarse grid" in n
+                                         for n in found.notes)

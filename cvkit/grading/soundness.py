@@ -71,12 +71,18 @@ def _reference(function: Callable, spec: Check, case: Case) -> tuple[Any, list[s
     with registry.use(registry.REFERENCE), warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         value = bind_call(spec.call, function)(*copy.deepcopy(case.args), **copy.deepcopy(case.kwargs))
-    said = []
+    return value, _said(caught)
+
+
+def _said(caught: list) -> list[str]:
+    """Caught warnings as ``"<category>: <first line>"``, without repeats."""
+    said: list[str] = []
     for warning in caught:
-        text = f"{warning.category.__name__}: {str(warning.message).strip().splitlines()[0] if str(warning.message).strip() else ''}"
+        message = str(warning.message).strip()
+        text = f"{warning.category.__name__}: {message.splitlines()[0] if message else ''}".rstrip(": ")
         if text not in said:
-            said.append(text.rstrip(": "))
-    return value, said
+            said.append(text)
+    return said
 
 
 def _mistake(mistake: Mistake, spec: Check, case: Case) -> Any:
@@ -193,7 +199,14 @@ def soundness(algorithm_id: str, *, seeds: int = DEFAULT_SEEDS, salt: str = SALT
         seed = hidden_seed(algorithm_id, student=student, salt=salt)
         where = f"seed {seed} (student {student!r}, salt {salt!r}): hidden"
         try:
-            cases = spec.hidden_cases(np.random.default_rng(seed))
+            with warnings.catch_warnings(record=True) as caught:  # the generator's: never on stderr
+                warnings.simplefilter("always")
+                cases = spec.hidden_cases(np.random.default_rng(seed))
+            if caught:
+                counts["warned"] += 1
+                if len(warned) < 5:
+                    warned.append(f"seed {seed} (student {student!r}, salt {salt!r}): drawing the hidden cases "
+                                  f"warned {_said(caught)[0]}")
         except Exception as error:  # noqa: BLE001
             counts["undrawable"] += 1
             if len(undrawable) < 5:
