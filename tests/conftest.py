@@ -48,7 +48,7 @@ def grading_sandbox():
 # running while the other sits idle. Files not listed follow in their collection order.
 LONGEST_FILES = {
     "tests/test_hidden_cases_reference.py": 490,
-    "tests/test_fresh_clone.py": 220,  # + Run All of every released chapter in the demo's .venv (70 s, 2026-12-06)
+    "tests/test_fresh_clone.py": 375,  # two demos (150 s each) + Run All of every released chapter (70 s), 2026-12-06
     "tests/test_browser.py": 160,
     "tests/test_notebooks.py": 150,
     "tests/test_release.py": 145,
