@@ -3,6 +3,7 @@
     cvkit list [NAMESPACE]          algorithms, sections, packages, providers, check sizes
     cvkit list --validate           ... and whether each check is sound (reference, hidden cases, mistakes)
     cvkit list --markdown           the catalog of cvkit's algorithms (docs/catalog.md)
+    cvkit new course DIR            a course folder of its own (cvkit's chapters you choose, yours)
     cvkit new exercise ID           scaffold an exercise of an instructor's course package
     cvkit course build              nbgrader generate_assignment for the chapters
     cvkit course grade              autograde all submissions in parallel, feedback, CSV, table
@@ -162,8 +163,26 @@ def _cmd_new_exercise(args) -> int:
 
 def _course(args):
     from .course import Course
+    from .course.new_course import is_course_folder
 
-    return Course(Path(args.course_dir) if args.course_dir else None, db_url=args.db_url)
+    folder = args.course_dir or next((str(p) for p in (Path.cwd(), *Path.cwd().parents) if is_course_folder(p)), None)
+    return Course(Path(folder) if folder else None, db_url=args.db_url)
+
+
+def _cmd_new_course(args) -> int:
+    from .course.new_course import CourseFolderError, new_course
+
+    try:
+        written = new_course(args.dir, args.chapter or [], args.course_id)
+    except CourseFolderError as error:
+        print(f"cvkit new course: {error}", file=sys.stderr)
+        return 2
+    for path in written:
+        print(f"wrote {path}")
+    folder = Path(args.dir).resolve()
+    print(f"next: cd {folder}; edit plan.toml (due dates, late policy); cvkit course build; after the hand-ins: "
+          "cvkit course grade (docs/own-course.md)")
+    return 0
 
 
 def _cmd_build(args) -> int:
@@ -493,8 +512,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --validate: how many draws of hidden cases to examine per check (default 200)")
     p.set_defaults(func=_cmd_list)
 
-    p = sub.add_parser("new", help="scaffold an exercise of your own course package")
+    p = sub.add_parser("new", help="a course folder of your own, or an exercise of your course package")
     nsub = p.add_subparsers(dest="new_command", required=True)
+    p = nsub.add_parser("course", help="a course folder of its own, with cvkit's chapters you choose (or add them)")
+    p.add_argument("dir", help="the course folder (new or empty; or one made by this command, to add chapters)")
+    p.add_argument("--chapter", action="append", metavar="CHAPTER",
+                   help="one of cvkit's chapters, e.g. ch03_filtering (repeatable; 'all' for every one)")
+    p.add_argument("--course-id", help="nbgrader's course id (default: the folder's name)")
+    p.set_defaults(func=_cmd_new_course)
     p = nsub.add_parser("exercise", help="reference stub, check, mistake and notebook cells of a new exercise")
     p.add_argument("id", help="<course>.<name>, e.g. mycourse.gamma_correction")
     p.add_argument("--package", default=".", help="the course package folder (default: here); made if missing")
@@ -502,7 +527,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_new_exercise)
 
     def course_options(p):
-        p.add_argument("--course-dir", help="course folder (default: the project's autograders/)")
+        p.add_argument("--course-dir", help="course folder (default: the course folder you are in, made by cvkit new "
+                                            "course; else the project's autograders/)")
         p.add_argument("--db-url", help="gradebook SQLAlchemy URL (default: SQLite in the course folder)")
         p.add_argument("--assignment", action="append", help="only this assignment (repeatable)")
 

@@ -33,6 +33,7 @@ from .._text import differences, name_problem, printable, skeleton
 from ..grading.isolation import collect_files
 from . import exports, jobs, parallel, results, samples
 from .journal import Journal
+from .new_course import is_course_folder
 from .plan import Plan, not_in_plan, plan_path, read_plan, sync_due_dates
 from .progress import Phase
 from .stamps import checks_fingerprint, due_stamp, late_stamp
@@ -71,6 +72,8 @@ def _project_of(root: str | os.PathLike[str] | None) -> Path | None:
     whose configuration its generated ``nbgrader_config.py`` loads (None when there is none)."""
     if root is None:
         return None
+    if is_course_folder(root):  # a course folder of its own: it needs no checkout
+        return Path(root)
     try:
         text = (Path(root) / "nbgrader_config.py").read_text()
     except OSError:
@@ -189,8 +192,16 @@ class Course:
 
     # ------------------------------------------------------------------ folder and plan
     @property
+    def self_contained(self) -> bool:
+        """A course folder of its own (``cvkit new course``): its chapters are its ``source/``, its
+        plan its ``plan.toml``; nothing of a cvkit checkout is read."""
+        return is_course_folder(self.root)
+
+    @property
     def source_dir(self) -> Path:
-        return self.project / "lectures"
+        """The chapters' source notebooks: ``source/`` of a course folder of its own, else the
+        checkout's ``lectures/``."""
+        return self.root / "source" if self.self_contained else self.project / "lectures"
 
     @property
     def plan_path(self) -> Path:
@@ -201,8 +212,16 @@ class Course:
     def plan(self) -> Plan:
         """The course plan (:class:`~cvkit.course.plan.Plan`): assignments, due dates, late policy.
         Without a plan file, every chapter of ``lectures/`` without due dates."""
+        if self.self_contained and not (self.root / "plan.toml").is_file():
+            raise FileNotFoundError(f"the course folder {self.root} has no plan.toml: write one (its chapters, due "
+                                    f"dates and late policy; docs/own-course.md), or run cvkit new course {self.root} "
+                                    "again to make it")
         chapters = [p.name for p in sorted(self.source_dir.glob("ch*_*")) if p.is_dir()]
         return read_plan(self.plan_path, chapters)
+
+    def missing_chapters(self) -> list[str]:
+        """Chapters the plan lists that have no folder in :attr:`source_dir`."""
+        return [a for a in self.plan().ids() if not (self.source_dir / a).is_dir()]
 
     def assignments(self) -> list[str]:
         """Assignment ids of the plan that have a source folder in ``lectures/``."""
@@ -326,6 +345,11 @@ class Course:
         """nbgrader's ``generate_assignment`` for each chapter (in this process, configured by the
         course's ``nbgrader_config.py``), after the gradebook's due dates are made the plan's."""
         chosen = list(assignments or self.assignments())
+        missing = [a for a in (chosen if assignments else self.plan().ids()) if not (self.source_dir / a).is_dir()]
+        if missing:
+            raise FileNotFoundError(f"{self.plan().name} names {', '.join(missing)}, but {self.source_dir} has no such "
+                                    f"chapter folder: add its notebook there (source/<chapter>/<chapter>.ipynb), or "
+                                    f"take it out of the plan")
         self.sync_due_dates()
         if not chosen:
             return chosen
