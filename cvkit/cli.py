@@ -10,6 +10,7 @@
     cvkit course grade --regrade CHAPTER    ... and regrade a chapter (after a due date or check changed)
     cvkit course table              the grade table of what has been graded
     cvkit course refresh            after marking in the formgrader: pages and exports, without grading
+    cvkit course collect            hand-ins from nbgrader's exchange, an LMS download or one notebook
     cvkit demo                      the whole pipeline on three sample submissions of a few chapters
     cvkit demo --all                ... of every chapter
     cvkit hub init                  a JupyterHub for one or more courses (run as root; docs/deploy-jupyterhub.md)
@@ -19,6 +20,7 @@
 from __future__ import annotations
 
 import argparse
+import datetime as _dt
 import os
 import sys
 import time
@@ -163,9 +165,10 @@ def _cmd_new_exercise(args) -> int:
 
 def _course(args):
     from .course import Course
-    from .course.new_course import is_course_folder
+    from .course.course import _project_of
 
-    folder = args.course_dir or next((str(p) for p in (Path.cwd(), *Path.cwd().parents) if is_course_folder(p)), None)
+    # a course folder cvkit made (cvkit new course, cvkit hub init, --course-dir): the one we are in
+    folder = args.course_dir or next((str(p) for p in (Path.cwd(), *Path.cwd().parents) if _project_of(p)), None)
     return Course(Path(folder) if folder else None, db_url=args.db_url)
 
 
@@ -331,6 +334,34 @@ def _cmd_refresh(args) -> int:
           + (f" ({', '.join(f'{s}/{a}' for s, a in pages)})" if pages else "")
           + f"; exports: {course.root / 'exports'}; marks: {course.root / '.cvkit' / 'marks.log'}")
     return 0
+
+
+def _cmd_collect(args) -> int:
+    from .course.collect import collect_exchange, collect_files
+    from .course.plan import parse_due
+
+    course = _course(args)
+    if not args.assignment or len(args.assignment) != 1:
+        raise ValueError("say which chapter the hand-ins are for: --assignment CHAPTER (one)")
+    assignment = args.assignment[0]
+    if args.source is None:
+        if args.student or args.pattern or args.roster or args.received_at:
+            raise ValueError("--student, --pattern, --roster and --received-at describe a download: give it with "
+                             "--from ZIP_OR_FOLDER_OR_NOTEBOOK")
+        result = collect_exchange(course, assignment, update=args.update)
+    else:
+        when = None
+        if args.received_at:
+            due = parse_due(args.received_at, "--received-at")
+            when = due.replace(tzinfo=_dt.timezone.utc) if due is not None else None
+        result = collect_files(course, assignment, args.source, student=args.student, pattern=args.pattern,
+                               roster=args.roster, received_at=when, update=args.update)
+    for line in result.lines():
+        _show(line)
+    print(f"{len(result.imported)} hand-in{'s' * (len(result.imported) != 1)} collected into "
+          f"{course.root / 'submitted'}" + (f"; {len(result.refused)} refused (above)" if result.refused else "")
+          + ("; next: cvkit course grade" if result.imported else ""))
+    return 1 if result.refused else 0
 
 
 def _cmd_table(args) -> int:
@@ -527,8 +558,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_new_exercise)
 
     def course_options(p):
-        p.add_argument("--course-dir", help="course folder (default: the course folder you are in, made by cvkit new "
-                                            "course; else the project's autograders/)")
+        p.add_argument("--course-dir", help="course folder (default: the course folder cvkit made that you are in; "
+                                            "else the project's autograders/)")
         p.add_argument("--db-url", help="gradebook SQLAlchemy URL (default: SQLite in the course folder)")
         p.add_argument("--assignment", action="append", help="only this assignment (repeatable)")
 
@@ -553,6 +584,20 @@ def build_parser() -> argparse.ArgumentParser:
     p = csub.add_parser("table", help="print the grade table")
     course_options(p)
     p.set_defaults(func=_cmd_table)
+    p = csub.add_parser("collect", help="hand-ins into the course: from nbgrader's exchange, an LMS download "
+                                        "(zip or folder) or one student's notebook")
+    course_options(p)
+    p.add_argument("--from", dest="source", metavar="PATH",
+                   help="a zip or folder downloaded from the LMS (Canvas, Moodle, or one folder per student), or one "
+                        "notebook (with --student); without it: nbgrader's exchange")
+    p.add_argument("--student", help="every file of --from is this student's")
+    p.add_argument("--pattern", help="how the download names files: a regular expression with the groups "
+                                     "(?P<student_id>...) and (?P<file_id>...)")
+    p.add_argument("--roster", help="a CSV with the columns lms and student_id: the LMS's names to your students' ids")
+    p.add_argument("--received-at", metavar="TIME",
+                   help="when the hand-ins arrived, e.g. '2027-03-01 23:10:00 UTC' (default: now)")
+    p.add_argument("--update", action="store_true", help="replace hand-ins collected before with newer files")
+    p.set_defaults(func=_cmd_collect)
     p = csub.add_parser("refresh", help="after marking in the formgrader: write the pages whose marks changed "
                                         "and the exports again, without grading")
     course_options(p)

@@ -473,7 +473,7 @@ def semester(hub):
         hub.run_as("cyd", "nbgrader", "submit", ASSIGNMENT, "--course", COURSE)
 
     # the instructor: collect, grade (sandboxed, as the instructor), release the feedback
-    seen["collect"] = hub.run_as("ins", "nbgrader", "collect", ASSIGNMENT, cwd=course)
+    seen["collect"] = hub.run_as("ins", "cvkit", "course", "collect", "--assignment", ASSIGNMENT, cwd=course)
     seen["grade"] = hub.run_as("ins", "cvkit", "course", "grade", "--course-dir", ".", "--workers", "2", cwd=course)
     seen["marked"] = mark_written_answers(hub, users)
     # after marking written answers in the formgrader, the pages are written again by plain nbgrader
@@ -557,6 +557,9 @@ def test_students_see_their_own_courses_only(semester):
 def test_grades_penalty_and_named_mistake(semester):
     seen, users = semester["seen"], semester["users"]
     assert seen["ada submit"]["success"] is True
+    collected = seen["collect"].stdout  # cvkit course collect, from nbgrader's exchange
+    assert all(f"collected {users[r]}: {NOTEBOOK}" in collected for r in ("ada", "bob", "cyd")), collected
+    assert "3 hand-ins collected" in collected
     scores = seen["scores"]
     assert set(scores) == {users["ada"], users["bob"], users["cyd"]}
     # 3 points of checks, and the written answer the teaching assistant marked (MARKS)
