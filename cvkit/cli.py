@@ -223,11 +223,15 @@ def _summary(course, jobs) -> list[str]:
     from .course.results import late_penalties
 
     not_graded = course.not_graded()
+    plan = course.plan()
     for (student, assignment), (points, seconds) in late_penalties(
             course, [(s, a) for s, a in jobs if f"{s}/{a}" not in not_graded]).items():
         late = f"{int(seconds // 3600)} h {int(seconds % 3600 // 60):02d} min"
+        extension = plan.extension(student, assignment)
+        due = (f"their extended due date ({extension.until:%Y-%m-%d %H:%M} UTC)" if extension is not None
+               else "the due date")
         lines.append(f"late: {student} {assignment}: −{points:g} point{'s' * (points != 1)} (handed in {late} after "
-                     f"the due date; the table shows the points before it)")
+                     f"{due}; the table shows the points before it)")
     from .course.results import environment
 
     for cause, per in sorted(environment(course, {a for _, a in jobs}).items()):

@@ -25,15 +25,19 @@ if TYPE_CHECKING:
 
 def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str] | None = None,
                  not_graded: dict[str, str] | None = None, unsandboxed: Iterable[str] = (),
-                 environment: dict[str, list[str]] | None = None) -> str:
+                 environment: dict[str, list[str]] | None = None, extended: dict[str, str] | None = None) -> str:
     """A plain-text table: one row per exercise, one column per student, totals, mistakes;
     then the submissions that could not be graded (``not_graded``: student → reason, never
     shown as zeros), a loud warning for those graded without the sandbox, and one line per
     thing the grading environment lacked (``environment``: cause → the students whose cells as
-    released it stopped). Every text is shown printable, on its line (see the module docstring)."""
+    released it stopped), and the students whose due date the plan extends (``extended``: student →
+    until when). Every text is shown printable, on its line (see the module docstring)."""
     refused = sorted((printable(s), printable(reason)) for s, reason in (not_graded or {}).items())
     unsandboxed = sorted(printable(s) for s in unsandboxed)
     tail = []
+    if extended:
+        tail.append("\nExtensions (plan.toml; late penalties count from them):")
+        tail += [f"  {printable(s)}: extended to {until}" for s, until in sorted(extended.items())]
     if environment:
         tail.append("\n!! Not the students' doing: the chapter's own cells (as released) failed in the grading "
                     "environment; install what it needs where grading runs, then grade again with --regrade:")
@@ -135,8 +139,11 @@ def table(course: Course, assignment: str) -> str:
     not_graded = {k.partition("/")[0]: v for k, v in course.not_graded().items() if k.endswith(f"/{assignment}")}
     graded_unsandboxed = sorted(k.partition("/")[0] for k in unsandboxed(course) if k.endswith(f"/{assignment}"))
     lacking = {cause: per[assignment] for cause, per in environment(course, [assignment]).items() if assignment in per}
+    plan = course.plan()
+    extended = {e.student: f"{e.until:%Y-%m-%d %H:%M} UTC" + (f" ({e.reason})" if e.reason else "")
+                for e in plan.extensions if e.assignment == assignment}
     return format_table(course.scores(assignment), not_graded=not_graded, unsandboxed=graded_unsandboxed,
-                        environment=lacking)
+                        environment=lacking, extended=extended)
 
 
 def export(course: Course, progress: bool = False) -> Path:

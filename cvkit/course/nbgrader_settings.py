@@ -47,7 +47,8 @@ def configure(c: Any, root: str | os.PathLike[str], source: str | os.PathLike[st
     )
 
     from ..grading.nbgrader_plugins import (
-        HideHiddenTests, SafeFeedbackExporter, SandboxedExecute, SanitizeStudentContent, TrustedChecks,
+        HideHiddenTests, PlanExtensions, SafeFeedbackExporter, SandboxedExecute, SanitizeStudentContent,
+        TrustedChecks,
     )
     from ..grading.safety import mathjax_post_convert_hook
     from .plan import configure_nbgrader
@@ -99,7 +100,7 @@ def configure(c: Any, root: str | os.PathLike[str], source: str | os.PathLike[st
     # preserve_cell_metadata_mask and preserve_nb_metadata_mask
     c.Autograde.autograde_preprocessors = [
         SandboxedExecute, IgnorePattern, ClearMetadataPreprocessor, TrustedChecks, LimitOutput, SaveAutoGrades,
-        AssignLatePenalties, CheckCellMetadata,
+        PlanExtensions, AssignLatePenalties, CheckCellMetadata,
     ]
 
     # Feedback pages (cvkit.grading.safety): nothing the student controls can run in them

@@ -81,6 +81,27 @@ class LatePolicy:
 
 
 @dataclass(frozen=True)
+class Extension:
+    """One ``[[extension]]`` of the plan: ``student`` may hand ``assignment`` in until ``until``
+    (naive UTC) without a late penalty; nbgrader's gradebook records it as the submission's
+    ``extension`` (``until`` − the due date).
+
+    Attributes
+    ----------
+    student, assignment : str
+    until : datetime
+        The student's own due date, naive UTC, after the assignment's.
+    reason : str
+        Why (for the instructor's records; never shown to other students).
+    """
+
+    student: str
+    assignment: str
+    until: _dt.datetime
+    reason: str = ""
+
+
+@dataclass(frozen=True)
 class Plan:
     """A course plan read from ``plan.toml`` (:func:`read_plan`).
 
@@ -94,6 +115,11 @@ class Plan:
         The ``[course]`` table (both optional).
     path : Path or None
         Where the plan was read from (None: no plan file, every chapter of ``lectures/``).
+    extensions : tuple of Extension
+        Per-student due dates (``[[extension]]``).
+    timezone : str
+        The course's time zone (``[course] timezone``, an IANA name such as ``Europe/Berlin``):
+        the released notebooks show due dates in it and in UTC.
     """
 
     assignments: tuple[PlannedAssignment, ...] = ()
@@ -101,6 +127,17 @@ class Plan:
     course_id: str = ""
     title: str = ""
     path: Path | None = None
+    extensions: tuple[Extension, ...] = ()
+    timezone: str = "UTC"
+
+    def extension(self, student: str, assignment: str) -> Extension | None:
+        """The extension of ``student`` for ``assignment`` (None when they have none)."""
+        return next((e for e in self.extensions if e.student == student and e.assignment == assignment), None)
+
+    def due_for(self, student: str, assignment: str) -> _dt.datetime | None:
+        """``student``'s due date for ``assignment`` (naive UTC): their extension's, else the plan's."""
+        extended = self.extension(student, assignment)
+        return extended.until if extended is not None else self.due(assignment)
 
     def ids(self) -> list[str]:
         """The assignment ids, in the plan's order."""
@@ -246,6 +283,54 @@ def _assignments(entries: Any, name: str) -> tuple[PlannedAssignment, ...]:
     return tuple(planned)
 
 
+def _zone(name: str) -> Any:
+    import dateutil.tz
+
+    return dateutil.tz.UTC if name.upper() in ("UTC", "GMT", "Z") else dateutil.tz.gettz(name)
+
+
+def _extensions(entries: Any, assignments: tuple[PlannedAssignment, ...], name: str) -> tuple[Extension, ...]:
+    if not isinstance(entries, list):
+        raise ValueError(f"{name}: [[extension]] must be a list of tables (student, assignment, until or days)")
+    planned = {a.id: a for a in assignments}
+    found: list[Extension] = []
+    for number, entry in enumerate(entries, 1):
+        where = f"{name}: extension #{number}"
+        if not isinstance(entry, Mapping):
+            raise ValueError(f"{where} must be a table with student, assignment and until (or days)")
+        unknown = sorted(set(entry) - {"student", "assignment", "until", "days", "hours", "reason"})
+        if unknown:
+            raise ValueError(f"{where}: unknown key {unknown[0]!r} (student, assignment, until or days/hours, reason)")
+        student, assignment = entry.get("student"), entry.get("assignment")
+        if not isinstance(student, str) or not student.strip():
+            raise ValueError(f"{where}: student must be a student id, got {student!r}")
+        if assignment not in planned:
+            raise ValueError(f"{where} ({student}): assignment must be one of the plan's ({', '.join(planned)}), "
+                             f"got {assignment!r}")
+        due = planned[assignment].due
+        if due is None:
+            raise ValueError(f"{where} ({student}, {assignment}): {assignment} has no due date to extend")
+        if ("until" in entry) == ("days" in entry or "hours" in entry):
+            raise ValueError(f"{where} ({student}, {assignment}): give until = \"2027-03-05 23:59:00 UTC\", or "
+                             "days (and/or hours) after the due date — one of them")
+        if "until" in entry:
+            until = parse_due(entry["until"], f"{where} ({student}, {assignment}) until")
+        else:
+            amounts = [entry.get(k, 0) for k in ("days", "hours")]
+            if not all(isinstance(a, (int, float)) and not isinstance(a, bool) for a in amounts):
+                raise ValueError(f"{where} ({student}, {assignment}): days and hours must be numbers, got {amounts}")
+            until = due + _dt.timedelta(days=amounts[0], hours=amounts[1])
+        assert until is not None
+        if until <= due:
+            raise ValueError(f"{where} ({student}, {assignment}): the extension ends {until:%Y-%m-%d %H:%M} UTC, not "
+                             f"after the due date {due:%Y-%m-%d %H:%M} UTC")
+        if any(e.student == student and e.assignment == assignment for e in found):
+            raise ValueError(f"{where}: {student} has two extensions for {assignment}: keep one")
+        reason = entry.get("reason", "")
+        found.append(Extension(student, str(assignment), until, reason if isinstance(reason, str) else str(reason)))
+    return tuple(found)
+
+
 def read_plan(path: str | os.PathLike[str], chapters: Iterable[str] = ()) -> Plan:
     """Read and check a ``plan.toml``.
 
@@ -281,8 +366,13 @@ def read_plan(path: str | os.PathLike[str], chapters: Iterable[str] = ()) -> Pla
     if "id" in course and (not isinstance(course["id"], str) or not _ID.match(course["id"])):
         raise ValueError(f"{name}: [course] id must be letters, digits, '_', '.' and '-' (nbgrader's course id, "
                          f"a folder name of its exchange), got {course['id']!r}")
-    return Plan(_assignments(data.get("assignment", []), name), _late_policy(data.get("late"), name),
-                str(course.get("id", "")), str(course.get("title", "")), path)
+    zone = course.get("timezone", "UTC")
+    if not isinstance(zone, str) or _zone(zone) is None:
+        raise ValueError(f"{name}: [course] timezone must be a time zone name such as \"Europe/Berlin\" or \"UTC\", "
+                         f"got {zone!r}")
+    assignments = _assignments(data.get("assignment", []), name)
+    return Plan(assignments, _late_policy(data.get("late"), name), str(course.get("id", "")),
+                str(course.get("title", "")), path, _extensions(data.get("extension", []), assignments, name), zone)
 
 
 def _toml_string(text: str) -> str:
@@ -315,6 +405,8 @@ def plan_toml(plan: Plan, course_id: str | None = None) -> str:
     lines = ["[course]", f"id = {_toml_string(course_id or plan.course_id)}"]
     if plan.title:
         lines.append(f"title = {_toml_string(plan.title)}")
+    if plan.timezone != "UTC":
+        lines.append(f"timezone = {_toml_string(plan.timezone)}")
     for planned in plan.assignments:
         lines += ["", "[[assignment]]", f"id = {_toml_string(planned.id)}"]
         if planned.title:
@@ -323,6 +415,11 @@ def plan_toml(plan: Plan, course_id: str | None = None) -> str:
             lines.append(f"due = \"{planned.due:%Y-%m-%d %H:%M:%S} UTC\"")
     lines += ["", "[late]", f"policy = {_toml_string(plan.late.policy)}",
               f"points_per_hour = {plan.late.points_per_hour!r}"]
+    for extension in plan.extensions:
+        lines += ["", "[[extension]]", f"student = {_toml_string(extension.student)}",
+                  f"assignment = {_toml_string(extension.assignment)}", f"until = \"{extension.until:%Y-%m-%d %H:%M:%S} UTC\""]
+        if extension.reason:
+            lines.append(f"reason = {_toml_string(extension.reason)}")
     return "\n".join(lines) + "\n"
 
 
@@ -432,8 +529,9 @@ def configure_nbgrader(c: Any, root: str | os.PathLike[str], project: str | os.P
 
     nbgrader's course id becomes the plan's ``[course] id`` when it has one, the gradebook's due
     dates become the plan's (:func:`sync_due_dates`, for the assignments with a folder in
-    ``source_dir``), and nbgrader's ``AssignLatePenalties`` uses
-    :class:`cvkit.grading.nbgrader_plugins.LatePenalty` with the plan's ``[late]`` policy.
+    ``source_dir``), nbgrader's ``AssignLatePenalties`` uses
+    :class:`cvkit.grading.nbgrader_plugins.LatePenalty` with the plan's ``[late]`` policy, and
+    :class:`~cvkit.grading.nbgrader_plugins.PlanExtensions` records the plan's extensions.
 
     Parameters
     ----------
@@ -461,4 +559,18 @@ def configure_nbgrader(c: Any, root: str | os.PathLike[str], project: str | os.P
     c.AssignLatePenalties.plugin_class = LatePenalty
     c.LatePenalty.policy = plan.late.policy
     c.LatePenalty.points_per_hour = plan.late.points_per_hour
+    c.PlanExtensions.extensions = {f"{e.student}/{e.assignment}": f"{e.until:%Y-%m-%d %H:%M:%S}" for e in plan.extensions}
+    # the released notebooks say when they are due and what lateness costs
+    from ..grading.nbgrader_plugins import DueDateNotice, late_policy_sentence
+
+    c.DueDateNotice.due = {a.id: f"{a.due:%Y-%m-%d %H:%M:%S}" for a in plan.assignments if a.due is not None}
+    c.DueDateNotice.timezone = plan.timezone
+    c.DueDateNotice.late = late_policy_sentence(plan.late.policy, plan.late.points_per_hour)
+    if DueDateNotice not in (c.GenerateAssignment.preprocessors if "preprocessors" in c.GenerateAssignment else []):
+        from nbgrader.converters import GenerateAssignment
+
+        steps = list(c.GenerateAssignment.preprocessors if "preprocessors" in c.GenerateAssignment
+                     else GenerateAssignment.class_traits()["preprocessors"].default())
+        steps.insert(steps.index(next(s for s in steps if s.__name__ == "ClearOutput")) + 1, DueDateNotice)
+        c.GenerateAssignment.preprocessors = steps
     return plan

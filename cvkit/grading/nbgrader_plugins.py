@@ -25,7 +25,7 @@ from nbformat import NotebookNode
 from nbformat.v4 import new_output
 from nbgrader.plugins import LateSubmissionPlugin
 from nbgrader.preprocessors import NbGraderPreprocessor
-from traitlets import Bool, Enum, Float, Int, Unicode
+from traitlets import Bool, Dict, Enum, Float, Int, Unicode
 
 from .report import MIME_TYPE, Report
 from .runtime import cells
@@ -125,6 +125,39 @@ class LatePenalty(LateSubmissionPlugin):
         return min(float(score), hours * float(self.points_per_hour))
 
 
+class PlanExtensions(NbGraderPreprocessor):
+    """The plan's per-student extensions (``[[extension]]`` of ``plan.toml``) into nbgrader's
+    gradebook, before ``AssignLatePenalties`` (set by :func:`cvkit.course.plan.configure_nbgrader`).
+
+    nbgrader keeps an extension per submission (``SubmittedAssignment.extension``) and counts a
+    submission late only after the due date plus its extension; its formgrader shows it. This
+    step makes the recorded extension the plan's for the notebook's student and assignment (and
+    removes one the plan no longer gives), so the late penalty, the gradebook and the table agree.
+    """
+
+    enabled = Bool(True).tag(config=True)
+    extensions = Dict(help="'student/assignment' → the student's own due date, 'YYYY-MM-DD HH:MM:SS' (UTC)"
+                      ).tag(config=True)
+
+    def preprocess(self, nb, resources):
+        import datetime as dt
+
+        from nbgrader.api import Gradebook
+
+        info = resources["nbgrader"]
+        until = self.extensions.get(f"{info['student']}/{info['assignment']}")
+        with Gradebook(info["db_url"]) as gradebook:
+            submission = gradebook.find_submission(info["assignment"], info["student"])
+            due = submission.assignment.duedate
+            extension = None
+            if until and due is not None:
+                extension = max(dt.datetime.strptime(until, "%Y-%m-%d %H:%M:%S") - due, dt.timedelta(0)) or None
+            if submission.extension != extension:
+                submission.extension = extension
+                gradebook.db.commit()
+        return nb, resources
+
+
 class SandboxedExecute(NbGraderPreprocessor):
     """nbgrader's *Execute* step, in the grading sandbox (:func:`cvkit.grading.execute.execute_in_sandbox`).
 
@@ -159,6 +192,54 @@ class SandboxedExecute(NbGraderPreprocessor):
 
     def preprocess_cell(self, cell, resources, index):  # pragma: no cover - whole-notebook preprocessor
         return cell, resources
+
+
+class DueDateNotice(NbGraderPreprocessor):
+    """A step of ``generate_assignment``: the released notebook says, right after its title, when
+    it is due — in the course's time zone and in UTC — and what a late hand-in costs (the plan's
+    ``[late]`` policy), so students need not look it up elsewhere. Set by
+    :func:`cvkit.course.plan.configure_nbgrader`; a chapter without a due date gets no notice.
+    The cell is Markdown, read-only, marked ``metadata.cvkit.notice = "due"``."""
+
+    enabled = Bool(True).tag(config=True)
+    due = Dict(help="assignment → due date 'YYYY-MM-DD HH:MM:SS' (UTC)").tag(config=True)
+    timezone = Unicode("UTC", help="the course's time zone (IANA name)").tag(config=True)
+    late = Unicode("", help="what a late hand-in costs, in a sentence").tag(config=True)
+
+    def preprocess(self, nb, resources):
+        import datetime as dt
+
+        import dateutil.tz
+        from nbformat.v4 import new_markdown_cell
+
+        due = self.due.get(resources.get("nbgrader", {}).get("assignment", ""))
+        if not due:
+            return nb, resources
+        moment = dt.datetime.strptime(due, "%Y-%m-%d %H:%M:%S").replace(tzinfo=dt.timezone.utc)
+        zone = self.timezone if self.timezone.upper() not in ("UTC", "GMT", "Z") else "UTC"
+        local = moment.astimezone(dateutil.tz.gettz(zone) or dt.timezone.utc)
+        when = f"{local:%A %-d %B %Y, %H:%M} {zone}" + ("" if zone == "UTC" else f" ({moment:%H:%M} UTC)")
+        text = (f"**Due: {when}.** {self.late} An extension your instructor gave you personally counts instead "
+                "of this date.").replace("  ", " ")
+        cell = new_markdown_cell(text, metadata={"cvkit": {"notice": "due"}, "editable": False, "deletable": False})
+        cell.pop("id", None)
+        at = 1 if nb.cells and nb.cells[0].cell_type == "markdown" else 0
+        nb.cells.insert(at, cell)
+        if nb.nbformat_minor >= 5:
+            import uuid
+
+            cell["id"] = f"cvkit-due-{uuid.uuid4().hex[:8]}"
+        return nb, resources
+
+
+def late_policy_sentence(policy: str, points_per_hour: float) -> str:
+    """What a late hand-in costs, for the released notebook (:class:`DueDateNotice`)."""
+    if policy == "zero":
+        return "A notebook handed in late scores zero."
+    if policy == "per_hour":
+        points = f"{points_per_hour:g} point{'s' * (points_per_hour != 1)}"
+        return f"A late hand-in loses {points} for every started hour after it (never more than it scored)."
+    return "A late hand-in is accepted without a penalty."
 
 
 class HideHiddenTests(NbGraderPreprocessor):
