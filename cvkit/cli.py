@@ -165,10 +165,10 @@ def _cmd_new_exercise(args) -> int:
 
 def _course(args):
     from .course import Course
-    from .course.course import _project_of
+    from .course.course import made_by_cvkit
 
     # a course folder cvkit made (cvkit new course, cvkit hub init, --course-dir): the one we are in
-    folder = args.course_dir or next((str(p) for p in (Path.cwd(), *Path.cwd().parents) if _project_of(p)), None)
+    folder = args.course_dir or next((str(p) for p in (Path.cwd(), *Path.cwd().parents) if made_by_cvkit(p)), None)
     return Course(Path(folder) if folder else None, db_url=args.db_url)
 
 

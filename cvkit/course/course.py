@@ -91,6 +91,12 @@ def _project_of(root: str | os.PathLike[str] | None) -> Path | None:
     return None
 
 
+def made_by_cvkit(folder: str | os.PathLike[str]) -> bool:
+    """``folder`` is a course folder cvkit made (``cvkit new course``, ``cvkit hub init``, a
+    ``--course-dir``): its ``nbgrader_config.py`` is cvkit's."""
+    return _project_of(folder) is not None
+
+
 def course_config(project_config: Path, root: Path) -> str:
     """The ``nbgrader_config.py`` of a course folder ``root`` made by cvkit outside the project:
     the project's configuration (``project_config``), rooted at ``root`` while it loads (the

@@ -170,10 +170,15 @@ def fingerprints(course: Course, pairs: Iterable[tuple[str, str]]) -> dict[str, 
     found: dict[str, str] = {}
     for assignment, students in by_assignment.items():
         marks = _marks(course, assignment, students)
-        for student in students:
-            own = sorted((key[1], key[2], state) for key, state in marks.items() if key[0] == student)
+        for student in students:  # what a grader set (a page written before any mark shows none)
+            own = sorted((key[1], key[2], state) for key, state in marks.items()
+                         if key[0] == student and (state[0] is not None or state[1] is not None or state[3]))
             found[f"{student}/{assignment}"] = _digest([json.dumps(own, default=str)])
     return found
+
+
+#: the fingerprint of a submission nobody has marked
+UNMARKED = _digest([json.dumps([])])
 
 
 def _marks(course: Course, assignment: str, students: Iterable[str]) -> dict[tuple[str, str, str], tuple]:
@@ -220,7 +225,7 @@ def stale_pages(course: Course, pairs: Iterable[tuple[str, str]]) -> list[tuple[
     pairs = [(s, a) for s, a in pairs if (course.root / "feedback" / s / a).is_dir()]
     written = _load(course.root / ".cvkit" / PAGES_FILE)
     now = fingerprints(course, pairs)
-    return [(s, a) for s, a in pairs if written.get(f"{s}/{a}") != now.get(f"{s}/{a}")]
+    return [(s, a) for s, a in pairs if written.get(f"{s}/{a}", UNMARKED) != now.get(f"{s}/{a}")]
 
 
 def remember_pages(course: Course, pairs: Iterable[tuple[str, str]]) -> None:
