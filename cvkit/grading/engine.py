@@ -431,12 +431,21 @@ def evaluate(
                 reference_codes=watched_functions(),
             )
     crashes_explained = 0
+    stalled: int | None = None  # the first case that did not return within its time limit
 
     for index, case in enumerate(cases):
         found: list[Mistake] = []
-        outcome = runner(index, case, 0)
+        if stalled is not None:
+            # an endless loop costs one time limit per check call, not one per case
+            outcome = Outcome(error=(f"not run: case {stalled + 1} did not return within {spec.time_limit:g} s, so "
+                                     "the rest of this check was skipped (see that case)"),
+                              exception="NotRun", from_grader=True)
+        else:
+            outcome = runner(index, case, 0)
         if outcome is None:  # e.g. the isolated worker died before this case
             outcome = Outcome(error="no result: the grading worker stopped before this case (exit, crash or memory)")
+        if outcome.timed_out and stalled is None:
+            stalled = index
         label = case.label or f"case {index + 1}"
         # computed only after the candidate ran: it cannot be read from the grader's frames
         try:
@@ -455,6 +464,7 @@ def evaluate(
             stderr=outcome.stderr,
             traceback=outcome.traceback,
             expected=expected,
+            timed_out=outcome.timed_out,
         )
         mismatch = None
         if outcome.error is not None:
@@ -483,7 +493,10 @@ def evaluate(
                 mismatch = spec.compare(outcome.value, expected, case)
             if mismatch is None and spec.seeded:
                 again = runner(index, case, 1)
-                if again is None or again.error is not None or spec.compare(again.value, outcome.value, case) is not None \
+                if again is not None and again.timed_out:
+                    result.message, result.timed_out, result.traceback = again.error or "", True, again.traceback
+                    stalled = index
+                elif again is None or again.error is not None or spec.compare(again.value, outcome.value, case) is not None \
                         or not identical(again.value, outcome.value):
                     result.message = (
                         "two calls with the same rng seed gave different results: draw every random "
@@ -624,7 +637,8 @@ def check(algorithm_id: str, candidate: Callable, hidden: bool = False, points: 
             return 0.0
         __tracebackhide__ = True  # noqa: F841
         raise CheckFailed(line) from None
-    if not report.passed:
+    if not report.passed and not any(case.timed_out for case in report.cases):
+        # (not after a timeout: grading again would cost another time limit)
         report = _with_reference_building_blocks(algorithm_id, candidate, report, hidden, seed)
     _show(report)
     if hidden:

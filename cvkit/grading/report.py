@@ -34,6 +34,7 @@ class CaseResult:
     worst: tuple | None = None
     details: str = ""                 # the technical part of the message (tolerances), shown on demand
     diagnosis: str | None = None      # what the wrong output looks like, or why the code crashed
+    timed_out: bool = False           # the candidate did not return within the case's time limit
 
     #: what :meth:`to_dict` keeps (the report's JSON in notebooks and the course's results);
     #: the input, the outputs and the traceback stay out of it

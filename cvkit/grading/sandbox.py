@@ -44,7 +44,7 @@ from .. import registry
 from . import isolation
 from .reference_server import DATA_LOADERS, DATA_SOURCES, ReferenceServer
 from .runtime import wire
-from .runtime.guard import Outcome
+from .runtime.guard import Outcome, timeout_message
 
 RUNTIME_DIR = Path(__file__).resolve().parent / "runtime"
 INSIDE = "/opt/cvkit"            # where the runtime and NumPy appear inside the sandbox
@@ -281,6 +281,16 @@ class _Session:
             shutil.rmtree(self._links, ignore_errors=True)
 
 
+def _not_run(calls: list, stalled: int | None) -> str:
+    """Why a call was not run: an earlier case of its check did not return in time (``stalled``,
+    the index of that call), or two crashed the worker."""
+    if stalled is None:
+        return "not run: two earlier cases of this check crashed the grading worker"
+    limit = float(calls[stalled].get("time_limit", 20.0))
+    return (f"not run: an earlier case did not return within {limit:g} s, so the rest of this check was skipped "
+            "(see that case)")
+
+
 #: what a cell (not a case) may have computed outside: the data sources, never a building block
 CELL_HELPERS = frozenset(f"data.{name}" for name in DATA_SOURCES)
 EXHAUSTED = "the notebook's grading time ran out (every cell and case of one notebook, in all)"
@@ -336,7 +346,8 @@ def run_calls(
     outcomes: list = [None] * len(calls)
     result = SandboxResult(outcomes, sandboxed=sandboxed, started=False)
     skipped_cells: set = set()
-    strikes: dict[str, int] = {}      # group → cases that timed out or killed the worker
+    strikes: dict[str, int] = {}      # group → cases that killed the worker
+    stalled: dict[str, int] = {}      # group → the first of its calls that did not return in time
     pending = list(range(len(calls)))
     data_names = list(DATA_LOADERS)
     topics = registry.topic_modules()  # the worker's stand-ins for cvkit's modules
@@ -382,10 +393,11 @@ def run_calls(
                 current = pending[0]
                 call = calls[current]
                 group = call.get("group", call["function"])
-                if strikes.get(group, 0) >= 2:  # two cases of this exercise timed out or crashed: skip the rest
-                    outcomes[current] = Outcome(
-                        error="skipped: two earlier cases of this exercise ran out of time or crashed the worker; "
-                              "vectorize with NumPy instead of looping over pixels", exception="Timeout", timed_out=True, from_grader=True)
+                if group in stalled or strikes.get(group, 0) >= 2:
+                    # one case of this check did not return in time, or two crashed the worker: the
+                    # rest of the check is not run (an endless loop costs one time limit, not one per case)
+                    outcomes[current] = Outcome(error=_not_run(calls, stalled.get(group)), exception="NotRun",
+                                                from_grader=True)
                     pending.pop(0)
                     current = None
                     continue
@@ -409,16 +421,15 @@ def run_calls(
                 outcome.forbidden_calls += [r for r in refused if r not in outcome.forbidden_calls]
                 used = time.monotonic() - started
                 if used > limit + GRACE_SECONDS and not outcome.timed_out:
-                    outcome = Outcome(error=f"stopped after {limit:g} s (it took {used:.1f} s): vectorize with NumPy "
-                                            "instead of looping over pixels", exception="Timeout", timed_out=True,
+                    outcome = Outcome(error=timeout_message(limit), exception="Timeout", timed_out=True,
                                       from_grader=True)
                 outcomes[current] = outcome
                 pending.pop(0)
-                current = None
                 if outcome.timed_out:
-                    strikes[group] = strikes.get(group, 0) + 1
-                    if pending:
-                        raise _Replace()
+                    stalled.setdefault(group, current)
+                current = None
+                if outcome.timed_out and pending:
+                    raise _Replace()
             session.send({"end": True})
             break
         except _Replace:
@@ -439,9 +450,11 @@ def run_calls(
                 continue  # a cell was stopped: start again without it
             call = calls[current]
             group = call.get("group", call["function"])
-            strikes[group] = strikes.get(group, 0) + 1
-            outcomes[current] = Outcome(error=("stopped after " f"{float(call.get('time_limit', 20.0)):g} s: vectorize "
-                                               "with NumPy instead of looping over pixels") if stop.timed_out
+            if stop.timed_out:
+                stalled.setdefault(group, current)
+            else:
+                strikes[group] = strikes.get(group, 0) + 1
+            outcomes[current] = Outcome(error=timeout_message(float(call.get("time_limit", 20.0))) if stop.timed_out
                                         else f"no result: {stop.reason}",
                                         exception="Timeout" if stop.timed_out else "WorkerDied",
                                         timed_out=stop.timed_out, from_grader=True)

@@ -26,7 +26,7 @@ from .engine import arg_names, evaluate, hidden_seed
 from .reference_server import served_helpers
 from .report import CaseResult, Report
 from .runtime.cells import is_solution, is_test_cell, nbgrader_metadata
-from .runtime.guard import Outcome
+from .runtime.guard import Outcome, timeout_message
 from .sandbox import NOTEBOOK_SECONDS, run_calls
 
 
@@ -353,7 +353,10 @@ def _plan(call: CheckCall, student: str, salt: str, version: str | None = None, 
         for attempt in ((0, 1) if spec.seeded else (0,)):
             keys.append((index, attempt))
             requests.append({
-                "function": call.function, "group": f"{call.function}:{call.algorithm_id}",
+                # one check call: after a case that does not return in time, the sandbox runs none
+                # of the call's other cases (the visible and the hidden call are two groups)
+                "function": call.function,
+                "group": f"{call.function}:{call.algorithm_id}:{'hidden' if call.hidden else 'visible'}",
                 "args": case.args, "kwargs": case.kwargs,
                 "time_limit": spec.time_limit, "allowed": helpers, "arg_names": names,
                 "forbidden_libraries": list(spec.forbidden_libraries) if attempt == 0 else [],
@@ -388,8 +391,8 @@ def _cascades(plans: list[_Plan], reports: list[Report], result: NotebookGrade, 
             failing.add(plan.call.algorithm_id)
     again = []
     for index, (plan, report) in enumerate(zip(plans, reports)):
-        if report.passed:
-            continue
+        if report.passed or any(case.timed_out for case in report.cases):
+            continue  # (a check that did not return is not run again: one time limit per check call)
         culprits = {function_of[block]: block for block in plan.spec.allowed
                     if block in failing and block in function_of and function_of[block] != plan.call.function}
         if culprits:
@@ -496,8 +499,8 @@ def hidden_view(case: CaseResult, outcome: Outcome, cells: Sequence[str], time_l
     exception = _safe_name(outcome.exception, "an exception")
     if outcome.error is not None and case.message == outcome.error and not outcome.from_grader:
         if outcome.timed_out or outcome.exception == "Timeout":
-            case.message = (f"stopped: it ran longer than the case's limit of {time_limit:g} s; make it faster "
-                            "(whole-array NumPy operations instead of loops over pixels)")
+            # the evidence crossed the boundary as a word of a fixed set and line numbers only
+            case.message = timeout_message(time_limit, outcome.loop, outcome.loop_lines)
         elif outcome.exception == "NotImplementedError":
             case.message = "not implemented yet (the function raises NotImplementedError)"
         elif outcome.exception is None:

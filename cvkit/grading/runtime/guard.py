@@ -12,12 +12,16 @@ import, so a timed-out case leaves no half-initialised module behind.
 """
 from __future__ import annotations
 
+import ast
 import contextlib
 import copy
 import importlib
 import importlib.util  # noqa: F401  (its code is recognised as an import in progress)
+import inspect
 import io
+import linecache
 import signal
+import textwrap
 import sys
 import threading
 import time
@@ -44,6 +48,10 @@ _OUTPUT_TAIL = 2000
 #: characters of an exception's one-line summary, of its traceback and of its type name that
 #: cross the boundary (a 64 KB message must not make a 36 MB graded notebook)
 _ERROR_CHARS, _TRACEBACK_CHARS, _NAME_CHARS = 500, 4000, 100
+#: the kinds of loop a timed-out candidate can be stopped in (:func:`loop_evidence`), and how
+#: many of their header lines an outcome keeps
+LOOP_KINDS = ("while", "for")
+_LOOP_LINES = 5
 
 
 def _capped(text: str | None, limit: int, keep_end: bool = False) -> str | None:
@@ -83,6 +91,12 @@ class Outcome:
     warnings: list = field(default_factory=list)
     stdout: str = ""
     stderr: str = ""
+    #: where a timed-out candidate was stopped (:func:`loop_evidence`): ``"while"`` (inside a
+    #: ``while`` loop: maybe one that never ends), ``"for"`` (inside ``for`` loops or a
+    #: comprehension: a loop over pixels, merely slow) or None (no loop of the candidate's own
+    #: code around the line, or not known); ``loop_lines`` the lines of those loops' headers
+    loop: str | None = None
+    loop_lines: list = field(default_factory=list)
     #: True for an outcome the trusted side wrote itself (a timeout measured outside, a worker
     #: that died): its texts are the grader's. Never read from the wire.
     from_grader: bool = False
@@ -108,6 +122,7 @@ class Outcome:
             "elapsed": self.elapsed, "timed_out": self.timed_out,
             **{key: _texts(getattr(self, key), *limits) for key, limits in _LIST_LIMITS.items()},
             "stdout": self.stdout[-_OUTPUT_TAIL:], "stderr": self.stderr[-_OUTPUT_TAIL:],
+            "loop": self.loop, "loop_lines": [int(n) for n in self.loop_lines[:_LOOP_LINES]],
         }
         if self.error is None:
             try:
@@ -147,6 +162,11 @@ class Outcome:
             warnings=_texts(item.get("warnings"), *_LIST_LIMITS["warnings"]),
             stdout=(text("stdout", 1 << 30) or "")[-_OUTPUT_TAIL:], stderr=(text("stderr", 1 << 30) or "")[-_OUTPUT_TAIL:],
         )
+        loop, lines = item.get("loop"), item.get("loop_lines")
+        if loop in LOOP_KINDS:  # a word of a fixed set and a few line numbers: nothing else is read
+            outcome.loop = loop
+            outcome.loop_lines = [n for n in (lines if isinstance(lines, list) else [])[:_LOOP_LINES]
+                                  if type(n) is int and 0 < n < 10**7]
         if "value" in item and outcome.error is None:
             try:
                 outcome.value = wire.decode(item["value"])
@@ -655,13 +675,136 @@ def _same(a, b) -> bool:
         return True
 
 
-def _candidate_traceback(exc: BaseException) -> str:
-    """The traceback without the grader's own frames."""
-    frames = traceback.extract_tb(exc.__traceback__)
+def _own_module(function) -> str | None:
+    """The module name of the candidate's own code (``__main__`` in a notebook and in the
+    sandbox): its frames are those whose globals carry this ``__name__``."""
+    inner = getattr(function, "__wrapped__", function)
+    name = getattr(inner, "__module__", None) or getattr(function, "__module__", None)
+    return name if type(name) is str else None
+
+
+def _own_frames(exc: BaseException, module: str | None) -> list:
+    """(frame, line) of the candidate's own code in the traceback of ``exc``, outermost first."""
     here = __file__.rsplit(".", 1)[0]
-    kept = [f for f in frames if not f.filename.startswith(here)]
-    lines = traceback.format_list(kept) + traceback.format_exception_only(type(exc), exc)
-    return "".join(lines).rstrip()
+    frames = [(frame, line) for frame, line in traceback.walk_tb(exc.__traceback__)
+              if not frame.f_code.co_filename.startswith(here)]
+    if module is None:
+        return frames
+    return [(frame, line) for frame, line in frames if frame.f_globals.get("__name__") == module]
+
+
+#: subpackages kept in a library function's name (``numpy.linalg.inv``, not ``numpy.inv``)
+_SUBPACKAGES = ("linalg", "fft", "random", "ma", "polynomial", "testing", "strings", "char")
+
+
+def _library_name(frame) -> str:
+    """``numpy.pad`` for a frame of NumPy's ``pad`` (the name the student calls it by)."""
+    module = frame.f_globals.get("__name__", "")
+    parts = module.split(".") if type(module) is str and module else []
+    kept = parts[:1] + [part for part in parts[1:] if part in _SUBPACKAGES]
+    return ".".join(kept + [frame.f_code.co_name])
+
+
+def _candidate_traceback(exc: BaseException, module: str | None = None) -> str | None:
+    """The traceback of the candidate's own code, ending in its own line.
+
+    Only the frames of the candidate's module (:func:`_own_module`) are kept, the last few of
+    them: the last one shown is always the student's line. When the exception came from inside
+    a library the student's line called (NumPy's ``pad``, ``reshape``...), one line names that
+    function instead of its frames. The exception follows on one line. None when no frame of
+    the candidate's code is in the traceback (it was not called at all, e.g. wrong arguments)."""
+    own = _own_frames(exc, module)
+    if not own:
+        return None
+    lines = []
+    for frame, number in own[-_TRACEBACK_FRAMES:]:
+        code = frame.f_code
+        lines.append(f'  File "{code.co_filename}", line {number}, in {code.co_name}')
+        text = linecache.getline(code.co_filename, number, frame.f_globals).strip()
+        if text:
+            lines.append(f"    {text}")
+    here = __file__.rsplit(".", 1)[0]
+    every = [frame for frame, _ in traceback.walk_tb(exc.__traceback__)]
+    after = [frame for frame in every[every.index(own[-1][0]) + 1:]
+             if not frame.f_code.co_filename.startswith(here)]  # not the guard's own handler
+    if after:
+        what = "it was stopped" if isinstance(exc, CandidateTimeout) else "the error was raised"
+        lines.append(f"  ({what} inside {_library_name(after[0])}, which this line called)")
+    summary = "".join(traceback.format_exception_only(type(exc), exc)).strip().splitlines()
+    head = summary[-1] if summary else type(exc).__name__
+    if isinstance(exc, CandidateTimeout):
+        head = "stopped here: the time limit was reached"
+    lines.append(head[:_ERROR_CHARS])
+    return "\n".join(lines)
+
+
+#: frames of the candidate's own code a traceback keeps (the innermost ones)
+_TRACEBACK_FRAMES = 6
+
+
+def _loops_around(frame, number: int) -> list:
+    """The loops (``ast.For``/``ast.While`` nodes, outermost first) of the function running in
+    ``frame`` whose body holds line ``number``, read from its source (empty when unknown)."""
+    code = frame.f_code
+    lines = linecache.getlines(code.co_filename, frame.f_globals)
+    if not lines:
+        return []
+    try:
+        block = inspect.getblock(lines[code.co_firstlineno - 1:])
+        tree = ast.parse(textwrap.dedent("".join(block)))
+    except (SyntaxError, IndexError, ValueError, TypeError):
+        return []
+    relative = number - code.co_firstlineno + 1
+    found = [node for node in ast.walk(tree) if isinstance(node, (ast.For, ast.AsyncFor, ast.While))
+             and node.lineno <= relative <= (node.end_lineno or node.lineno)]
+    for node in found:
+        node.header = node.lineno + code.co_firstlineno - 1
+    return sorted(found, key=lambda node: node.lineno)
+
+
+def loop_evidence(exc: BaseException, module: str | None) -> tuple[str | None, list[int]]:
+    """Where a candidate stopped by its time limit was running, as evidence for the advice.
+
+    The candidate's own frames are read from the innermost outwards (a helper it called
+    first): ``("while", [line])`` when the line it was stopped at is inside a ``while`` loop
+    (the innermost one) — a loop that may never end, whose exit condition is the thing to look
+    at; ``("for", [lines])`` when it is inside ``for`` loops only (or a comprehension) — they
+    always end, so the code was merely slow, typically a Python loop over pixels; ``(None, [])``
+    when no loop of the candidate's code is around it (a single huge computation, a sleep), or
+    its source cannot be read."""
+    for frame, number in reversed(_own_frames(exc, module)):
+        name = frame.f_code.co_name
+        if name in ("<listcomp>", "<dictcomp>", "<setcomp>", "<genexpr>"):
+            return "for", [frame.f_code.co_firstlineno]
+        loops = _loops_around(frame, number)
+        whiles = [node for node in loops if isinstance(node, ast.While)]
+        if whiles:
+            return "while", [whiles[-1].header]
+        if loops:
+            return "for", [node.header for node in loops][:_LOOP_LINES]
+    return None, []
+
+
+def timeout_message(limit: float | None, loop: str | None = None, lines: list | tuple = ()) -> str:
+    """What a student reads when a case did not return within its time limit, with the advice
+    that fits the evidence (:func:`loop_evidence`).
+
+    >>> timeout_message(20, "while", [7])
+    "did not return within 20 s: look at your loop's exit condition (it was still in the `while` loop of line 7 when it was stopped)"
+    """
+    within = f"did not return within {limit:g} s" if limit else "did not return in time"
+    numbers = [str(n) for n in lines]
+    where = ", ".join(numbers[:-1]) + " and " + numbers[-1] if len(numbers) > 1 else "".join(numbers)
+    if loop == "while":
+        return (f"{within}: look at your loop's exit condition (it was still in the `while` loop of line {where} "
+                "when it was stopped)")
+    if loop == "for":
+        loops = "`for` loops of lines" if len(lines) > 1 else "`for` loop of line"
+        return (f"{within}: it was still in the {loops} {where} when it was stopped, so it is a loop over pixels, "
+                "far too slow in Python: vectorize with NumPy (whole-array operations, shifted copies, sliding "
+                "windows)")
+    return (f"{within}: look at your loop's exit condition, or, if your code works pixel by pixel, vectorize it "
+            "with NumPy (whole-array operations instead of loops)")
 
 
 def run_guarded(
@@ -718,14 +861,15 @@ def _run(outcome, function, args, kwargs, arg_names, time_limit, forbidden_libra
                 outcome.value = function(*call_args, **call_kwargs)
             finally:
                 _end(session, previous_profile)
-        except CandidateTimeout:
+        except CandidateTimeout as exc:
             outcome.timed_out = True
             outcome.exception = "Timeout"
-            outcome.error = (
-                f"stopped after {time_limit:g} s: this is far slower than needed; vectorize with "
-                "NumPy (whole-array operations, shifted copies, sliding windows) instead of "
-                "looping over pixels"
-            )
+            try:
+                outcome.loop, outcome.loop_lines = loop_evidence(exc, _own_module(function))
+            except Exception:  # the evidence is a courtesy: never the grader's failure
+                outcome.loop, outcome.loop_lines = None, []
+            outcome.error = timeout_message(time_limit, outcome.loop, outcome.loop_lines)
+            outcome.traceback = _capped(_candidate_traceback(exc, _own_module(function)), _TRACEBACK_CHARS, True)
         except KeyboardInterrupt:
             raise
         except BaseException as exc:  # the candidate's fault, never the grader's
@@ -740,7 +884,7 @@ def _run(outcome, function, args, kwargs, arg_names, time_limit, forbidden_libra
                 message = text.splitlines()[0] if text else ""
                 outcome.error = _capped(f"raised {type(exc).__name__}" + (f": {message}" if message else ""),
                                         _ERROR_CHARS)
-            outcome.traceback = _capped(_candidate_traceback(exc), _TRACEBACK_CHARS, True)
+            outcome.traceback = _capped(_candidate_traceback(exc, _own_module(function)), _TRACEBACK_CHARS, True)
         finally:
             if clock is not None:
                 clock.base = None  # no reference cycle through the frame

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import builtins
 import json
+import linecache
 import os
 import sys
 import threading
@@ -231,7 +232,10 @@ def main() -> None:  # pragma: no cover - runs inside the sandbox
         channel.send({"cell": index})
         error = None
         try:
-            exec(compile(_strip_magics(source), f"<cell {index}>", "exec"), namespace)
+            code = _strip_magics(source)
+            # the cell's lines for tracebacks and for where a timed-out case was stopped (the guard)
+            linecache.cache[f"<cell {index}>"] = (len(code), None, code.splitlines(True), f"<cell {index}>")
+            exec(compile(code, f"<cell {index}>", "exec"), namespace)
         except SystemExit:
             error = f"cell {index}: called exit()"
         except BaseException as exc:  # noqa: BLE001 - a broken cell is reported, not fatal
