@@ -168,7 +168,11 @@ def test_a_loop_forever_is_stopped():
 
     before = _state()
     outcome = run_guarded(candidate, (), {}, time_limit=0.3, watch_reference=False)
-    assert outcome.timed_out and outcome.exception == "Timeout" and "stopped after 0.3 s" in outcome.error
+    assert outcome.timed_out and outcome.exception == "Timeout" and "did not return within 0.3 s" in outcome.error
+    # it was stopped in a `while` loop: the advice is its exit condition, with the loop's line
+    line = candidate.__code__.co_firstlineno + 2
+    assert outcome.loop == "while" and outcome.loop_lines == [line], (outcome.loop, outcome.loop_lines)
+    assert "exit condition" in outcome.error and f"line {line}" in outcome.error and "vectorize" not in outcome.error
     assert outcome.value is None
     assert _state() == before
 

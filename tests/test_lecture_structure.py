@@ -246,3 +246,59 @@ def test_release_refers_to_nothing_a_student_does_not_have(path):
             for match in pattern.finditer(cell.source):
                 found.append(f"cell {index}: {match.group(0)!r} ({what})")
     assert not found, "\n".join(found)
+
+
+# ---------------------------------------------------------------- the § a report cites (issue #35)
+CHECK_CALL = re.compile(r'check\(\s*"([a-z_]+\.[A-Za-z_0-9]+)"')
+
+
+def _numbers(text: str) -> tuple[int, ...]:
+    return tuple(int(part) for part in text.strip().split("."))
+
+
+def cites(section: str, heading: str) -> bool:
+    """Whether a registered section (``"4.5"``, ``"3.6–3.7"``, ``"7.6, 7.5.1"``) covers the
+    numbered heading an exercise sits under (itself, a range holding it, or a parent of it)."""
+    number = _numbers(heading)
+    for part in section.split(","):
+        low, _, high = part.strip().partition("–")
+        low_n, high_n = _numbers(low), _numbers(high or low)
+        if not high and number[:len(low_n)] == low_n:  # the section or one of its subsections
+            return True
+        if high and low_n <= number and number[:len(high_n)] <= high_n:
+            return True
+    return False
+
+
+def test_cites_reads_ranges_lists_and_subsections():
+    assert cites("4.5", "4.5") and cites("5.12", "5.12.1") and cites("3.6–3.7", "3.7")
+    assert cites("11.2–11.5", "11.5.7") and cites("7.6, 7.5.1", "7.5.1") and cites("9.6.1–9.6.5", "9.6.1")
+    assert not cites("4.5", "4.4") and not cites("5.8", "5.9") and not cites("10.7.4", "10.7.3")
+    assert not cites("6.0.7", "6.0.6") and not cites("3.6", "3.7") and not cites("4.5", "4.50")
+
+
+def test_every_report_cites_the_section_its_exercise_sits_under():
+    """The report of ``check("edges.magnitude", ...)`` says "§…": the section of the notes the
+    check is registered with. The student reads it under a numbered heading of the notebook;
+    they must agree (issue #35: six exercises cited another section)."""
+    from cvkit import registry
+
+    wrong, seen = [], 0
+    for path in L.NOTEBOOKS:
+        heading = None
+        for cell in L.load(path)["cells"]:
+            if cell["cell_type"] == "markdown":
+                for level, title in _headings({"cells": [cell]}):
+                    found = NUMBERED.match(title)
+                    if found:
+                        heading = found.group(1)
+                continue
+            if not L.nbgrader(cell).get("grade_id", "").endswith("_visible"):
+                continue
+            for algorithm_id in CHECK_CALL.findall(L.source(cell)):
+                seen += 1
+                section = registry.get(algorithm_id).section
+                if heading is None or not cites(section, heading):
+                    wrong.append(f"{path.parent.name}: {algorithm_id} cites §{section} under the heading {heading}")
+    assert seen > 130
+    assert not wrong, "\n".join(wrong)

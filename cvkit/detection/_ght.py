@@ -135,7 +135,7 @@ def _values(values: ArrayLike, name: str) -> np.ndarray:
     return arr
 
 
-@algorithm("detection.ght_detect", section="6.0.7", check="cvkit.detection.checks:ght_detect")
+@algorithm("detection.ght_detect", section="6.0.6–6.0.7", check="cvkit.detection.checks:ght_detect")
 def ght_detect(image: ArrayLike, rtable: dict, scales: ArrayLike = (1.0,), angles: ArrayLike = (0.0,),
                edge_params: dict | None = None) -> tuple[np.ndarray, tuple[int, int, float, float]]:
     """Vote for the reference point of the R-table's shape over positions, scales and angles.

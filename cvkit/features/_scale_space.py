@@ -120,7 +120,7 @@ def pyramid_arguments(shape: Sequence[int], sigma0: float, scales: int, octaves:
 # --------------------------------------------------------------------------------------------
 # §5.8–5.9 pyramids
 # --------------------------------------------------------------------------------------------
-@algorithm("features.gaussian_pyramid", section="5.8", check="cvkit.features.checks:gaussian_pyramid")
+@algorithm("features.gaussian_pyramid", section="5.8–5.9", check="cvkit.features.checks:gaussian_pyramid")
 def gaussian_pyramid(image: ArrayLike, sigma0: float = 1.6, scales: int = 3, octaves: int = 4, upsample: bool = True,
                      assumed_blur: float = 0.5) -> list[np.ndarray]:
     """SIFT's scale space: octaves of progressively blurred images, halved from one to the next.

@@ -143,6 +143,10 @@ class Check:
         the grading sandbox, which holds NumPy and that package only; the trusted grader sends
         its name) that only passes plain data in and out, e.g.
         :func:`instance_call` to grade a class by building it and calling one of its methods.
+    output_names : tuple of str, optional
+        The names of the results when the algorithm returns a tuple (``("gx", "gy")``), as
+        reports name them ("`gx`: 12 of 48 values differ"); by default they are read from the
+        *Returns* section of the reference's docstring (:func:`cvkit.grading.engine.output_names`).
     """
 
     public: Sequence[Case] | Callable[[], Sequence[Case]]
@@ -156,6 +160,7 @@ class Check:
     time_limit: float = 20.0
     arg_names: tuple = ()
     call: Callable | None = None
+    output_names: tuple = ()
 
     def __post_init__(self) -> None:
         # functions marked with @mistake stand for their Mistake; the bank keeps the listed order

@@ -234,13 +234,22 @@ def locate(bad: np.ndarray) -> str:
                                         or spatial[:, -1].any()):
             words.append("all in the interior (the outermost rows and columns are right)")
         elif rows[-1] - rows[0] + 1 < H or cols[-1] - cols[0] + 1 < W:
-            words.append(f"all in rows {rows[0]}–{rows[-1]}, columns {cols[0]}–{cols[-1]}")
+            words.append("all in " + ", ".join(part for part in (_span(rows, H, "row"), _span(cols, W, "column"))
+                                                if part))
     if bad.ndim == 3 and 2 <= bad.shape[2] <= 4:
         channels = np.flatnonzero(bad.reshape(-1, bad.shape[2]).any(axis=0))
         if channels.size < bad.shape[2]:
             names = ", ".join(f"{k} ({_CHANNEL_NAMES[k]})" if bad.shape[2] >= 3 else str(k) for k in channels)
             words.append(f"only in channel{'s' if channels.size > 1 else ''} {names}")
     return ", ".join(words)
+
+
+def _span(index: np.ndarray, size: int, word: str) -> str:
+    """``"rows 2–5"``, ``"row 0"`` (one), or "" when the indices span the whole axis."""
+    first, last = int(index[0]), int(index[-1])
+    if first == 0 and last == size - 1:
+        return ""
+    return f"{word} {first}" if first == last else f"{word}s {first}–{last}"
 
 
 def describe_difference(got: Any, expected: Any, bad: np.ndarray | None = None, *,

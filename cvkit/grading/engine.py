@@ -89,6 +89,64 @@ def arg_names(function: Callable, check: Check) -> tuple:
 
 
 
+_RETURNS = re.compile(r"^Returns\n-+\n(.*?)(?=^\S[^\n]*\n-+\n|\Z)", re.S | re.M)
+
+
+def output_names(function: Callable, check: Check) -> tuple:
+    """The names of an algorithm's results when it returns a tuple, as reports show them.
+
+    Parameters
+    ----------
+    function : callable
+        The reference implementation, whose docstring's *Returns* section names the results
+        (``(gx, gy) : tuple of ...`` on one line, or one ``name : type`` line per result).
+    check : Check
+        Its :attr:`Check.output_names`, when given, win over the docstring; a check with a
+        :attr:`Check.call` adapter (whose results may differ from the reference's) names its
+        results there or not at all.
+
+    Returns
+    -------
+    tuple of str
+        Empty when the results have no names (a single result, or an unreadable docstring).
+
+    >>> import cvkit.edges
+    >>> from cvkit import registry
+    >>> output_names(cvkit.edges.sobel, registry.get("edges.sobel").check)
+    ('gx', 'gy')
+    """
+    if check.output_names:
+        return tuple(check.output_names)
+    if check.call is not None:
+        return ()
+    found = _RETURNS.search(inspect.getdoc(getattr(function, "__wrapped__", function)) or "")
+    if not found:
+        return ()
+    body = found.group(1)
+    together = re.match(r"\(\s*([A-Za-z_]\w*(?:\s*,\s*[A-Za-z_]\w*)+)\s*\)\s*:", body)
+    if together:
+        return tuple(name.strip() for name in together.group(1).split(","))
+    names = re.findall(r"^([A-Za-z_]\w*)\s*:", body, re.M)
+    return tuple(names) if len(names) > 1 else ()
+
+
+_RESULT_INDEX = re.compile(r"\bresult \[(\d+)\]")
+
+
+def _name_results(text: str | None, names: Sequence[str], count: int | None) -> str | None:
+    """``text`` with the comparators' ``result [i]`` replaced by the result's name (`` `gx` ``),
+    or by "output i+1" when the names do not fit the ``count`` results."""
+    if not text or "result [" not in text:
+        return text
+    fits = count is not None and len(names) == count
+
+    def name(match: re.Match) -> str:
+        i = int(match.group(1))
+        return f"`{names[i]}`" if fits and i < len(names) else f"output {i + 1}"
+
+    return _RESULT_INDEX.sub(name, text)
+
+
 def _reference_output(function: Callable, case, call: Callable | None = None) -> Any:
     # the reference's own warnings (a case chosen to be hard, e.g. too few iterations) are not
     # the student's business and must never reach stderr: nbgrader zeroes a test cell that writes there
@@ -399,6 +457,7 @@ def evaluate(
         return report
 
     names = arg_names(record.reference, spec)
+    results = output_names(record.reference, spec)
     mistake_votes: dict[str, int] = {}
     matching: list[list[Mistake]] = []  # per counted case, the known mistakes that reproduce its output
     runs_here = runner is None  # the candidate is called in this process (it can run other cases)
@@ -518,6 +577,10 @@ def evaluate(
             if not found and mismatch is not None:
                 # no named mistake fits: say what the wrong output looks like (shifted, transposed...)
                 result.diagnosis = _diagnosis(spec, outcome.value, expected)
+        count = len(expected) if isinstance(expected, (tuple, list)) else None
+        result.message = _name_results(result.message, results, count) or ""
+        result.details = _name_results(result.details, results, count) or ""
+        result.diagnosis = _name_results(result.diagnosis, results, count)
         report.cases.append(result)
         matching.append(found)
     if report.dropped and not report.cases:
@@ -632,11 +695,11 @@ def check(algorithm_id: str, candidate: Callable, hidden: bool = False, points: 
         name = getattr(getattr(candidate, "__wrapped__", candidate), "__name__", "your function")
         line = (f"{algorithm_id}: not answered yet — `{name}` still raises NotImplementedError. Write your "
                 f"version in the answer cell above, run it, then run this cell again.")
-        print(line)
         if hidden:
+            print(line)
             return 0.0
         __tracebackhide__ = True  # noqa: F841
-        raise CheckFailed(line) from None
+        raise CheckFailed(line) from None  # shown once, as the cell's error (not printed as well)
     if not report.passed and not any(case.timed_out for case in report.cases):
         # (not after a timeout: grading again would cost another time limit)
         report = _with_reference_building_blocks(algorithm_id, candidate, report, hidden, seed)

@@ -137,8 +137,12 @@ class Report:
             text += "\n" + self._diagnosis_line()
         return text
 
-    def text(self, max_failures: int = 3) -> str:
+    def text(self, max_failures: int = 3, details: bool = False) -> str:
+        """The report as plain text (terminals, ``python``, the notebook's text view): the same
+        as the HTML, which folds the comparison's technical details (tolerances, exact counts)
+        away; ``details=True`` shows them too, for the curious."""
         lines = [self.summary()]
+        folded = False
         summarised = self._diagnosed_case() if not self.mistake else None
         shown = 0
         for case in self.cases:
@@ -154,11 +158,13 @@ class Report:
                 lines.append(f"  {line}")
             if case.diagnosis and (case.traceback or not case.mistake) and case is not summarised:
                 lines.append(f"  → {case.diagnosis}")
-            if case.details:
+            if case.details and details:
                 lines += [f"  details: {line}" for line in case.details.splitlines()]
+            folded = folded or bool(case.details and not details)
             if case.traceback:
+                # bounded where it is made (the student's own frames, the last of them their line)
                 lines.append("  traceback (your code):")
-                lines += [f"    {line}" for line in case.traceback.splitlines()[-8:]]
+                lines += [f"    {line}" for line in case.traceback.splitlines()]
             if case.mistake:
                 lines.append(f"  → matches the mistake “{case.mistake}”: {case.hint}")
         notes = sorted({w for c in self.cases for w in c.warnings})
@@ -173,6 +179,9 @@ class Report:
         if errors:
             lines.append("\nYour code wrote to stderr (captured):")
             lines += [f"  {line}" for line in errors.splitlines()[:10]]
+        if folded:
+            lines.append(f"\n(More numbers, for the curious: print(evaluate({self.algorithm!r}, your_function)"
+                         ".text(details=True)), with evaluate from cvkit.grading)")
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -314,7 +323,7 @@ def headline(message: str, width: int = 90) -> str:
         first = (f"{counted.group(1)} of {counted.group(2)} values differ" if counted
                  else "the values differ from the expected ones")
     first = re.sub(r"\s*\([^()]*\b(?:rtol|atol)\b[^()]*\)", "", first)
-    prefix = re.match(r"(result \[\d+\]: )?", first)
+    prefix = re.match(r"(result \[\d+\]: |`[A-Za-z_]\w*`: |output \d+: )?", first)
     lead = prefix.group(0) if prefix else ""
     first = first[len(lead):]
     if not first.startswith(("shape mismatch", "dtype mismatch", "raised ")):
