@@ -609,7 +609,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demo", help="build, make three sample submissions, autograde, print the grade table")
     p.add_argument("--dir", default="cvkit-demo", help="where the demo course is made (default ./cvkit-demo)")
-    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--workers", type=int, default=2, help="parallel autograde processes (default 2)")
     p.add_argument("--db-url", help="gradebook SQLAlchemy URL (default SQLite in --dir)")
     p.add_argument("--all", action="store_true",
                    help="every chapter of the plan (default: " + ", ".join(DEMO_CHAPTERS) + ")")

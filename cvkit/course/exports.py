@@ -83,6 +83,10 @@ def _grades(scores: dict[str, list[ExerciseScore]], students: list[str]) -> list
             if e.to_mark:
                 cell[(e.name, s)] = f"to mark/{e.max_score:g} ✎"
                 continue
+            if e.max_score <= 0 and not e.score:
+                # a row of flags only (the whole notebook's): no points to show, nothing passed
+                cell[(e.name, s)] = "flagged ⚑" if e.flags else "-"
+                continue
             mark = "✓" if e.score >= e.max_score - 1e-9 else ("·" if e.score > 0 else "✗")
             cell[(e.name, s)] = f"{e.score:.2f}/{e.max_score:g} {mark}"
     width = max(len(x) for x in exercises + ["exercise"]) + 2
@@ -219,10 +223,13 @@ def _export_exercises(course: Course, target: Path, assignments: list[str], bar:
             bar.update()
             for student, exercises in course.scores(assignment).items():
                 for e in exercises:
+                    flags_only = e.max_score <= 0 and not e.score and not e.to_mark  # the "(notebook)" row
                     writer.writerow([_cell(x) for x in (
-                        assignment, student, e.name, "" if e.to_mark else f"{e.score:g}", f"{e.max_score:g}",
+                        assignment, student, e.name, "" if e.to_mark or flags_only else f"{e.score:g}",
+                        "" if flags_only else f"{e.max_score:g}",
                         "; ".join(e.mistakes), "; ".join(e.problems), "; ".join(e.flags),
-                        "to mark by hand (formgrader)" if e.to_mark else "graded")])
+                        "to mark by hand (formgrader)" if e.to_mark else
+                        "flags for the instructor (no points)" if flags_only else "graded")])
             for key, reason in sorted(not_graded.items()):
                 student, _, a = key.partition("/")
                 if a == assignment:

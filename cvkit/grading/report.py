@@ -260,17 +260,19 @@ class Report:
             mark = (f"<span aria-hidden='true'>{'✓' if case.passed else '✗'}</span> "
                     f"{'pass' if case.passed else '<b>fail</b>'}")
             detail = "" if case.passed else html.escape(case.message.splitlines()[0] if case.message else "")
+            # cells on lines of their own: the page's text (copied, read by a screen reader or a
+            # text browser) keeps them apart ("result case", never "resultcase")
             rows.append(
-                f"<tr><td style='white-space:nowrap;{_LEFT}'>{mark}</td><td style='{_LEFT}'>{html.escape(case.label)}</td>"
-                f"<td style='{_LEFT}'><code>{html.escape(case.description[:120])}</code></td>"
-                f"<td style='{_LEFT}'>{detail}</td></tr>"
+                f"<tr>\n<td style='white-space:nowrap;{_LEFT}'>{mark}</td>\n<td style='{_LEFT}'>{html.escape(case.label)}</td>\n"
+                f"<td style='{_LEFT}'><code>{html.escape(case.description[:120])}</code></td>\n"
+                f"<td style='{_LEFT}'>{detail}</td>\n</tr>\n"
             )
         kind = "hidden" if self.hidden else "visible"
-        parts.append(f"<table class='cvkit-cases' style='font-size:90%;color:{_TEXT}'>"
-                     f"<caption style='text-align:left;color:{_MUTED}'>{len(self.cases)} {kind} cases</caption>"
-                     "<thead><tr>" + "".join(f"<th scope='col' style='{_LEFT}'>{name}</th>"
-                                             for name in ("result", "case", "input", "problem"))
-                     + "</tr></thead><tbody>" + "".join(rows) + "</tbody></table>")
+        parts.append(f"<table class='cvkit-cases' style='font-size:90%;color:{_TEXT}'>\n"
+                     f"<caption style='text-align:left;color:{_MUTED}'>{len(self.cases)} {kind} cases</caption>\n"
+                     "<thead><tr>\n" + "".join(f"<th scope='col' style='{_LEFT}'>{name}</th>\n"
+                                               for name in ("result", "case", "input", "problem"))
+                     + "</tr></thead>\n<tbody>\n" + "".join(rows) + "</tbody></table>\n")
         failing = [c for c in self.cases if not c.passed]
         if failing:
             first = failing[0]
@@ -287,7 +289,7 @@ class Report:
                              f"{html.escape(first.traceback)}</pre>")
             parts.append(_image_comparison(first))
         parts.append("</section>")
-        return "".join(parts)
+        return "\n".join(parts)
 
 
 #: the numpy.testing vocabulary of reports written before plain words came first
@@ -338,6 +340,10 @@ def headline(message: str, width: int = 90) -> str:
     return first if len(first) <= width else first[: width - 1].rsplit(" ", 1)[0] + "…"
 
 
+#: the longest finding (:func:`finding`) kept whole
+_FINDING_WIDTH = 400
+
+
 def finding(report: Mapping[str, Any]) -> tuple[str, str] | None:
     """What a report found, from its dict (:meth:`Report.to_dict`, as stored in a notebook).
 
@@ -360,7 +366,9 @@ def finding(report: Mapping[str, Any]) -> tuple[str, str] | None:
     if not failures:
         return None
     diagnosis = report.get("diagnosis") or next((c.get("diagnosis") for c in failures if c.get("diagnosis")), None)
-    return "problem", headline(diagnosis or failures[0].get("message") or "failed")
+    # the whole clause (the exports and the table show it as it is: never cut mid-sentence);
+    # the width only guards against a runaway message
+    return "problem", headline(diagnosis or failures[0].get("message") or "failed", width=_FINDING_WIDTH)
 
 
 # JupyterLab theme variables, with fallbacks (GitHub's light palette) for plain HTML pages
@@ -418,7 +426,7 @@ def _image_comparison(case: CaseResult) -> str:
         ]
     except Exception:
         return ""
-    cells = "".join(
+    cells = "\n".join(
         f"<figure style='display:inline-block;margin:4px'><img style='{style}' alt='{html.escape(alt, quote=True)}' "
         f"src='data:image/png;base64,{data}'/>"
         f"<figcaption style='font-size:80%;text-align:center'>{html.escape(name)}</figcaption></figure>"

@@ -717,6 +717,46 @@ def _with_alt_texts(page: str) -> str:
     return _IMAGE_WITHOUT_ALT.sub(f'<img alt="{_NO_ALT_TEXT}"', page)
 
 
+_EXERCISE_HEADING = re.compile(r"^#{1,6}\s+(Exercise\s+[0-9][0-9.]*[a-z]?)\b", re.M)
+_TEST_KINDS = {"visible": "visible test", "hidden": "hidden tests", "test": "test"}
+
+
+def test_cell_names(nb) -> dict[str, str]:
+    """The name of each test cell for the feedback page's list of contents, by its grade id
+    (as :func:`sanitize_notebook` leaves it): the exercise it tests and which test it is, e.g.
+    ``"Exercise 4.4 magnitude: visible test"`` for ``magnitude_visible`` under the heading
+    "### Exercise 4.4 — …" (nbgrader's template says "Test cell" for every one of them)."""
+    names: dict[str, str] = {}
+    exercise = ""
+    for cell in nb.get("cells", []) if isinstance(nb, dict) else []:
+        if not isinstance(cell, dict):
+            continue
+        if cell.get("cell_type") == "markdown":
+            found = _EXERCISE_HEADING.search(_text(cell.get("source", "")))
+            if found:
+                exercise = " ".join(found.group(1).split())
+            continue
+        meta = (cell.get("metadata") or {}).get("nbgrader") if isinstance(cell.get("metadata"), dict) else None
+        if not isinstance(meta, dict) or not meta.get("grade") or meta.get("solution") or "grade_id" not in meta:
+            continue
+        grade_id = _GRADE_ID.sub("_", _text(meta["grade_id"]))
+        stem, _, kind = grade_id.rpartition("_")
+        if kind not in _TEST_KINDS or not stem:
+            stem, kind = grade_id, "test"
+        names[grade_id] = f"{exercise} {stem}: {_TEST_KINDS[kind]}".strip()[:120]
+    return names
+
+
+def _named_contents(page: str, names: dict[str, str]) -> str:
+    """The page's list of contents with each test cell's name instead of "Test cell"."""
+    def name(match: re.Match) -> str:
+        grade_id = match.group(1)
+        label = names.get(grade_id)
+        return match.group(0) if label is None else f'<a href="#{grade_id}">{html.escape(label)}</a>'
+
+    return re.sub(r'<a href="#([A-Za-z0-9_.\-]+)">Test cell</a>', name, page)
+
+
 def _exporter_class():
     from jinja2 import DictLoader
     from nbconvert.exporters import HTMLExporter, TemplateExporter
@@ -761,8 +801,9 @@ def _exporter_class():
             resources = self._init_resources(resources)
             self.register_filter("filter_data_type", WidgetsDataTypeFilter(
                 notebook_metadata=self._nb_metadata, parent=self, resources=resources))
+            names = test_cell_names(nb)
             page, resources = TemplateExporter.from_notebook_node(self, nb, resources, **kw)
-            return _with_alt_texts(page), resources
+            return _named_contents(_with_alt_texts(page), names), resources
 
         def _init_resources(self, resources):
             resources = super()._init_resources(resources)

@@ -702,7 +702,9 @@ def _library_name(frame) -> str:
     module = frame.f_globals.get("__name__", "")
     parts = module.split(".") if type(module) is str and module else []
     kept = parts[:1] + [part for part in parts[1:] if part in _SUBPACKAGES]
-    return ".".join(kept + [frame.f_code.co_name])
+    name = frame.f_code.co_name
+    # a private helper (``x.sum()`` runs ``numpy._core._methods._sum``) is no name the student knows
+    return ".".join(kept + ([] if name.startswith(("_", "<")) else [name])) or "a library"
 
 
 def _candidate_traceback(exc: BaseException, module: str | None = None) -> str | None:
