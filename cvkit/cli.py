@@ -644,11 +644,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--project", help="the cvkit project (default: this checkout)")
     p.set_defaults(func=_cmd_hub_init)
     p = hsub.add_parser("check", help="what is wrong with a hub made by cvkit hub init")
-    p.add_argument("--hub-dir", default="/srv/cvkit-hub")
+    p.add_argument("--hub-dir", default="/srv/cvkit-hub", help="the hub's folder (default /srv/cvkit-hub)")
     p.add_argument("--running", action="store_true", help="the hub is running: do not check that its ports are free")
     p.set_defaults(func=_cmd_hub_check)
     p = hsub.add_parser("start", help="check the hub, then run JupyterHub (as root, in the foreground)")
-    p.add_argument("--hub-dir", default="/srv/cvkit-hub")
+    p.add_argument("--hub-dir", default="/srv/cvkit-hub", help="the hub's folder (default /srv/cvkit-hub)")
     p.add_argument("jupyterhub_args", nargs="*", help="passed on to jupyterhub (after --)")
     p.set_defaults(func=_cmd_hub_start)
     return parser

@@ -129,3 +129,23 @@ def test_markdown_is_the_catalog(capsys):
 def test_an_unknown_namespace_lists_nothing(capsys):
     assert main(["list", "nosuchthing"]) == 0
     assert capsys.readouterr().out.splitlines()[-1] == "0 algorithms"
+
+
+def test_every_option_of_every_command_says_what_it_does():
+    """`cvkit demo --help` used to list --workers without a word (issue #35)."""
+    import argparse
+
+    from cvkit.cli import build_parser
+
+    silent = []
+
+    def walk(parser, path):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for name, sub in action.choices.items():
+                    walk(sub, f"{path} {name}")
+            elif action.option_strings and not isinstance(action, argparse._HelpAction) and not action.help:
+                silent.append(f"{path} {'/'.join(action.option_strings)}")
+
+    walk(build_parser(), "cvkit")
+    assert not silent, silent

@@ -147,3 +147,47 @@ def test_headline_keeps_plain_words():
     assert headline("Your output is shifted by 1 row down: first at [0, 0]") == "your output is shifted by 1 row down"
     assert headline("") == "failed"
     assert finding({"mistake": None, "cases": [{"passed": True}]}) is None
+
+
+# ---------------------------------------------------------------- issue #35: small inconsistencies
+def _flagged_scores():
+    from cvkit.course import ExerciseScore
+
+    return {"ann": [ExerciseScore("pad", 3.0, 3.0),
+                    ExerciseScore("(notebook)", 0.0, 0.0, flags=["(notebook): the code was killed by signal 9"])]}
+
+
+def test_a_row_of_flags_only_shows_no_points():
+    """The whole notebook's flags get a row of their own: it has no points, so it is neither
+    "0.00/0" nor passed (✓)."""
+    from cvkit.course import format_table
+
+    table = format_table(_flagged_scores())
+    row = next(line for line in table.splitlines() if line.startswith("(notebook)"))
+    assert "0.00/0" not in row and "✓" not in row and "flagged" in row, row
+    assert "total" in table and "3.00/3" in table
+
+
+def test_exercises_csv_gives_a_flags_only_row_no_score(tmp_path):
+    import csv
+
+    from cvkit.course.exports import _export_exercises
+
+    class Course:  # what _export_exercises reads of a course
+        def not_graded(self):
+            return {}
+
+        def scores(self, assignment):
+            return _flagged_scores()
+
+    class Bar:
+        def update(self, *args):
+            pass
+
+    target = tmp_path / "exercises.csv"
+    _export_exercises(Course(), target, ["ch03"], Bar())
+    rows = {row["exercise"]: row for row in csv.DictReader(target.open())}
+    assert rows["pad"]["score"] == "3" and rows["pad"]["status"] == "graded"
+    flags = rows["(notebook)"]
+    assert flags["score"] == flags["max_score"] == "" and flags["status"] == "flags for the instructor (no points)"
+    assert "killed by signal 9" in flags["flags"]

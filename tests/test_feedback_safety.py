@@ -625,3 +625,30 @@ def test_sanitize_csv_file_rewrites_every_cell(tmp_path):
     sanitize_csv_file(path)
     assert path.read_text() == before  # idempotent
     assert [p.name for p in tmp_path.iterdir()] == ["grades.csv"]
+
+
+def test_the_contents_list_names_each_exercise_and_test(report):
+    """nbgrader's template lists every test cell as "Test cell" (41 times in Chapter 3): the
+    list names the exercise and the test instead; a heading a student changed stays text."""
+    cells = [
+        new_code_cell("import numpy as np", metadata=grading("setup", locked=True)),
+        new_markdown_cell("### Exercise 3.7a — `pad(image, radius, border=\"reflect101\")`\n\nPad the image."),
+        new_code_cell("def pad(image, radius, border='reflect101'):\n    ...", metadata=grading("pad_answer", solution=True)),
+        new_code_cell('check("filters.pad", pad)', metadata=grading("pad_visible", grade=True, points=1, locked=True),
+                      outputs=[new_output("display_data", data=trusted_bundle(report))], execution_count=3),
+        new_code_cell('### BEGIN HIDDEN TESTS\ncheck("filters.pad", pad, hidden=True, points=2)\n### END HIDDEN TESTS',
+                      metadata=grading("pad_hidden", grade=True, points=2, locked=True), execution_count=4),
+        new_markdown_cell(f"### Exercise 3.7b <b>{SCRIPT}</b> — correlate"),
+        new_code_cell('check("filters.correlate", correlate)',
+                      metadata=grading("correlate_visible", grade=True, points=1, locked=True), execution_count=5),
+    ]
+    nb = new_notebook(cells=cells)
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nb.metadata["cvkit"] = {"trusted": True}
+    page = export(nb)
+    soup = BeautifulSoup(page, "html.parser")
+    contents = [a.get_text() for a in soup.select("#toc a")]
+    assert contents[:3] == ["Exercise 3.7a pad: visible test", "Exercise 3.7a pad: hidden tests",
+                            "Exercise 3.7b correlate: visible test"], contents
+    assert "Test cell" not in contents
+    assert "PWNED" not in str(soup.select_one("#toc"))

@@ -130,19 +130,21 @@ def output_names(function: Callable, check: Check) -> tuple:
     return tuple(names) if len(names) > 1 else ()
 
 
-_RESULT_INDEX = re.compile(r"\bresult \[(\d+)\]")
+_RESULT_INDEX = re.compile(r"\b([Rr])esult \[(\d+)\]")
 
 
 def _name_results(text: str | None, names: Sequence[str], count: int | None) -> str | None:
     """``text`` with the comparators' ``result [i]`` replaced by the result's name (`` `gx` ``),
     or by "output i+1" when the names do not fit the ``count`` results."""
-    if not text or "result [" not in text:
+    if not text or "esult [" not in text:
         return text
     fits = count is not None and len(names) == count
 
     def name(match: re.Match) -> str:
-        i = int(match.group(1))
-        return f"`{names[i]}`" if fits and i < len(names) else f"output {i + 1}"
+        i = int(match.group(2))
+        if fits and i < len(names):
+            return f"`{names[i]}`"
+        return f"{'O' if match.group(1) == 'R' else 'o'}utput {i + 1}"
 
     return _RESULT_INDEX.sub(name, text)
 
