@@ -164,3 +164,19 @@ def test_the_sandbox_runs_no_other_case_of_a_check_after_a_timeout():
     assert other_call.timed_out  # the hidden check of the same function has its own (one) time limit
     assert other_function.ok and list(other_function.value) == [2.0, 2.0]
 
+
+
+def test_a_hidden_case_that_did_not_return_gets_the_same_advice():
+    """What crosses the sandbox's boundary of a hidden case is cut to what is the student's;
+    the advice is rebuilt from the evidence (a word of a fixed set and line numbers)."""
+    from cvkit.grading.report import CaseResult
+    from cvkit.grading.trusted import hidden_view
+
+    cells = ["import numpy as np", "def f(a):\n    while True:\n        a = a + 1"]
+    outcome = Outcome(error="did not return within 20 s: …", exception="Timeout", timed_out=True, loop="while",
+                      loop_lines=[2], traceback='  File "<cell 1>", line 3, in f\nstopped here: the time limit was reached')
+    case = CaseResult(0, "case", "input", False, message=outcome.error, traceback=outcome.traceback)
+    hidden_view(case, outcome, cells, 20.0, {"a"})
+    assert case.message == timeout_message(20.0, "while", [2])
+    assert case.traceback.splitlines() == ["  cell 1, line 3, in f", "    a = a + 1",
+                                           "stopped here: the time limit was reached"]

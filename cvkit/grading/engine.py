@@ -417,6 +417,12 @@ def evaluate(
     error and the message is read against the inputs
     (:func:`~cvkit.grading.diagnose.explain_exception`).
 
+    **A case that does not return stops the check.** The first case that runs out of its time
+    limit (``Check.time_limit``) fails with advice that fits where the candidate was stopped
+    (:func:`cvkit.grading.runtime.guard.loop_evidence`: in a ``while`` loop, its exit
+    condition; in ``for`` loops, vectorize); the remaining cases are not run (their outcome:
+    "not run: case N did not return …"), so an endless loop costs one time limit per call.
+
     **Cases the reference cannot compute are dropped, never scored.** When the reference
     implementation raises on a case (a bug of the check or of the reference, not of the
     candidate), that case is left out: it counts neither as passed nor as failed

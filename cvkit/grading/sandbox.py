@@ -23,7 +23,10 @@ OpenCV, Pillow, scikit-learn or torch. It then drives the conversation:
   made of too many parts (:func:`parse_message`); anything malformed, too large or out of
   turn ends the sandbox, and the call that was running fails with the reason;
 - if the student's code kills the worker, or a case runs out of time, the sandbox is killed
-  (all its processes with it) and the remaining cases run in a fresh one.
+  (all its processes with it) and the remaining cases run in a fresh one — except the other
+  cases of the check call (``"group"``) whose case did not return: they are not run at all
+  (``"not run: …"``), so an endless loop costs one time limit per check call; two crashes of
+  the worker end a call the same way.
 
 Comparison with the reference happens back in the trusted process (:mod:`.trusted`).
 """

@@ -468,7 +468,7 @@ def _safe_call(text: str) -> str:
     return ("import " if text.startswith("import ") else "") + _safe_name(name, "a refused name")
 
 
-def _own_traceback(text: str | None, cells: Sequence[str], exception: str) -> str | None:
+def _own_traceback(text: str | None, cells: Sequence[str], exception: str, timed_out: bool = False) -> str | None:
     """The student's frames of a traceback (cell, line, function and the line's code, taken
     from the cells the grader ran) and the exception's type: nothing the code printed or put in
     a message."""
@@ -483,7 +483,7 @@ def _own_traceback(text: str | None, cells: Sequence[str], exception: str) -> st
             code = cells[index].splitlines()
             if 1 <= number <= len(code):
                 lines.append(f"    {code[number - 1].strip()[:160]}")
-    lines.append(f"{exception} ({HIDDEN_MESSAGE_NOTE})")
+    lines.append("stopped here: the time limit was reached" if timed_out else f"{exception} ({HIDDEN_MESSAGE_NOTE})")
     return "\n".join(lines)
 
 
@@ -514,7 +514,8 @@ def hidden_view(case: CaseResult, outcome: Outcome, cells: Sequence[str], time_l
         names = sorted({name for name in outcome.modified if name in arg_names or _IDENTIFIER.fullmatch(str(name))})
         case.message = (f"modified its input {', '.join(map(repr, names)) or 'arguments'}: do not overwrite an "
                         "input; work on a copy or write the result to a new array")
-    case.traceback = _own_traceback(case.traceback, cells, exception) if case.traceback else None
+    case.traceback = (_own_traceback(case.traceback, cells, exception, bool(outcome.timed_out))
+                      if case.traceback else None)
 
 
 def _trivial(case, expected) -> bool:
