@@ -86,6 +86,7 @@ def test_results_without_names_are_numbered():
     assert _name_results("result [0]: x", ("gx", "gy"), 2) == "`gx`: x"
     assert _name_results("Result [1]: all zeros", ("gx", "gy"), 2) == "`gy`: all zeros"
     assert _name_results("Result [1]: all zeros", (), 2) == "Output 2: all zeros"
+    assert _name_results("result [1]: 3 values differ", (), 4, listed=True) == "item 1 of the list: 3 values differ"
 
 
 def test_the_traceback_ends_in_the_students_line():
@@ -173,3 +174,25 @@ def test_a_long_problem_is_kept_whole_for_the_exports():
     report = Report("filters.median", "3.11", False, None, [CaseResult(0, "c", "d", False, message=message)])
     problem = report.verdict()["problem"]
     assert problem == message and "…" not in problem
+
+
+def test_every_tuple_result_of_the_catalog_has_its_names():
+    """Every algorithm that returns a tuple (and whose check calls it directly) names each of
+    its results in its reference's docstring, so that no report says "output 2"."""
+    import cvkit.catalog  # noqa: F401  (imports every topic: every check registered)
+    from cvkit.grading.engine import _reference_output
+
+    tuples, unnamed = 0, []
+    for record in registry.algorithms():
+        spec = record.check if record.package == registry.CVKIT else None
+        if spec is None or spec.call is not None or not spec.public_cases():
+            continue
+        try:
+            out = _reference_output(record.reference, spec.public_cases()[0], spec.call)
+        except Exception:  # noqa: BLE001 - a case the reference refuses on purpose
+            continue
+        if isinstance(out, tuple):
+            tuples += 1
+            if len(output_names(record.reference, spec)) != len(out):
+                unnamed.append(record.id)
+    assert tuples >= 15 and not unnamed, unnamed

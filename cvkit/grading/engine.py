@@ -133,9 +133,10 @@ def output_names(function: Callable, check: Check) -> tuple:
 _RESULT_INDEX = re.compile(r"\b([Rr])esult \[(\d+)\]")
 
 
-def _name_results(text: str | None, names: Sequence[str], count: int | None) -> str | None:
+def _name_results(text: str | None, names: Sequence[str], count: int | None, listed: bool = False) -> str | None:
     """``text`` with the comparators' ``result [i]`` replaced by the result's name (`` `gx` ``),
-    or by "output i+1" when the names do not fit the ``count`` results."""
+    or, when the names do not fit the ``count`` results, by "output i+1" (of a tuple) or "item
+    i of the list" (``listed``: the output is a list, such as a pyramid's octaves)."""
     if not text or "esult [" not in text:
         return text
     fits = count is not None and len(names) == count
@@ -144,7 +145,10 @@ def _name_results(text: str | None, names: Sequence[str], count: int | None) -> 
         i = int(match.group(2))
         if fits and i < len(names):
             return f"`{names[i]}`"
-        return f"{'O' if match.group(1) == 'R' else 'o'}utput {i + 1}"
+        capital = match.group(1) == "R"
+        if listed:
+            return f"{'I' if capital else 'i'}tem {i} of the list"
+        return f"{'O' if capital else 'o'}utput {i + 1}"
 
     return _RESULT_INDEX.sub(name, text)
 
@@ -586,9 +590,10 @@ def evaluate(
                 # no named mistake fits: say what the wrong output looks like (shifted, transposed...)
                 result.diagnosis = _diagnosis(spec, outcome.value, expected)
         count = len(expected) if isinstance(expected, (tuple, list)) else None
-        result.message = _name_results(result.message, results, count) or ""
-        result.details = _name_results(result.details, results, count) or ""
-        result.diagnosis = _name_results(result.diagnosis, results, count)
+        listed = isinstance(expected, list)
+        result.message = _name_results(result.message, results, count, listed) or ""
+        result.details = _name_results(result.details, results, count, listed) or ""
+        result.diagnosis = _name_results(result.diagnosis, results, count, listed)
         report.cases.append(result)
         matching.append(found)
     if report.dropped and not report.cases:

@@ -325,7 +325,7 @@ def headline(message: str, width: int = 90) -> str:
         first = (f"{counted.group(1)} of {counted.group(2)} values differ" if counted
                  else "the values differ from the expected ones")
     first = re.sub(r"\s*\([^()]*\b(?:rtol|atol)\b[^()]*\)", "", first)
-    prefix = re.match(r"(result \[\d+\]: |`[A-Za-z_]\w*`: |[Oo]utput \d+: )?", first)
+    prefix = re.match(r"(result \[\d+\]: |`[A-Za-z_]\w*`: |[Oo]utput \d+: |[Ii]tem \d+ of the list: )?", first)
     lead = prefix.group(0) if prefix else ""
     first = first[len(lead):]
     if not first.startswith(("shape mismatch", "dtype mismatch", "raised ")):
