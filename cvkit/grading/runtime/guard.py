@@ -732,10 +732,14 @@ def _candidate_traceback(exc: BaseException, module: str | None = None) -> str |
     if after:
         what = "it was stopped" if isinstance(exc, CandidateTimeout) else "the error was raised"
         lines.append(f"  ({what} inside {_library_name(after[0])}, which this line called)")
-    summary = "".join(traceback.format_exception_only(type(exc), exc)).strip().splitlines()
-    head = summary[-1] if summary else type(exc).__name__
     if isinstance(exc, CandidateTimeout):
         head = "stopped here: the time limit was reached"
+    else:
+        try:
+            text = str(exc).strip()
+        except Exception:  # an exception whose str() fails
+            text = ""
+        head = type(exc).__name__ + (f": {text.splitlines()[0]}" if text else "")
     lines.append(head[:_ERROR_CHARS])
     return "\n".join(lines)
 
