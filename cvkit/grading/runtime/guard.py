@@ -748,9 +748,10 @@ def _candidate_traceback(exc: BaseException, module: str | None = None) -> str |
 _TRACEBACK_FRAMES = 6
 
 
-def _loops_around(frame, number: int) -> list:
-    """The loops (``ast.For``/``ast.While`` nodes, outermost first) of the function running in
-    ``frame`` whose body holds line ``number``, read from its source (empty when unknown)."""
+def _loops_around(frame, number: int) -> list[tuple[str, int]]:
+    """The loops of the function running in ``frame`` whose body holds line ``number``,
+    outermost first, as ``(kind, line of the loop's header)`` with kind ``"while"`` or
+    ``"for"``, read from the function's source (empty when it cannot be read)."""
     code = frame.f_code
     lines = linecache.getlines(code.co_filename, frame.f_globals)
     if not lines:
@@ -761,11 +762,10 @@ def _loops_around(frame, number: int) -> list:
     except (SyntaxError, IndexError, ValueError, TypeError):
         return []
     relative = number - code.co_firstlineno + 1
-    found = [node for node in ast.walk(tree) if isinstance(node, (ast.For, ast.AsyncFor, ast.While))
-             and node.lineno <= relative <= (node.end_lineno or node.lineno)]
-    for node in found:
-        node.header = node.lineno + code.co_firstlineno - 1
-    return sorted(found, key=lambda node: node.lineno)
+    found = sorted((node.lineno, "while" if isinstance(node, ast.While) else "for")
+                   for node in ast.walk(tree) if isinstance(node, (ast.For, ast.AsyncFor, ast.While))
+                   and node.lineno <= relative <= (node.end_lineno or node.lineno))
+    return [(kind, line + code.co_firstlineno - 1) for line, kind in found]
 
 
 def loop_evidence(exc: BaseException, module: str | None) -> tuple[str | None, list[int]]:
@@ -783,11 +783,11 @@ def loop_evidence(exc: BaseException, module: str | None) -> tuple[str | None, l
         if name in ("<listcomp>", "<dictcomp>", "<setcomp>", "<genexpr>"):
             return "for", [frame.f_code.co_firstlineno]
         loops = _loops_around(frame, number)
-        whiles = [node for node in loops if isinstance(node, ast.While)]
+        whiles = [line for kind, line in loops if kind == "while"]
         if whiles:
-            return "while", [whiles[-1].header]
+            return "while", [whiles[-1]]
         if loops:
-            return "for", [node.header for node in loops][:_LOOP_LINES]
+            return "for", [line for _, line in loops][:_LOOP_LINES]
     return None, []
 
 
