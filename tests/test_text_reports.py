@@ -196,3 +196,17 @@ def test_every_tuple_result_of_the_catalog_has_its_names():
             if len(output_names(record.reference, spec)) != len(out):
                 unnamed.append(record.id)
     assert tuples >= 15 and not unnamed, unnamed
+
+
+def test_a_huge_message_leaves_the_students_frames_in_the_traceback():
+    """The traceback crosses the sandbox's boundary cut to its last characters: a 64 KB message
+    used to push the student's own frames out of it."""
+    from cvkit.grading.runtime.guard import Outcome, run_guarded
+
+    def loud(image):
+        raise ValueError("M" * 65536)
+
+    outcome = Outcome.from_json(run_guarded(loud, (np.ones(2),), {}, watch_reference=False).to_json())
+    lines = outcome.traceback.splitlines()
+    assert any("in loud" in line for line in lines) and lines[-1].startswith("ValueError: MMM")
+    assert "characters cut]" in lines[-1] and len(outcome.traceback) < 4000

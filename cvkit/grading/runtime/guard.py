@@ -724,7 +724,7 @@ def _candidate_traceback(exc: BaseException, module: str | None = None) -> str |
         lines.append(f'  File "{code.co_filename}", line {number}, in {code.co_name}')
         text = linecache.getline(code.co_filename, number, frame.f_globals).strip()
         if text:
-            lines.append(f"    {text}")
+            lines.append(f"    {text[:_CODE_CHARS]}")
     here = __file__.rsplit(".", 1)[0]
     every = [frame for frame, _ in traceback.walk_tb(exc.__traceback__)]
     after = [frame for frame in every[every.index(own[-1][0]) + 1:]
@@ -740,12 +740,16 @@ def _candidate_traceback(exc: BaseException, module: str | None = None) -> str |
         except Exception:  # an exception whose str() fails
             text = ""
         head = type(exc).__name__ + (f": {text.splitlines()[0]}" if text else "")
-    lines.append(head[:_ERROR_CHARS])
+    if len(head) > _HEAD_CHARS:  # the frames above must survive the traceback's own cap
+        head = head[:_HEAD_CHARS] + f" […{len(head) - _HEAD_CHARS} characters cut]"
+    lines.append(head)
     return "\n".join(lines)
 
 
-#: frames of the candidate's own code a traceback keeps (the innermost ones)
-_TRACEBACK_FRAMES = 6
+#: frames of the candidate's own code a traceback keeps (the innermost ones), characters of each
+#: frame's code line and of the exception's line: together well within ``_TRACEBACK_CHARS``, so
+#: that the cap at the boundary never cuts the student's frames away
+_TRACEBACK_FRAMES, _CODE_CHARS, _HEAD_CHARS = 6, 200, 1500
 
 
 def _loops_around(frame, number: int) -> list[tuple[str, int]]:
