@@ -499,8 +499,11 @@ def hidden_view(case: CaseResult, outcome: Outcome, cells: Sequence[str], time_l
     exception = _safe_name(outcome.exception, "an exception")
     if outcome.error is not None and case.message == outcome.error and not outcome.from_grader:
         if outcome.timed_out or outcome.exception == "Timeout":
-            # the evidence crossed the boundary as a word of a fixed set and line numbers only
-            case.message = timeout_message(time_limit, outcome.loop, outcome.loop_lines)
+            # the evidence crossed the boundary as a word of a fixed set and line numbers only,
+            # kept to numbers a line of the student's cells can have
+            longest = max((len(cell.splitlines()) for cell in cells), default=0)
+            lines = [n for n in outcome.loop_lines if 1 <= n <= longest]
+            case.message = timeout_message(time_limit, outcome.loop if lines else None, lines)
         elif outcome.exception == "NotImplementedError":
             case.message = "not implemented yet (the function raises NotImplementedError)"
         elif outcome.exception is None:
