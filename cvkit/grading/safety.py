@@ -721,7 +721,7 @@ _EXERCISE_HEADING = re.compile(r"^#{1,6}\s+(Exercise\s+[0-9][0-9.]*[a-z]?)\b", r
 _TEST_KINDS = {"visible": "visible test", "hidden": "hidden tests", "test": "test"}
 
 
-def test_cell_names(nb) -> dict[str, str]:
+def contents_names(nb) -> dict[str, str]:
     """The name of each test cell for the feedback page's list of contents, by its grade id
     (as :func:`sanitize_notebook` leaves it): the exercise it tests and which test it is, e.g.
     ``"Exercise 4.4 magnitude: visible test"`` for ``magnitude_visible`` under the heading
@@ -801,7 +801,7 @@ def _exporter_class():
             resources = self._init_resources(resources)
             self.register_filter("filter_data_type", WidgetsDataTypeFilter(
                 notebook_metadata=self._nb_metadata, parent=self, resources=resources))
-            names = test_cell_names(nb)
+            names = contents_names(nb)
             page, resources = TemplateExporter.from_notebook_node(self, nb, resources, **kw)
             return _named_contents(_with_alt_texts(page), names), resources
 
