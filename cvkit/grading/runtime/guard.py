@@ -810,9 +810,9 @@ def timeout_message(limit: float | None, loop: str | None = None, lines: list | 
                 "when it was stopped)")
     if loop == "for":
         loops = "`for` loops of lines" if len(lines) > 1 else "`for` loop of line"
-        return (f"{within}: it was still in the {loops} {where} when it was stopped, so it is a loop over pixels, "
-                "far too slow in Python: vectorize with NumPy (whole-array operations, shifted copies, sliding "
-                "windows)")
+        return (f"{within}: it was still in the {loops} {where} when it was stopped; a loop in Python (over "
+                "pixels, say) is far too slow here: vectorize with NumPy (whole-array operations, shifted copies, "
+                "sliding windows)")
     return (f"{within}: look at your loop's exit condition, or, if your code works pixel by pixel, vectorize it "
             "with NumPy (whole-array operations instead of loops)")
 
