@@ -280,6 +280,8 @@ class Algorithm:
         package's check is validated when first resolved (see :func:`validate`).
     package : str
         Who registered it: ``"cvkit"`` or the course package (distribution and entry point).
+    exercise : str or None
+        The notebook section its exercise sits under, when not ``section``.
     """
 
     id: str
@@ -290,6 +292,13 @@ class Algorithm:
     course: CoursePackage | None = field(default=None, repr=False)
     _refusal: str | None = field(default=None, repr=False)
     _validated: bool = field(default=False, repr=False)
+    exercise: str | None = None
+
+    @property
+    def cited(self) -> str:
+        """What a report cites: the section, and the exercise's own when it sits elsewhere
+        (``"3.6, 3.7"``)."""
+        return self.section if self.exercise in (None, self.section) else f"{self.section}, {self.exercise}"
 
     @property
     def module(self) -> str:
@@ -345,8 +354,12 @@ def _registrant(function: Callable) -> tuple[str, CoursePackage | None]:
 _F = TypeVar("_F", bound=Callable[..., Any])
 
 
-def algorithm(algorithm_id: str, *, section: str, check: Any = None) -> Callable[[_F], _F]:
+def algorithm(algorithm_id: str, *, section: str, check: Any = None, exercise: str | None = None) -> Callable[[_F], _F]:
     """Decorator registering a reference implementation under ``algorithm_id``.
+
+    ``section`` is the section of the course notes the algorithm comes from (the catalog's);
+    ``exercise`` the notebook section its exercise sits under when that is another one (it
+    needs what a neighbouring section teaches): reports then cite both.
 
     It records metadata only and returns the function unchanged. ``check`` is a
     :class:`cvkit.grading.Check` or a ``"module:attribute"`` string naming one (resolved on
@@ -360,6 +373,8 @@ def algorithm(algorithm_id: str, *, section: str, check: Any = None) -> Callable
     _validate_id(algorithm_id)
     if not isinstance(section, str) or not section:
         raise ValueError(f"section must be a non-empty string such as '3.9.1', got {section!r}")
+    if exercise is not None and (not isinstance(exercise, str) or not exercise):
+        raise ValueError(f"exercise must be a section such as '3.7' (or None), got {exercise!r}")
 
     def record(function: _F) -> _F:
         if not callable(function):
@@ -381,7 +396,8 @@ def algorithm(algorithm_id: str, *, section: str, check: Any = None) -> Callable
             if course is None and package != CVKIT and namespace in _topics():
                 raise ValueError(f"{package} registers {algorithm_id!r}, but the namespace {namespace!r} belongs "
                                  "to cvkit: register your course's algorithms under your package's name")
-            _algorithms[algorithm_id] = Algorithm(algorithm_id, section, function, check, package, course)
+            _algorithms[algorithm_id] = Algorithm(algorithm_id, section, function, check, package, course,
+                                                  exercise=exercise)
             if course is not None and algorithm_id not in course.ids:
                 course.ids.append(algorithm_id)
             code = getattr(function, "__code__", None)

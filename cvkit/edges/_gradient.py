@@ -116,7 +116,7 @@ def gradient(image: ArrayLike, scheme: Literal["central", "forward", "backward"]
 # --------------------------------------------------------------------------------------------
 # §4.4–4.5 magnitude and direction
 # --------------------------------------------------------------------------------------------
-@algorithm("edges.magnitude", section="4.4–4.5", check="cvkit.edges.checks:magnitude")
+@algorithm("edges.magnitude", section="4.5", exercise="4.4", check="cvkit.edges.checks:magnitude")
 def magnitude(ix: ArrayLike, iy: ArrayLike, norm: Literal["l2", "l1", "max"] = "l2") -> np.ndarray:
     """Gradient magnitude ``|∇I|`` in one of three norms.
 

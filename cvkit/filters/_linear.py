@@ -210,7 +210,7 @@ def temporal_mean(frames: ArrayLike) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 # §3.6–3.7 correlation and convolution
 # --------------------------------------------------------------------------------------------
-@algorithm("filters.correlate", section="3.6–3.7", check="cvkit.filters.checks:correlate")
+@algorithm("filters.correlate", section="3.6", exercise="3.7", check="cvkit.filters.checks:correlate")
 @_docs
 def correlate(image: ArrayLike, kernel: ArrayLike, border: Border = "reflect101",
               output: Literal["same", "valid"] = "same") -> np.ndarray:

@@ -463,7 +463,7 @@ def evaluate(
     else:
         cases = spec.public_cases()
         seed = None
-    report = Report(algorithm_id, record.section, hidden, seed, [])
+    report = Report(algorithm_id, record.cited, hidden, seed, [])
     if runner is None and not callable(candidate):
         report.problem = f"expected a function to grade, got {type(candidate).__name__}"
         return report

@@ -36,7 +36,7 @@ def _output_size(size: int, kernel: int, padding: int, stride: int, what: str = 
     return span // stride + 1
 
 
-@algorithm("nn.conv_output_size", section="10.7.3–10.7.4", check="cvkit.nn.checks:conv_output_size")
+@algorithm("nn.conv_output_size", section="10.7.4", exercise="10.7.3", check="cvkit.nn.checks:conv_output_size")
 def conv_output_size(size: int, kernel: int, padding: int = 0, stride: int = 1) -> int:
     """Spatial size of the output of a convolution (or pooling) layer along one axis.
 

@@ -198,7 +198,7 @@ def warp_homography(image: ArrayLike, H: ArrayLike, output_shape: Sequence[int] 
     return implementation("warp.bilinear_sample")(img, x, y, fill=fill)
 
 
-@algorithm("warp.undistort_image", section="8.4.1–8.4.2", check="cvkit.warp.checks:undistort_image")
+@algorithm("warp.undistort_image", section="8.4.1", exercise="8.4.2", check="cvkit.warp.checks:undistort_image")
 def undistort_image(image: ArrayLike, A: ArrayLike, k: ArrayLike, p: ArrayLike = (0.0, 0.0)) -> np.ndarray:
     """Remove lens distortion from an image: what a distortion-free camera would see.
 
