@@ -98,3 +98,22 @@ def test_answer_reaches_the_feedback_cleaned_and_without_mark_scheme(graded):
     assert "onerror" not in page and "<script>alert" not in page
     assert "Mark scheme" not in page and "3 for a measurement" not in page
     assert "Open task 99" in page
+
+
+def test_the_page_says_what_waits_for_the_instructor_never_a_zero(graded):
+    """ada's written answer (2 points) and open task (3 points) wait for a hand mark: her page says
+    so where nbgrader's template printed "Score: 0.0 / 2.0"; bob left the answer as released, a
+    zero nbgrader decided, and his page shows that score."""
+    import re
+
+    course, _ = graded
+    page = next((course.root / "feedback" / "ada" / tiny.ASSIGNMENT).glob("*.html")).read_text()
+    text = " ".join(re.sub(r"<[^>]+>", " ", page).split())
+    assert "Waiting for your instructor (2 points)" in text and "Waiting for your instructor (3 points)" in text
+    assert "(waiting for your instructor: 2 points)" in text and "(waiting for your instructor: 3 points)" in text
+    assert re.search(r"\(Score: [0-9.]+ / [0-9.]+\) — 5 points still waiting for your instructor", text)
+    assert "Written response (Score" not in text and "Task (Score" not in text
+    assert not re.search(r"Student's answer Score: 0\.0 / 2\.0|Student's task Score: 0\.0 / 3\.0", text)
+    bob = " ".join(re.sub(r"<[^>]+>", " ", next((course.root / "feedback" / "bob" / tiny.ASSIGNMENT)
+                                                .glob("*.html")).read_text()).split())
+    assert "Written response (Score: 0.0 / 2.0)" in bob and "Student's answer Score: 0.0 / 2.0" in bob

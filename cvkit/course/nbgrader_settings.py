@@ -48,7 +48,7 @@ def configure(c: Any, root: str | os.PathLike[str], source: str | os.PathLike[st
 
     from ..grading.nbgrader_plugins import (
         HideHiddenTests, PlanExtensions, SafeFeedbackExporter, SandboxedExecute, SanitizeStudentContent,
-        TrustedChecks,
+        TrustedChecks, WaitingForInstructor,
     )
     from ..grading.safety import mathjax_post_convert_hook
     from .plan import configure_nbgrader
@@ -109,6 +109,8 @@ def configure(c: Any, root: str | os.PathLike[str], source: str | os.PathLike[st
     # the network. The mark schemes of open tasks stay with the instructor: nbgrader restores
     # locked task cells from the source version when autograding, mark scheme included;
     # SafeFeedbackExporter removes it.
-    c.GenerateFeedback.preprocessors = [GetGrades, SanitizeStudentContent, HideHiddenTests, CSSHTMLHeaderPreprocessor]
+    # Written answers and open tasks that wait for a hand mark say so (WaitingForInstructor), never "0".
+    c.GenerateFeedback.preprocessors = [GetGrades, WaitingForInstructor, SanitizeStudentContent, HideHiddenTests,
+                                        CSSHTMLHeaderPreprocessor]
     c.GenerateFeedback.exporter_class = SafeFeedbackExporter
     c.GenerateFeedback.post_convert_hook = mathjax_post_convert_hook(root / "feedback")

@@ -242,6 +242,29 @@ def late_policy_sentence(policy: str, points_per_hour: float) -> str:
     return "A late hand-in is accepted without a penalty."
 
 
+class WaitingForInstructor(NbGraderPreprocessor):
+    """A step of ``generate_feedback`` (after ``GetGrades``): the grade cells that still wait for a
+    hand mark (nbgrader's ``needs_manual_grade``), as ``resources["cvkit_waiting"]`` (grade id →
+    points), so that the page says "waiting for your instructor" where nbgrader's template would
+    print a score of 0 the student has not earned (:class:`~cvkit.grading.safety.SafeFeedbackExporter`)."""
+
+    enabled = Bool(True).tag(config=True)
+
+    def preprocess(self, nb, resources):
+        from nbgrader.api import Gradebook, MissingEntry
+
+        info = resources.get("nbgrader", {})
+        waiting: dict[str, float] = {}
+        try:
+            with Gradebook(info["db_url"]) as gradebook:
+                notebook = gradebook.find_submission_notebook(info["notebook"], info["assignment"], info["student"])
+                waiting = {g.name: float(g.max_score) for g in notebook.grades if g.needs_manual_grade}
+        except (KeyError, MissingEntry):
+            pass
+        resources["cvkit_waiting"] = waiting
+        return nb, resources
+
+
 class HideHiddenTests(NbGraderPreprocessor):
     """In feedback, show the hidden tests' results but not their source."""
 

@@ -757,6 +757,30 @@ def _named_contents(page: str, names: dict[str, str]) -> str:
     return re.sub(r'<a href="#([A-Za-z0-9_.\-]+)">Test cell</a>', name, page)
 
 
+def _waiting_marks(page: str, waiting: dict[str, float]) -> str:
+    """nbgrader's page with "waiting for your instructor" where a cell waits for a hand mark
+    (``waiting``: grade id → points): in the list of contents, in the cell's heading, and after the
+    notebook's score (which counts those points as 0 until they are marked)."""
+    if not waiting:
+        return page
+
+    def points(value: float) -> str:
+        return f"{value:g} point{'s' * (value != 1)}"
+
+    for grade_id, value in waiting.items():
+        gid = re.escape(_GRADE_ID.sub("_", grade_id))
+        page = re.sub(rf'(<a href="#{gid}">[^<]*</a>) \(Score: [^)]*\)',
+                      lambda m: f"{m.group(1)} (waiting for your instructor: {points(value)})", page, count=1)
+        page = re.sub(rf'(<a name="(?:comment-)?{gid}"></a>\s*<div class="panel-heading">(?:(?!</div>).)*?<span class="pull-right">\s*)'
+                      r'Score: [^<]*?(<a href="#top">)',
+                      lambda m: f"{m.group(1)}Waiting for your instructor ({points(value)}) {m.group(2)}", page,
+                      count=1, flags=re.S)
+    total = sum(waiting.values())
+    return re.sub(r'(<h4>[^<]*\(Score: [^)]*\))(</h4>)',
+                  lambda m: f"{m.group(1)} — {points(total)} still waiting for your instructor{m.group(2)}", page,
+                  count=1)
+
+
 def _exporter_class():
     from jinja2 import DictLoader
     from nbconvert.exporters import HTMLExporter, TemplateExporter
@@ -803,7 +827,8 @@ def _exporter_class():
                 notebook_metadata=self._nb_metadata, parent=self, resources=resources))
             names = contents_names(nb)
             page, resources = TemplateExporter.from_notebook_node(self, nb, resources, **kw)
-            return _named_contents(_with_alt_texts(page), names), resources
+            page = _waiting_marks(_named_contents(_with_alt_texts(page), names), resources.get("cvkit_waiting") or {})
+            return page, resources
 
         def _init_resources(self, resources):
             resources = super()._init_resources(resources)
