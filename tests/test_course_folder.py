@@ -209,3 +209,19 @@ def test_bad_course_folders_are_refused_with_what_to_do(semester, tmp_path):
     done = cvkit("course", "build", cwd=folder)
     assert done.returncode == 2 and "has no plan.toml: write one" in done.stderr, done.stderr
     (folder / "plan.toml").write_text(plan)
+
+
+def test_two_courses_sharing_a_gradebook_are_refused(semester, tmp_path):
+    """A second course given the first one's gradebook by mistake (a --db-url) is refused before
+    anything is written; the first course's gradebook is untouched."""
+    folder = semester["folder"]
+    other = tmp_path / "ipcv-lab"
+    assert cvkit("new", "course", str(other), "--chapter", KIT_CHAPTER, cwd=tmp_path).returncode == 0
+    shared = f"sqlite:///{folder / 'gradebook.db'}"
+    before = (folder / "gradebook.db").read_bytes()
+    done = cvkit("course", "build", "--db-url", shared, cwd=other)
+    assert done.returncode == 2
+    assert (f"holds the course 'ipcv-2027' (course folder {folder}), not 'ipcv-lab' of {other}: two courses must not "
+            "share a gradebook") in " ".join(done.stderr.split()), done.stderr
+    assert (folder / "gradebook.db").read_bytes() == before and not (other / "release").exists()
+

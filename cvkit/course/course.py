@@ -233,6 +233,36 @@ class Course:
         """Assignment ids of the plan that have a source folder in ``lectures/``."""
         return [a for a in self.plan().ids() if (self.source_dir / a).is_dir()]
 
+    def claim_gradebook(self) -> None:
+        """Refuse a gradebook that already holds another course: two courses given one database by
+        mistake (``--db-url``, ``CVKIT_DB_URL``) would mix their students and grades. The gradebook
+        remembers the ``[course] id`` of the plan that first used it (a table ``cvkit_course`` of
+        its own, beside nbgrader's); a plan without a course id is not checked."""
+        course_id = self.plan().course_id
+        if not course_id:
+            return
+        import sqlalchemy as sa
+
+        engine = sa.create_engine(self.db_url)
+        table = sa.Table("cvkit_course", sa.MetaData(), sa.Column("course_id", sa.String(200), primary_key=True),
+                         sa.Column("folder", sa.Text))
+        try:
+            with engine.begin() as connection:
+                table.create(connection, checkfirst=True)
+                rows = connection.execute(sa.select(table.c.course_id, table.c.folder)).all()
+                others = [(c, f) for c, f in rows if c != course_id]
+                if others:
+                    other, folder = others[0]
+                    raise ValueError(
+                        f"the gradebook {engine.url.render_as_string(hide_password=True)} holds the course {other!r} "
+                        f"(course folder {folder}), not {course_id!r} of {self.root}: two courses must not share a "
+                        "gradebook; give this course its own (--db-url, or leave it out for SQLite in the course "
+                        "folder), or set [course] id in plan.toml to the gradebook's course if it is the same course")
+                if not rows:
+                    connection.execute(table.insert().values(course_id=course_id, folder=str(self.root)))
+        finally:
+            engine.dispose()
+
     def sync_due_dates(self) -> list[str]:
         """Make the gradebook's due dates (nbgrader's ``Assignment.duedate``) the plan's, as every
         nbgrader command of the course does when it loads ``nbgrader_config.py``; returns what
@@ -356,6 +386,7 @@ class Course:
             raise FileNotFoundError(f"{self.plan().name} names {', '.join(missing)}, but {self.source_dir} has no such "
                                     f"chapter folder: add its notebook there (source/<chapter>/<chapter>.ipynb), or "
                                     f"take it out of the plan")
+        self.claim_gradebook()
         self.sync_due_dates()
         if not chosen:
             return chosen

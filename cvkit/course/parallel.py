@@ -235,6 +235,7 @@ def grade(course: Course, assignments: Iterable[str] | None = None, workers: int
         require_worker()  # the worker itself starts here: never a class of "ended early" zeros
     else:
         os.environ["CVKIT_NO_SANDBOX"] = "1"  # inherited by the grading workers
+    course.claim_gradebook()  # before anything is written: never two courses in one gradebook
     found = course.submissions(assignments)
     outside = course.outside_plan(found)  # chapters not in the plan: listed as not graded, never a zero
     jobs = [(s, a) for s, a in found if f"{s}/{a}" not in outside]
