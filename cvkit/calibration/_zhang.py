@@ -21,7 +21,6 @@ __all__ = [
     "estimate_radial_distortion",
     "calibrate",
     "rotation_to_vector",
-    "vector_to_rotation",
 ]
 
 
@@ -39,20 +38,6 @@ class CalibrationResult(AttributeDict):
 # --------------------------------------------------------------------------------------------
 # rotations as 3-vectors (for the refinement)
 # --------------------------------------------------------------------------------------------
-def _cross_matrix(w: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
-def vector_to_rotation(w: ArrayLike) -> np.ndarray:
-    """Rodrigues' formula: the rotation by the angle ‖w‖ about the axis w/‖w‖."""
-    w = np.asarray(w, dtype=np.float64).reshape(3)
-    theta = float(np.linalg.norm(w))
-    if theta < 1e-12:
-        return np.eye(3) + _cross_matrix(w)
-    K = _cross_matrix(w / theta)
-    return np.eye(3) + np.sin(theta) * K + (1.0 - np.cos(theta)) * (K @ K)
-
-
 def _rotations(W: np.ndarray) -> np.ndarray:
     """Rodrigues' formula for a stack of rotation vectors (V, 3) → (V, 3, 3)."""
     theta = np.linalg.norm(W, axis=1)

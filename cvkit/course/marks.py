@@ -113,7 +113,8 @@ def snapshot(course: Course, assignment: str, students: Iterable[str]) -> dict[t
             answers[(student, name)] = _answers(
                 _read_notebook(course.root / "autograded" / student / assignment / f"{name}.ipynb"))
         found = answers[(student, name)]
-        marks[(student, name, grade_id)] = Mark(*state, found.get(grade_id, found[""]))
+        score, extra, needs, comment = state
+        marks[(student, name, grade_id)] = Mark(score, extra, needs, comment, found.get(grade_id, found[""]))
     return marks
 
 
@@ -181,12 +182,15 @@ def fingerprints(course: Course, pairs: Iterable[tuple[str, str]]) -> dict[str, 
 UNMARKED = _digest([json.dumps([])])
 
 
-def _marks(course: Course, assignment: str, students: Iterable[str]) -> dict[tuple[str, str, str], tuple]:
+_State = tuple[float | None, float | None, bool, str | None]  # manual score, extra credit, needs a mark, comment
+
+
+def _marks(course: Course, assignment: str, students: Iterable[str]) -> dict[tuple[str, str, str], _State]:
     """(student, notebook, grade id) → (manual score, extra credit, needs manual grade, comment)
     of the recorded submissions of ``students``."""
     from nbgrader.api import MissingEntry
 
-    marks: dict[tuple[str, str, str], tuple] = {}
+    marks: dict[tuple[str, str, str], _State] = {}
     with _gradebook(course) as gradebook:
         try:
             notebooks = [n.name for n in gradebook.find_assignment(assignment).notebooks]

@@ -17,7 +17,6 @@
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +31,6 @@ from .runtime import cells
 from .safety import SafeFeedbackExporter, SanitizeStudentContent  # noqa: F401  (re-exported for the config)
 from .trusted import CheckCall, grade_notebook, hide_hidden_tests
 
-TRUSTED_VARIABLE = "CVKIT_TRUSTED_GRADING"
 
 
 #: nbgrader's test-cell rule (``is_grade`` and not ``is_solution``), without importing nbgrader:
@@ -363,8 +361,3 @@ def _is_banner(cell: Any) -> bool:
     source = cell.get("source", "")
     text = source if isinstance(source, str) else "".join(source)
     return cell.get("cell_type") == "markdown" and text.strip() == UNSANDBOXED_BANNER
-
-
-def trusted_grading_active() -> bool:
-    """True inside a kernel run by the trusted autograder (checks are decided outside)."""
-    return os.environ.get(TRUSTED_VARIABLE) == "1"

@@ -1,7 +1,6 @@
 """Argument checks shared by the layers of :mod:`cvkit.nn`."""
 from __future__ import annotations
 
-import numbers
 from collections.abc import Sequence
 from typing import Any
 
@@ -10,7 +9,7 @@ from numpy.typing import ArrayLike
 
 from .._validation import as_float_array, check_bool, check_int, check_real
 
-__all__ = ["as_batch", "as_gradient", "pair", "check_bool", "cache_value", "check_cache", "entry_name"]
+__all__ = ["as_batch", "as_gradient", "pair", "check_bool", "check_cache", "entry_name"]
 
 
 def as_batch(x: ArrayLike, name: str = "x") -> np.ndarray:
@@ -53,13 +52,6 @@ def check_cache(cache: object, keys: tuple[str, ...], layer: str) -> dict[str, A
     return cache
 
 
-def cache_value(cache: dict[str, Any], key: str) -> Any:
-    return cache[key]
-
-
 def real(value: float, name: str, **kw: bool) -> float:
     return check_real(value, name, **kw)
 
-
-def is_int(value: object) -> bool:
-    return isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, (bool, np.bool_))
