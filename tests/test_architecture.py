@@ -152,6 +152,65 @@ def test_no_import_cycles_between_packages():
     assert not cycle, " -> ".join(cycle)
 
 
+def _top_level_imports(name: str, path: Path) -> set[str]:
+    """The cvkit modules ``name`` imports when it is imported: the imports of its body (also
+    inside a top-level ``try`` or ``if``), not those of functions or ``if TYPE_CHECKING:``."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    lines = set()
+    for node in tree.body:
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            continue
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            lines.add(node.lineno)
+        elif isinstance(node, (ast.Try, ast.If)):
+            lines |= {n.lineno for n in ast.walk(node) if isinstance(n, (ast.Import, ast.ImportFrom))}
+    return {t for t, _, line in _imports(name, path) if line in lines and t in MODULES and t != name}
+
+
+def test_no_import_cycle_between_modules():
+    """No module of cvkit imports, at import time, a module that imports it back (directly or
+    through others): every module can be read, and loaded, after the ones it needs."""
+    graph = {name: _top_level_imports(name, path) for name, path in MODULES.items()}
+    state: dict[str, int] = {}
+
+    def visit(node: str, path: list[str]) -> list[str]:
+        state[node] = 1
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == 1:
+                return path + [node, nxt]
+            if nxt not in state:
+                found = visit(nxt, path + [node])
+                if found:
+                    return found
+        state[node] = 2
+        return []
+
+    for node in sorted(graph):
+        if node not in state:
+            cycle = visit(node, [])
+            assert not cycle, "import cycle: " + " -> ".join(cycle)
+    assert sum(len(v) for v in graph.values()) > 200  # the graph was read
+
+
+def test_no_dynamic_import_crosses_the_layers():
+    """``importlib.import_module("cvkit....")`` and ``__import__`` obey the same rules as ``import``:
+    the test above cannot see them, so they are read here."""
+    wrong = []
+    for name, path in MODULES.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(node, ast.Call) or not node.args or not isinstance(node.args[0], ast.Constant):
+                continue
+            called = ast.unparse(node.func)
+            target = node.args[0].value
+            if called not in ("importlib.import_module", "import_module", "__import__") or not isinstance(target, str) \
+                    or not target.startswith("cvkit"):
+                continue
+            runtime_leaves = _room(name) == "cvkit.grading.runtime" and _room(target) != "cvkit.grading.runtime"
+            if runtime_leaves or not _allowed(name, target):
+                wrong.append(f"{name} imports {target} dynamically at line {node.lineno}")
+    assert not wrong, "\n".join(wrong)
+
+
 @pytest.mark.parametrize("source, target, ok", [
     ("cvkit.filters._linear", "cvkit.grading.engine", False),
     ("cvkit.filters.checks", "cvkit.grading.compare", True),

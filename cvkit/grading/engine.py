@@ -21,11 +21,15 @@ from .checks import Case, Check, Mistake, bind_call
 from .compare import Mismatch, Statistics
 from .diagnose import CONVENTION, diagnose, explain_exception, image_variants
 from .reference_server import DATA_TRANSFORMS
-from .runtime.guard import Outcome, run_guarded
+from .runtime.guard import Outcome, run_guarded, use_reference_functions
 from .report import MIME_TYPE, CaseResult, Report
 
 SALT_VARIABLE = "CVKIT_GRADING_SALT"
 STUDENT_VARIABLE = "CVKIT_STUDENT_ID"
+
+# the guard reports calls into cvkit's references; it learns them from here (it never imports
+# the registry itself: the runtime must stay free of cvkit's library, docs/architecture.md)
+use_reference_functions(registry.reference_functions)
 
 
 def hidden_seed(algorithm_id: str, student: str | None = None, salt: str | None = None,
