@@ -1,0 +1,435 @@
+"""The item analysis of a graded course, for the instructor: ``exports/item_analysis.csv`` and
+``exports/item_analysis.html`` (a dashboard: plots drawn when the page is written, embedded as
+PNG with alt texts; no script).
+
+The figures come from :mod:`cvkit.course.item_stats` (pure statistics; the formulas are there
+and on the page). This module reads their inputs from the course: the scores, the named mistakes,
+the problems and the flags per student and exercise (:func:`cvkit.course.results.scores`, the
+same reading as the grade table), and each counted case's label and verdict from the trusted
+reports the autograded notebooks keep in their test cells' outputs (``application/vnd.cvkit.
+report+json``). Every text a student could have written is shown printable and escaped.
+"""
+from __future__ import annotations
+
+import base64
+import csv
+import html
+import io
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, Iterable
+
+from .._text import printable
+from ..grading.report import MIME_TYPE
+from .cells import exercise_name, grade_id
+from .item_stats import FORMULAS, MIN_CORRELATION, MIN_DISCRIMINATION, AssignmentStats, Rate, Response, analyse
+
+if TYPE_CHECKING:
+    from .course import Course
+
+CSV_NAME = "item_analysis.csv"
+HTML_NAME = "item_analysis.html"
+NOTEBOOK = "(notebook)"  # flags of no exercise in particular (results.scores): not an item
+
+
+# ------------------------------------------------------------------------------ reading the course
+def responses(course: Course, assignment: str) -> tuple[list[str], dict[str, dict[str, Response]]]:
+    """The exercises of ``assignment`` (in the notebooks' order) and, per graded student, a
+    :class:`~cvkit.course.item_stats.Response` per exercise."""
+    table = course.scores(assignment)
+    order: list[str] = []
+    found: dict[str, dict[str, Response]] = {}
+    for student, exercises in table.items():
+        cases = case_verdicts(course.root / "autograded" / student / assignment)
+        row = {}
+        for e in exercises:
+            if e.name == NOTEBOOK:
+                continue
+            if e.name not in order:
+                order.append(e.name)
+            row[e.name] = Response(None if e.to_mark else float(e.score), float(e.max_score),
+                                   mistakes=list(e.mistakes), problems=list(e.problems), flagged=bool(e.flags),
+                                   attempted=not any(str(p).startswith("not implemented") for p in e.problems),
+                                   cases=cases.get(e.name, []))
+        found[student] = row
+    return order, found
+
+
+def case_verdicts(folder: Path) -> dict[str, list[tuple[str, bool]]]:
+    """exercise → ``(case label, passed)`` of every counted case of the trusted reports in the
+    autograded notebooks of ``folder`` (empty for an unreadable notebook)."""
+    found: dict[str, list[tuple[str, bool]]] = {}
+    for path in sorted(folder.glob("*.ipynb")):
+        try:
+            cells = json.loads(path.read_text()).get("cells", [])
+        except (OSError, ValueError, AttributeError):
+            continue
+        for cell in cells if isinstance(cells, list) else []:
+            cell_id = grade_id(cell) if isinstance(cell, dict) else None
+            if not cell_id:
+                continue
+            name = exercise_name(cell_id, answers=False)
+            for output in cell.get("outputs", []) or []:
+                report = output.get("data", {}).get(MIME_TYPE) if isinstance(output, dict) else None
+                for case in (report or {}).get("cases", []) if isinstance(report, dict) else []:
+                    if isinstance(case, dict) and "passed" in case:
+                        label = str(case.get("label") or f"case {int(case.get('index', 0)) + 1}")
+                        found.setdefault(name, []).append((label, bool(case["passed"])))
+    return found
+
+
+def analyse_course(course: Course, assignments: Iterable[str] | None = None) -> list[AssignmentStats]:
+    """The item analysis of every assignment of the plan and of every one with submissions (or of
+    ``assignments``): an assignment nobody submitted gets its line, never a made-up figure."""
+    if assignments is None:
+        try:
+            planned = list(course.plan().ids())
+        except (OSError, ValueError):  # no plan, or one that cannot be read: the submissions say which
+            planned = []
+        chosen = list(dict.fromkeys(planned + sorted({a for _, a in course.submissions()})))
+    else:
+        chosen = list(dict.fromkeys(assignments))
+    results = []
+    for assignment in chosen:
+        exercises, answers = responses(course, assignment)
+        results.append(analyse(assignment, answers, exercises))
+    return results
+
+
+def export(course: Course, assignments: Iterable[str] | None = None) -> Path:
+    """Write ``exports/item_analysis.csv`` and ``exports/item_analysis.html``; return the page."""
+    results = analyse_course(course, assignments)
+    folder = course.root / "exports"
+    write_csv(results, folder / CSV_NAME)
+    return write_html(results, folder / HTML_NAME)
+
+
+# ------------------------------------------------------------------------------ text summary
+def _pct(share: float | None) -> str:
+    return "—" if share is None else f"{share:.0%}"
+
+
+def _num(value: float | None, digits: int = 2) -> str:
+    return "—" if value is None else f"{value:.{digits}f}"
+
+
+def summary(results: list[AssignmentStats], path: Path | None = None) -> list[str]:
+    """A few lines per assignment for the terminal: class size, α, hardest exercise, weakest
+    discrimination, the most frequent mistake, unexplained failures, the worst case parameter."""
+    lines = []
+    for result in results:
+        name = printable(result.assignment)
+        if not result.exercises:
+            lines += [f"item analysis {name}: {printable(w)}" for w in result.warnings] or [
+                f"item analysis {name}: nothing to analyse"]
+            continue
+        alpha = f"Cronbach's α {result.alpha:.2f}" if result.alpha is not None else "no α (see the warnings)"
+        lines.append(f"item analysis {name}: {result.students} student{'s' * (result.students != 1)}, {alpha}")
+        scored = [e for e in result.exercises if e.facility is not None]
+        if scored:
+            hardest = min(scored, key=lambda e: e.facility)  # type: ignore[arg-type, return-value]
+            lines.append(f"  hardest: {printable(hardest.name)} (facility {hardest.facility:.2f})")
+        correlated = [e for e in result.exercises if e.rest_correlation is not None]
+        if correlated:
+            weakest = min(correlated, key=lambda e: e.rest_correlation)  # type: ignore[arg-type, return-value]
+            lines.append(f"  weakest discrimination: {printable(weakest.name)} "
+                         f"(item–rest r {weakest.rest_correlation:.2f})")
+        mistakes = [(m, e.name) for e in result.exercises for m in e.mistakes]
+        if mistakes:
+            top, where = max(mistakes, key=lambda mw: (mw[0].count, -len(mw[0].name)))
+            lines.append(f"  most frequent mistake: “{printable(top.name)}” in {printable(where)} "
+                         f"({_pct(top.share)} of the class)")
+        unexplained = [(e.unexplained.count, e.name) for e in result.exercises if e.unexplained and e.unexplained.count]
+        if unexplained:
+            lines.append("  failures matching no known mistake: " + ", ".join(
+                f"{printable(n)} {c}" for c, n in sorted(unexplained, key=lambda cn: -cn[0])[:4]))
+        parameters = [(p, e.name) for e in result.exercises for p in e.parameters if p.of]
+        if parameters:
+            worst, where = max(parameters, key=lambda pw: (pw[0].share, pw[0].of))
+            lines.append(f"  worst case parameter: {printable(where)} · {printable(worst.name)} "
+                         f"({_pct(worst.share)} of {worst.of} cases failed)")
+        lines += [f"  ! {printable(w)}" for w in result.warnings]
+    if path is not None:
+        lines.append(f"item analysis: {path}")
+    return lines
+
+
+# ------------------------------------------------------------------------------ CSV
+CSV_COLUMNS = ["assignment", "exercise", "measure", "name", "value", "count", "of", "note"]
+
+
+def _rows(results: list[AssignmentStats]) -> list[list[Any]]:
+    def value(x: float | None) -> Any:
+        return "" if x is None else round(float(x), 4)
+
+    rows: list[list[Any]] = []
+    for r in results:
+        a = r.assignment
+        rows.append([a, "", "students", "", r.students, "", "", ""])
+        rows.append([a, "", "students_with_complete_scores", "", r.complete, "", "", ""])
+        rows.append([a, "", "cronbach_alpha", "", value(r.alpha), "", r.complete,
+                     "" if r.alpha is not None else "not computed: see the warnings"])
+        rows += [[a, "", "warning", "", "", "", "", w] for w in r.warnings]
+        if r.totals:
+            rows += [[a, "", "score_band", band.name, value(band.share), band.count, band.of, ""]
+                     for band in r.distribution]
+        for e in r.exercises:
+            x = e.name
+            rows.append([a, x, "graded", "", e.graded, "", e.students, ""])
+            rows.append([a, x, "max_score", "", value(e.max_score), "", "", ""])
+            rows.append([a, x, "mean_score", "", value(e.mean), "", e.graded, ""])
+            rows.append([a, x, "facility", "", value(e.facility), "", e.graded, ""])
+            rows.append([a, x, "item_rest_correlation", e.correlation_kind, value(e.rest_correlation), "", r.complete,
+                         "" if e.rest_correlation is not None else f"not computed (needs {MIN_CORRELATION} students "
+                                                                   "with complete scores and some spread)"])
+            rows.append([a, x, "upper_lower_discrimination", "27 %", value(e.discrimination), "", r.complete,
+                         "" if e.discrimination is not None else f"not computed (needs {MIN_DISCRIMINATION} "
+                                                                 "students with complete scores)"])
+            for rate, measure in ((e.not_attempted, "not_attempted"), (e.flagged, "flagged"),
+                                  (e.unexplained, "unexplained_failures")):
+                if rate is not None:
+                    rows.append([a, x, measure, "", value(rate.share), rate.count, rate.of, ""])
+            rows += [[a, x, "mistake", m.name, value(m.share), m.count, m.of, ""] for m in e.mistakes]
+            rows += [[a, x, "unexplained_problem", p.name, value(p.share), p.count, p.of, ""]
+                     for p in e.unexplained_problems]
+            rows += [[a, x, "parameter_failure_rate", p.name, value(p.share), p.count, p.of, "failed cases of graded cases"]
+                     for p in e.parameters]
+            rows += [[a, x, "case_failure_rate", c.name, value(c.share), c.count, c.of, "failed cases of graded cases"]
+                     for c in e.cases]
+            rows += [[a, x, "warning", "", "", "", "", w] for w in e.warnings]
+    return rows
+
+
+def write_csv(results: list[AssignmentStats], path: Path) -> Path:
+    """One row per figure (long format, for a spreadsheet's pivot table): ``measure`` names it,
+    ``value`` is the figure or share, ``count`` of ``of`` what it counts; an empty value is a
+    figure not computed (``note`` says why). Texts printable, never a spreadsheet formula."""
+    from ..grading.safety import csv_safe
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(CSV_COLUMNS)
+        for row in _rows(results):
+            writer.writerow([csv_safe(printable(c, newlines=True)) if isinstance(c, str) else csv_safe(c) for c in row])
+    return path
+
+
+# ------------------------------------------------------------------------------ plots
+_INK, _BAR, _ACCENT = "#1f2328", "#0550ae", "#953800"
+
+
+def _png(draw: Callable[[Any], None], width: float = 5.4, height: float = 3.2) -> str:
+    """A matplotlib figure drawn by ``draw(axes)`` as base64 PNG (no global pyplot state)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(width, height), dpi=100)
+    FigureCanvasAgg(figure)
+    axes = figure.add_subplot(1, 1, 1)
+    draw(axes)
+    for spine in ("top", "right"):
+        axes.spines[spine].set_visible(False)
+    figure.tight_layout()
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png")
+    return base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+def _short(text: str, width: int = 38) -> str:
+    text = printable(text)
+    return text if len(text) <= width else text[: width - 1] + "…"
+
+
+def _figure(png: str, alt: str, caption: str) -> str:
+    return (f"<figure><img src=\"data:image/png;base64,{png}\" alt=\"{html.escape(alt, quote=True)}\">"
+            f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+
+
+def _histogram(result: AssignmentStats) -> str:
+    bands = result.distribution
+    names = [b.name.replace(" %", "") for b in bands]
+
+    def draw(ax: Any) -> None:
+        ax.bar(range(10), [b.count for b in bands], color=_BAR)
+        ax.set_xticks(range(10), names, fontsize=7)
+        ax.set_xlabel("total score, % of the maximum", color=_INK)
+        ax.set_ylabel("students", color=_INK)
+        from matplotlib.ticker import MaxNLocator
+
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+
+    alt = (f"Histogram of the total scores of {result.complete} students in {printable(result.assignment)}: "
+           + "; ".join(f"{b.name}: {b.count}" for b in bands if b.count))
+    return _figure(_png(draw), alt, "Score distribution (students with a score for every exercise)")
+
+
+def _scatter(result: AssignmentStats) -> str:
+    points = [(e.name, e.facility, e.discrimination if e.discrimination is not None else e.rest_correlation)
+              for e in result.exercises if e.facility is not None]
+    points = [(n, f, d) for n, f, d in points if d is not None]
+    if not points:
+        return ""
+    measure = "upper–lower D" if all(e.discrimination is not None for e in result.exercises) else "item–rest r"
+
+    def draw(ax: Any) -> None:
+        ax.axhspan(-1, 0.2, color="#f6e7d8", zorder=0)
+        ax.scatter([f for _, f, _ in points], [d for _, _, d in points], color=_BAR, zorder=2)
+        for name, f, d in points:
+            ax.annotate(_short(name, 22), (f, d), textcoords="offset points", xytext=(4, 4), fontsize=7, color=_INK)
+        ax.set_xlim(-0.02, 1.08)
+        ax.set_ylim(min(-0.1, min(d for _, _, d in points) - 0.05), 1.0)
+        ax.set_xlabel("facility (share of the points earned)", color=_INK)
+        ax.set_ylabel(f"discrimination ({measure})", color=_INK)
+
+    alt = (f"Scatter plot of facility against discrimination ({measure}) per exercise of "
+           f"{printable(result.assignment)}; the shaded band below 0.2 marks weak discrimination: "
+           + "; ".join(f"{printable(n)}: facility {f:.2f}, discrimination {d:.2f}" for n, f, d in points))
+    return _figure(_png(draw), alt, f"Facility against discrimination ({measure}); shaded: below 0.2, look at "
+                                    "these exercises")
+
+
+def _bars(rates: list[tuple[str, Rate]], what: str, xlabel: str, alt_lead: str) -> str:
+    if not rates:
+        return ""
+    labels = [_short(f"{exercise} · {rate.name}", 48) for exercise, rate in rates]
+
+    def draw(ax: Any) -> None:
+        y = list(range(len(rates)))[::-1]
+        ax.barh(y, [100 * (rate.share or 0) for _, rate in rates], color=_ACCENT)
+        ax.set_yticks(y, labels, fontsize=7)
+        ax.set_xlim(0, 100)
+        ax.set_xlabel(xlabel, color=_INK)
+
+    alt = alt_lead + "; ".join(f"{printable(e)}, {printable(r.name)}: {_pct(r.share)} ({r.count} of {r.of})"
+                               for e, r in rates)
+    return _figure(_png(draw, height=0.9 + 0.28 * len(rates)), alt, what)
+
+
+def _plots(result: AssignmentStats) -> str:
+    parts = []
+    if result.totals:
+        parts.append(_histogram(result))
+    parts.append(_scatter(result))
+    mistakes = sorted(((e.name, m) for e in result.exercises for m in e.mistakes),
+                      key=lambda em: (-(em[1].share or 0), em[0], em[1].name))[:10]
+    parts.append(_bars(mistakes, "The most frequent named mistakes (share of the class)", "% of the class",
+                       f"Bar chart of the most frequent named mistakes in {printable(result.assignment)}: "))
+    parameters = sorted(((e.name, p) for e in result.exercises for p in e.parameters if p.of),
+                        key=lambda ep: (-(ep[1].share or 0), ep[0], ep[1].name))[:12]
+    parts.append(_bars(parameters, "Failure rate by case parameter (failed cases ÷ graded cases carrying it)",
+                       "% of the cases failed",
+                       f"Bar chart of the failure rate by case parameter in {printable(result.assignment)}: "))
+    return "<div class=\"plots\">" + "".join(p for p in parts if p) + "</div>"
+
+
+# ------------------------------------------------------------------------------ HTML
+_PAGE = """<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<meta http-equiv="Content-Security-Policy" content="default-src 'none'; style-src 'unsafe-inline'; img-src data:">
+<title>Item analysis</title>
+<style>
+body {{ font-family: sans-serif; margin: 1.5em; color: #1f2328; background: #ffffff; max-width: 72em; }}
+table {{ border-collapse: collapse; margin: 0.5em 0 1em; }}
+td, th {{ padding: 0.2em 0.7em; text-align: left; border-bottom: 1px solid #d0d7de; vertical-align: top; }}
+td.n, th.n {{ text-align: right; }}
+section.assignment {{ border-top: 2px solid #59636e; margin-top: 2em; }}
+.warning {{ background: #fff8c5; color: #3b2300; border-left: 4px solid #9a6700; padding: 0.3em 0.6em; margin: 0.3em 0; }}
+.muted {{ color: #59636e; }}
+.plots {{ display: flex; flex-wrap: wrap; gap: 1em; }}
+figure {{ margin: 0; }}
+figure img {{ max-width: 100%; }}
+figcaption {{ font-size: 0.85em; color: #59636e; }}
+details {{ margin: 0.4em 0; }}
+</style></head><body>
+<h1>Item analysis</h1>
+<p>How the class did on each exercise, which exercises tell strong students from weak ones, and what went wrong
+most: the mistakes the checks named, the failures matching no known mistake (a cue to add one to the check's
+mistake bank), and the failure rate per case parameter. Shares are of the students whose submission was graded.
+Figures that need more students than there are are not computed: a warning says so.</p>
+{assignments}
+<section><h2>How to read it</h2><dl>{formulas}</dl>
+<p class="muted">Rules of thumb: facility between 0.3 and 0.9 and a discrimination above 0.2 make a useful exercise;
+a discrimination near zero or negative means the exercise does not follow the rest of the assignment (ambiguous
+statement, a check too strict or too lenient); α above 0.7 means the exercises measure one ability consistently.</p>
+</section>
+</body></html>
+"""
+
+
+def _e(text: object) -> str:
+    return html.escape(printable(text, newlines=True))
+
+
+def _assignment_html(result: AssignmentStats) -> str:
+    parts = [f"<section class=\"assignment\"><h2>{_e(result.assignment)}</h2>"]
+    parts += [f"<p class=\"warning\" role=\"note\">{_e(w)}</p>" for w in result.warnings]
+    if not result.exercises:
+        return "".join(parts) + "</section>"
+    alpha = (f"Cronbach's α = <b>{result.alpha:.2f}</b>" if result.alpha is not None
+             else "Cronbach's α: not computed (see above)")
+    parts.append(f"<p>{result.students} student{'s' * (result.students != 1)} graded; {result.complete} with a score "
+                 f"for every exercise; maximum {result.max_total:g} points. {alpha}.</p>")
+    parts.append(_plots(result))
+    header = ["exercise", "graded", "mean / max", "facility", "item–rest r", "D (27 %)", "not attempted", "flagged",
+              "unexplained failures"]
+    rows = []
+    for e in result.exercises:
+        r = _num(e.rest_correlation) + (f" <span class=\"muted\">({e.correlation_kind})</span>"
+                                        if e.rest_correlation is not None else "")
+        cells = [_e(e.name), str(e.graded), f"{_num(e.mean)} / {e.max_score:g}", _num(e.facility), r,
+                 _num(e.discrimination), _rate(e.not_attempted), _rate(e.flagged), _rate(e.unexplained)]
+        rows.append("<tr>" + "".join(f"<td{'' if i == 0 else ' class=n'}>{c}</td>" for i, c in enumerate(cells))
+                    + "</tr>")
+    parts.append("<table class=\"exercises\"><caption class=\"muted\">Per exercise (— : not computed)</caption><thead><tr>"
+                 + "".join(f"<th scope=\"col\"{'' if i == 0 else ' class=n'}>{h}</th>" for i, h in enumerate(header))
+                 + "</tr></thead><tbody>" + "".join(rows) + "</tbody></table>")
+    for e in result.exercises:
+        parts.append(_exercise_html(e))
+    return "".join(parts) + "</section>"
+
+
+def _rate(rate: Rate | None) -> str:
+    return "—" if rate is None or not rate.of else f"{_pct(rate.share)} ({rate.count})"
+
+
+def _table(rows: list[Rate], headers: tuple[str, str]) -> str:
+    body = "".join(f"<tr><td>{_e(r.name)}</td><td class=n>{r.count} of {r.of}</td><td class=n>{_pct(r.share)}</td></tr>"
+                   for r in rows)
+    return (f"<table><thead><tr><th scope=\"col\">{headers[0]}</th><th scope=\"col\" class=n>{headers[1]}</th>"
+            f"<th scope=\"col\" class=n>share</th></tr></thead><tbody>{body}</tbody></table>")
+
+
+def _exercise_html(e: Any) -> str:
+    parts = [f"<details class=\"exercise\" open><summary><b>{_e(e.name)}</b></summary>"]
+    parts += [f"<p class=\"warning\" role=\"note\">{_e(w)}</p>" for w in e.warnings]
+    if e.mistakes:
+        parts.append("<h4>Named mistakes</h4>" + _table(e.mistakes, ("mistake", "students")))
+    else:
+        parts.append("<p class=\"muted\">No named mistake.</p>")
+    if e.unexplained and e.unexplained.count:
+        parts.append(f"<h4>Failures matching no known mistake: {e.unexplained.count} "
+                     f"({_pct(e.unexplained.share)} of the class)</h4><p class=\"muted\">What the checks saw first "
+                     "(consider adding a mistake to the check's bank for the most frequent):</p>"
+                     + _table(e.unexplained_problems, ("what the checks saw", "of these students")))
+    if e.parameters:
+        parts.append("<h4>Failure rate by case parameter</h4>" + _table(e.parameters, ("parameter", "cases failed")))
+    if e.cases:
+        parts.append("<details><summary>Failure rate per case</summary>"
+                     + _table(e.cases, ("case", "cases failed")) + "</details>")
+    return "".join(parts) + "</details>"
+
+
+def write_html(results: list[AssignmentStats], path: Path) -> Path:
+    """The dashboard: per assignment, the warnings, the plots, the table of exercises and per
+    exercise its mistakes, unexplained failures and failure rates by case parameter; the formulas
+    with their sources at the end. Self-contained, no script (a Content-Security-Policy allows
+    none); every text escaped."""
+    formulas = "".join(f"<dt><b>{html.escape(name)}</b></dt><dd>{html.escape(text)}"
+                       + (f" <span class=\"muted\">({html.escape(source)})</span>" if source else "") + "</dd>"
+                       for name, text, source in FORMULAS)
+    body = "".join(_assignment_html(r) for r in results) or "<p class=\"warning\" role=\"note\">No assignment to " \
+                                                            "analyse: the course has no plan and no submission.</p>"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(_PAGE.format(assignments=body, formulas=formulas), encoding="utf-8")
+    return path
