@@ -250,7 +250,8 @@ def _summary(course, jobs) -> list[str]:
         lines.append(f"sandbox: {note}")
     assignments = {a for _, a in jobs}
     return lines + _without_notebooks(course, None) + _exchange_notes(course, assignments) \
-        + similarity_summary(course)
+        + similarity_summary(course) + [f"item analysis: {course.root / 'exports' / 'item_analysis.html'} "
+                                        "(a summary: cvkit course stats)"]
 
 
 def _without_notebooks(course, assignments) -> list[str]:
@@ -366,6 +367,19 @@ def _cmd_collect(args) -> int:
           f"{course.root / 'submitted'}" + (f"; {len(result.refused)} refused (above)" if result.refused else "")
           + ("; next: cvkit course grade" if result.imported else ""))
     return 1 if result.refused else 0
+
+
+def _cmd_stats(args) -> int:
+    from .course import item_analysis
+
+    course = _course(args)
+    results = item_analysis.analyse_course(course, args.assignment or None)
+    folder = course.root / "exports"
+    item_analysis.write_csv(results, folder / item_analysis.CSV_NAME)
+    page = item_analysis.write_html(results, folder / item_analysis.HTML_NAME)
+    for line in item_analysis.summary(results, page) if results else [f"no assignment to analyse in {course.root}"]:
+        _show(line)
+    return 0
 
 
 def _cmd_table(args) -> int:
@@ -585,6 +599,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="DANGEROUS: grade without the bubblewrap sandbox (one trusted machine only); "
                         "every grade is marked in the table, the exports and the feedback")
     p.set_defaults(func=_cmd_grade)
+    p = csub.add_parser("stats", help="item analysis: facility, discrimination, α, the most frequent mistakes and "
+                                      "failure rates per case parameter (exports/item_analysis.csv and .html)")
+    course_options(p)
+    p.set_defaults(func=_cmd_stats)
     p = csub.add_parser("table", help="print the grade table")
     course_options(p)
     p.set_defaults(func=_cmd_table)

@@ -19,7 +19,7 @@ import time
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Iterable
 
-from . import jobs, marks
+from . import item_analysis, jobs, marks
 from .jobs import ExecutedSubmission, feedback_submissions, grade_submission
 from .progress import Phase, progress
 from .writer import JobResult
@@ -292,6 +292,7 @@ def grade(course: Course, assignments: Iterable[str] | None = None, workers: int
     marks.log_changes(course, graded)
     course.export(progress_bar)
     course.similarity(progress=progress_bar)
+    item_analysis.export(course)  # exports/item_analysis.csv and .html
     return sorted(results, key=lambda r: (r.assignment, r.student))
 
 
@@ -328,4 +329,5 @@ def refresh(course: Course, progress_bar: bool = False) -> list[tuple[str, str]]
     marks.remember_pages(course, [(s, a) for s, a in graded if (course.root / "feedback" / s / a).is_dir()])
     marks.log_changes(course, graded)
     course.export(progress_bar)
+    item_analysis.export(course)  # the marks changed the scores
     return pages
