@@ -161,3 +161,26 @@ def test_page_in_a_browser_offline(graded):
             assert not remote and not dialogs, (remote, dialogs)
         finally:
             browser.close()
+
+
+def test_class_notes_are_off_by_default_and_written_when_asked(graded):
+    from cvkit.course.class_notes import Settings, annotate_feedback
+
+    pages = {s: graded.root / "feedback" / s / ASSIGNMENT / f"{ASSIGNMENT}.html" for s in STUDENTS}
+    assert all(p.is_file() and "cvkit-class-note" not in p.read_text(encoding="utf-8") for p in pages.values())
+    assert annotate_feedback(graded) == []  # the plan has no [class_notes]: nothing said, nothing written
+    # three students are fewer than the default minimum: no note, and the line says why
+    lines = annotate_feedback(graded, chosen=Settings(True))
+    assert lines and "none (class of 3" in lines[0]
+    assert all("cvkit-class-note" not in p.read_text(encoding="utf-8") for p in pages.values())
+    try:
+        # a minimum of 3 (below the floor a plan may set; here only to see the notes on a tiny class)
+        annotate_feedback(graded, chosen=Settings(True, 3))
+        for student in ("bob", "cyd"):  # both named "not normalised": 2 of 3
+            text = pages[student].read_text(encoding="utf-8")
+            assert re.findall(r"<p class=\"cvkit-class-note\">([^<]*)</p>", text) == [
+                "66 % of the class made this mistake too."] * 2  # visible and hidden report
+        assert "cvkit-class-note" not in pages["ada"].read_text(encoding="utf-8")
+    finally:
+        annotate_feedback(graded, chosen=Settings(False))
+    assert all("cvkit-class-note" not in p.read_text(encoding="utf-8") for p in pages.values())

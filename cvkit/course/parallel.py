@@ -19,7 +19,7 @@ import time
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Iterable
 
-from . import item_analysis, jobs, marks
+from . import class_notes, item_analysis, jobs, marks
 from .jobs import ExecutedSubmission, feedback_submissions, grade_submission
 from .progress import Phase, progress
 from .writer import JobResult
@@ -293,6 +293,7 @@ def grade(course: Course, assignments: Iterable[str] | None = None, workers: int
     course.export(progress_bar)
     course.similarity(progress=progress_bar)
     item_analysis.export(course)  # exports/item_analysis.csv and .html
+    class_notes.annotate_feedback(course)  # plan.toml [class_notes]: off by default
     return sorted(results, key=lambda r: (r.assignment, r.student))
 
 
@@ -330,4 +331,5 @@ def refresh(course: Course, progress_bar: bool = False) -> list[tuple[str, str]]
     marks.log_changes(course, graded)
     course.export(progress_bar)
     item_analysis.export(course)  # the marks changed the scores
+    class_notes.annotate_feedback(course)  # the pages written again lost their notes
     return pages
