@@ -156,9 +156,9 @@ def test_failure_rate_per_case_parameter_recovers_the_planted_rates(big):
     responses, result = big
     borders = next(e for e in result.exercises if e.name == "borders")
     found = {p.name: p for p in borders.parameters}
-    # parameters are label parts carried by two or more cases: reflect101, zero, radius 1
-    assert set(found) == {"reflect101", "zero", "radius 1"}
-    assert borders.parameters[0].name == "reflect101"  # worst first
+    # every part of a label of several: radius 1, zero, radius (2, 4), reflect101, radius 2, replicate, uint8 image
+    assert set(found) == {"reflect101", "zero", "radius 1", "radius (2, 4)", "radius 2", "replicate", "uint8 image"}
+    assert {p.name for p in borders.parameters[:2]} == {"reflect101", "radius (2, 4)"}  # worst first (80 %)
     assert abs(found["reflect101"].share - 0.80) <= 0.05 and found["reflect101"].of == 2 * N
     assert abs(found["zero"].share - 0.10) <= 0.05
     assert abs(found["radius 1"].share - 0.45) <= 0.05
@@ -176,6 +176,15 @@ def test_score_distribution_counts_every_complete_student(big):
     totals = np.array(result.totals) / result.max_total
     assert bands[9].count == int(np.sum(totals >= 0.9))
     assert bands[0].count == int(np.sum(totals < 0.1))
+
+
+def test_a_label_of_one_part_is_not_repeated_as_a_parameter():
+    responses = {f"s{i}": {"a": Response(0.0, 1.0, cases=[("size 1", i % 2 == 0), ("size 2, float", False),
+                                                          ("size 3, float", True)])} for i in range(4)}
+    a = analyse("ch01", responses).exercises[0]
+    assert {p.name: (p.count, p.of) for p in a.parameters} == {"float": (4, 8), "size 2": (4, 4), "size 3": (0, 4)}
+    assert {c.name: (c.count, c.of) for c in a.cases} == {"size 1": (2, 4), "size 2, float": (4, 4),
+                                                           "size 3, float": (0, 4)}
 
 
 def test_labels_split_at_commas_outside_brackets():

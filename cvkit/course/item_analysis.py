@@ -265,9 +265,11 @@ def _histogram(result: AssignmentStats) -> str:
 
 
 def _scatter(result: AssignmentStats) -> str:
-    points = [(e.name, e.facility, e.discrimination if e.discrimination is not None else e.rest_correlation)
-              for e in result.exercises if e.facility is not None]
-    points = [(n, f, d) for n, f, d in points if d is not None]
+    points: list[tuple[str, float, float]] = []
+    for e in result.exercises:
+        d = e.discrimination if e.discrimination is not None else e.rest_correlation
+        if e.facility is not None and d is not None:
+            points.append((e.name, e.facility, d))
     if not points:
         return ""
     measure = "upper–lower D" if all(e.discrimination is not None for e in result.exercises) else "item–rest r"

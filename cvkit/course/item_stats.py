@@ -23,7 +23,8 @@ tests), the output an :class:`AssignmentStats`. The formulas (named as on the re
   matching no known mistake ("unexplained");
 - the **failure rate per case parameter**: the check's cases are described by labels such as
   "radius (2, 4), reflect101"; each comma-separated part (outside brackets) is a parameter
-  value, and its failure rate is failed cases / graded cases among the cases carrying it.
+  value, and its failure rate is failed cases / graded cases among the cases carrying it (a
+  label of one part, carried by one case only, is that case's own rate and not repeated).
 
 Correlations, discrimination and α are computed on the students with a score for every
 exercise of the assignment (an exercise still to mark by hand has none yet). Where too few
@@ -38,6 +39,7 @@ from dataclasses import dataclass, field
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 #: fewest students with complete scores for a correlation or Cronbach's α
 MIN_CORRELATION = 10
@@ -45,7 +47,8 @@ MIN_CORRELATION = 10
 MIN_DISCRIMINATION = 19
 #: share of the class in each of the upper and lower groups
 GROUP_SHARE = 0.27
-#: a case-label part is shown as a parameter when at least this many different cases carry it
+#: a case-label part is shown as a parameter when this many different cases carry it (or it is one
+#: part of a label of several)
 MIN_CASES_PER_PARAMETER = 2
 
 FORMULAS = [
@@ -139,7 +142,7 @@ class AssignmentStats:
         return [Rate(f"{10 * i}–{10 * i + 10} %", n, len(self.totals)) for i, n in enumerate(bands)]
 
 
-def pearson(x: Sequence[float], y: Sequence[float]) -> float | None:
+def pearson(x: ArrayLike, y: ArrayLike) -> float | None:
     """Pearson's r, or None when either variable is constant (r is undefined) or n < 2."""
     a, b = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     if a.size < 2 or a.size != b.size:
@@ -164,7 +167,7 @@ def cronbach_alpha(matrix: np.ndarray) -> float | None:
     return k / (k - 1) * (1.0 - float(scores.var(axis=0, ddof=1).sum()) / total_variance)
 
 
-def upper_lower(item: Sequence[float], total: Sequence[float], max_score: float,
+def upper_lower(item: ArrayLike, total: ArrayLike, max_score: float,
                 order: Sequence[int] | None = None) -> float | None:
     """Kelley's upper–lower discrimination D of one item, the students ranked by ``total`` (the
     analysis passes the rest score, see the module docstring): ``order`` breaks ties at the cut
@@ -184,7 +187,9 @@ def upper_lower(item: Sequence[float], total: Sequence[float], max_score: float,
 def parameters_of(label: str) -> list[str]:
     """The parts of a case label, split at commas outside brackets: "radius (2, 4), reflect101"
     → ["radius (2, 4)", "reflect101"]."""
-    parts, depth, current = [], 0, []
+    parts: list[str] = []
+    current: list[str] = []
+    depth = 0
     for char in str(label):
         if char in "([{":
             depth += 1
@@ -230,8 +235,10 @@ def analyse(assignment: str, responses: Mapping[str, Mapping[str, Response]],
         return result
     maxima = {e: max((responses[s][e].max_score for s in students if e in responses[s]), default=0.0) for e in names}
     complete = [s for s in students if all(e in responses[s] and responses[s][e].score is not None for e in names)]
-    matrix = np.array([[float(responses[s][e].score) for e in names] for s in complete], dtype=float)  # type: ignore[arg-type]
-    matrix = matrix.reshape(len(complete), len(names))
+    matrix = np.zeros((len(complete), len(names)))
+    for i, s in enumerate(complete):
+        for j, e in enumerate(names):
+            matrix[i, j] = float(responses[s][e].score or 0.0)  # never None: ``complete``
     totals = matrix.sum(axis=1)
     result.complete = len(complete)
     result.max_total = float(sum(maxima.values()))
@@ -310,7 +317,10 @@ def _exercise(name: str, max_score: float, j: int, students: list[str], response
                 entry[0] += not passed
                 entry[1] += 1
     stats.cases = sorted((Rate(k, f, s) for k, (f, s) in cases.items()), key=lambda r: (-(r.share or 0), r.name))
+    # a parameter: a part several cases share, or one part of a label of several ("reflect101" of
+    # "radius (2, 4), reflect101"); a label of one part alone is only its case
     stats.parameters = sorted((Rate(k, f, s) for k, (f, s) in parts.items()
-                               if len(labels_of[k]) >= MIN_CASES_PER_PARAMETER),
+                               if len(labels_of[k]) >= MIN_CASES_PER_PARAMETER
+                               or any(label != k for label in labels_of[k])),
                               key=lambda r: (-(r.share or 0), r.name))
     return stats
