@@ -243,3 +243,15 @@ def test_pure_helpers_refuse_to_make_up_numbers():
     assert upper_lower([1.0], [1.0], 1.0) is None
     assert upper_lower([1.0, 0.0], [2.0, 1.0], 0.0) is None
     assert cronbach_alpha(np.ones((5, 1))) is None
+
+
+def test_a_plot_that_cannot_be_drawn_leaves_a_line_and_the_tables(tmp_path, monkeypatch):
+    from cvkit.course import item_analysis
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("no backend")
+
+    monkeypatch.setattr(item_analysis, "_png", broken)
+    page = item_analysis.write_html([analyse("ch01", cohort(30))], tmp_path / "page.html").read_text()
+    assert page.count("not drawn (RuntimeError: no backend)") == 4 and "<img" not in page
+    assert "<table class=\"exercises\">" in page

@@ -309,19 +309,28 @@ def _bars(rates: list[tuple[str, Rate]], what: str, xlabel: str, alt_lead: str) 
 
 
 def _plots(result: AssignmentStats) -> str:
-    parts = []
-    if result.totals:
-        parts.append(_histogram(result))
-    parts.append(_scatter(result))
     mistakes = sorted(((e.name, m) for e in result.exercises for m in e.mistakes),
                       key=lambda em: (-(em[1].share or 0), em[0], em[1].name))[:10]
-    parts.append(_bars(mistakes, "The most frequent named mistakes (share of the class)", "% of the class",
-                       f"Bar chart of the most frequent named mistakes in {printable(result.assignment)}: "))
     parameters = sorted(((e.name, p) for e in result.exercises for p in e.parameters if p.of),
                         key=lambda ep: (-(ep[1].share or 0), ep[0], ep[1].name))[:12]
-    parts.append(_bars(parameters, "Failure rate by case parameter (failed cases ÷ graded cases carrying it)",
-                       "% of the cases failed",
-                       f"Bar chart of the failure rate by case parameter in {printable(result.assignment)}: "))
+    plots: list[tuple[str, Callable[[], str]]] = [
+        ("score distribution", lambda: _histogram(result) if result.totals else ""),
+        ("facility against discrimination", lambda: _scatter(result)),
+        ("named mistakes", lambda: _bars(
+            mistakes, "The most frequent named mistakes (share of the class)", "% of the class",
+            f"Bar chart of the most frequent named mistakes in {printable(result.assignment)}: ")),
+        ("failure rate by case parameter", lambda: _bars(
+            parameters, "Failure rate by case parameter (failed cases ÷ graded cases carrying it)",
+            "% of the cases failed", f"Bar chart of the failure rate by case parameter in {printable(result.assignment)}: ")),
+    ]
+    parts = []
+    for name, draw in plots:
+        try:
+            parts.append(draw())
+        except Exception as error:  # noqa: BLE001 - a plot that cannot be drawn: the tables still say it all
+            parts.append(f"<p class=\"warning\" role=\"note\">Plot of the {html.escape(name)} not drawn "
+                         f"({html.escape(type(error).__name__)}: {_e(str(error)[:200])}); the tables below hold the "
+                         "same figures.</p>")
     return "<div class=\"plots\">" + "".join(p for p in parts if p) + "</div>"
 
 
