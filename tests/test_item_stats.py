@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from cvkit.course.item_stats import (MIN_CORRELATION, MIN_DISCRIMINATION, Response, analyse, cronbach_alpha,
-                                     parameters_of, upper_lower)
+from cvkit.course.item_stats import (MIN_CORRELATION, MIN_DISCRIMINATION, ExerciseStats, Response, analyse,
+                                     cronbach_alpha, parameters_of, upper_lower)
 
 #: exercise → planted facility (pass rate), loading on ability, mistakes planted among failures
 PLANTED = {
@@ -255,3 +255,21 @@ def test_a_plot_that_cannot_be_drawn_leaves_a_line_and_the_tables(tmp_path, monk
     page = item_analysis.write_html([analyse("ch01", cohort(30))], tmp_path / "page.html").read_text()
     assert page.count("not drawn (RuntimeError: no backend)") == 4 and "<img" not in page
     assert "<table class=\"exercises\">" in page
+
+
+def test_reading_points_at_the_planted_weak_and_easy_exercises(big):
+    from cvkit.course.item_stats import reading
+
+    _, result = big
+    notes = {e.name: reading(e) for e in result.exercises}
+    assert any(n.startswith("weak discrimination") for n in notes["noise"])
+    for e in result.exercises:  # the thresholds as documented
+        assert any(n.startswith("very easy") for n in notes[e.name]) == (e.facility > 0.9)
+        assert any(n.startswith("hard") for n in notes[e.name]) == (e.facility < 0.3)
+    assert any(n.startswith("hard") for n in notes["hard"])
+    assert not any("discrimination" in n for n in notes["pad"] + notes["gauss"])
+    # the partial-credit exercise has no named mistake at all: most failures are unexplained
+    assert any("without a named mistake" in n for n in notes["borders"])
+    flipped = ExerciseStats("x", 1.0, facility=0.5, discrimination=-0.3)
+    assert reading(flipped) == ["negative discrimination: stronger students did worse; check the statement and the "
+                                "check"]

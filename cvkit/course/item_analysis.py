@@ -22,7 +22,8 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable
 from .._text import printable
 from ..grading.report import MIME_TYPE
 from .cells import exercise_name, grade_id
-from .item_stats import FORMULAS, MIN_CORRELATION, MIN_DISCRIMINATION, AssignmentStats, Rate, Response, analyse
+from .item_stats import (FORMULAS, MIN_CORRELATION, MIN_DISCRIMINATION, AssignmentStats, Rate, Response, analyse,
+                         reading)
 
 if TYPE_CHECKING:
     from .course import Course
@@ -197,6 +198,7 @@ def _rows(results: list[AssignmentStats]) -> list[list[Any]]:
             rows += [[a, x, "case_failure_rate", c.name, value(c.share), c.count, c.of, "failed cases of graded cases"]
                      for c in e.cases]
             rows += [[a, x, "warning", "", "", "", "", w] for w in e.warnings]
+            rows += [[a, x, "reading", "", "", "", "", text] for text in reading(e)]
     return rows
 
 
@@ -344,6 +346,8 @@ body {{ font-family: sans-serif; margin: 1.5em; color: #1f2328; background: #fff
 table {{ border-collapse: collapse; margin: 0.5em 0 1em; }}
 td, th {{ padding: 0.2em 0.7em; text-align: left; border-bottom: 1px solid #d0d7de; vertical-align: top; }}
 td.n, th.n {{ text-align: right; }}
+td.n {{ white-space: nowrap; }}
+td.look {{ min-width: 18em; }}
 section.assignment {{ border-top: 2px solid #59636e; margin-top: 2em; }}
 .warning {{ background: #fff8c5; color: #3b2300; border-left: 4px solid #9a6700; padding: 0.3em 0.6em; margin: 0.3em 0; }}
 .muted {{ color: #59636e; }}
@@ -383,17 +387,22 @@ def _assignment_html(result: AssignmentStats) -> str:
                  f"for every exercise; maximum {result.max_total:g} points. {alpha}.</p>")
     parts.append(_plots(result))
     header = ["exercise", "graded", "mean / max", "facility", "item–rest r", "D (27 %)", "not attempted", "flagged",
-              "unexplained failures"]
+              "unexplained failures", "what to look at"]
     rows = []
     for e in result.exercises:
-        r = _num(e.rest_correlation) + (f" <span class=\"muted\">({e.correlation_kind})</span>"
-                                        if e.rest_correlation is not None else "")
+        kind = {"point-biserial": "pb", "Pearson": "r"}.get(e.correlation_kind, "")
+        r = _num(e.rest_correlation) + (f" <span class=\"muted\">({kind})</span>" if e.rest_correlation is not None
+                                        else "")
         cells = [_e(e.name), str(e.graded), f"{_num(e.mean)} / {e.max_score:g}", _num(e.facility), r,
-                 _num(e.discrimination), _rate(e.not_attempted), _rate(e.flagged), _rate(e.unexplained)]
-        rows.append("<tr>" + "".join(f"<td{'' if i == 0 else ' class=n'}>{c}</td>" for i, c in enumerate(cells))
+                 _num(e.discrimination), _rate(e.not_attempted), _rate(e.flagged), _rate(e.unexplained),
+                 "<br>".join(html.escape(text) for text in reading(e))]
+        last = len(cells) - 1
+        rows.append("<tr>" + "".join(f"<td{'' if i == 0 else ' class=look' if i == last else ' class=n'}>{c}</td>"
+                                     for i, c in enumerate(cells))
                     + "</tr>")
-    parts.append("<table class=\"exercises\"><caption class=\"muted\">Per exercise (— : not computed)</caption><thead><tr>"
-                 + "".join(f"<th scope=\"col\"{'' if i == 0 else ' class=n'}>{h}</th>" for i, h in enumerate(header))
+    parts.append("<table class=\"exercises\"><caption class=\"muted\">Per exercise (— : not computed; pb: point-biserial, the exercise is pass/fail; r: Pearson's r)</caption><thead><tr>"
+                 + "".join(f"<th scope=\"col\"{'' if i in (0, len(header) - 1) else ' class=n'}>{h}</th>"
+                           for i, h in enumerate(header))
                  + "</tr></thead><tbody>" + "".join(rows) + "</tbody></table>")
     for e in result.exercises:
         parts.append(_exercise_html(e))

@@ -142,6 +142,27 @@ class AssignmentStats:
         return [Rate(f"{10 * i}–{10 * i + 10} %", n, len(self.totals)) for i, n in enumerate(bands)]
 
 
+def reading(e: ExerciseStats) -> list[str]:
+    """What to look at in an exercise's figures, in plain words (empty: nothing stands out).
+    Thresholds of the usual rules of thumb (Ebel & Frisbie, Essentials of Educational
+    Measurement, 1991): facility above 0.9 or below 0.3, discrimination below 0.2 (clearly below
+    0, under −0.1: stronger students do worse), and a fifth of the class or more failing without a
+    named mistake."""
+    notes = []
+    if e.facility is not None and e.facility > 0.9:
+        notes.append("very easy: tells students apart little")
+    elif e.facility is not None and e.facility < 0.3:
+        notes.append("hard: most of the class lost its points")
+    measure = e.discrimination if e.discrimination is not None else e.rest_correlation
+    if measure is not None and measure < -0.1:
+        notes.append("negative discrimination: stronger students did worse; check the statement and the check")
+    elif measure is not None and measure < 0.2:
+        notes.append("weak discrimination: does not follow the rest of the assignment")
+    if e.unexplained and e.unexplained.share is not None and e.unexplained.share >= 0.2:
+        notes.append("a fifth of the class or more failed without a named mistake: add one to the check's bank")
+    return notes
+
+
 def pearson(x: ArrayLike, y: ArrayLike) -> float | None:
     """Pearson's r, or None when either variable is constant (r is undefined) or n < 2."""
     a, b = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
