@@ -184,3 +184,16 @@ def test_class_notes_are_off_by_default_and_written_when_asked(graded):
     finally:
         annotate_feedback(graded, chosen=Settings(False))
     assert all("cvkit-class-note" not in p.read_text(encoding="utf-8") for p in pages.values())
+
+
+def test_stats_on_a_course_nobody_handed_in_to(project, tmp_path, capsys):  # noqa: F811
+    from cvkit.cli import main
+    from cvkit.course import Course
+
+    course = Course(tmp_path / "course", project=project)
+    course.build([ASSIGNMENT])
+    assert main(["course", "stats", "--course-dir", str(course.root)]) == 0
+    out = capsys.readouterr().out
+    assert f"item analysis {ASSIGNMENT}: {ASSIGNMENT}: no graded submission — nothing to analyse" in out
+    page = (course.root / "exports" / item_analysis.HTML_NAME).read_text(encoding="utf-8")
+    assert "no graded submission" in page and "<img" not in page

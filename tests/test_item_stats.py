@@ -273,3 +273,19 @@ def test_reading_points_at_the_planted_weak_and_easy_exercises(big):
     flipped = ExerciseStats("x", 1.0, facility=0.5, discrimination=-0.3)
     assert reading(flipped) == ["negative discrimination: stronger students did worse; check the statement and the "
                                 "check"]
+
+
+def test_an_exercise_nobody_has_a_mark_for_yet_does_not_void_the_class_statistics():
+    responses = cohort(40)
+    for row in responses.values():
+        row["written"] = Response(None, 2.0)  # a written answer, still to mark by hand for everyone
+    result = analyse("ch01", responses)
+    assert result.complete == 40 and result.alpha is not None
+    assert result.max_total == len(PLANTED) * POINTS + 2.0  # the other exercises only
+    written = next(e for e in result.exercises if e.name == "written")
+    assert written.graded == 0 and written.facility is None and written.rest_correlation is None
+    assert any("no score yet for written" in w for w in result.warnings)
+    # nothing scored at all: no totals, no distribution, no α
+    nothing = analyse("ch01", {f"s{i}": {"written": Response(None, 2.0)} for i in range(12)})
+    assert nothing.totals == [] and nothing.complete == 0 and nothing.alpha is None
+    assert all(band.count == 0 for band in nothing.distribution)

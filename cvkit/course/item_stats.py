@@ -255,14 +255,18 @@ def analyse(assignment: str, responses: Mapping[str, Mapping[str, Response]],
         result.warnings.append(f"{assignment}: the graded submissions hold no graded exercise — nothing to analyse")
         return result
     maxima = {e: max((responses[s][e].max_score for s in students if e in responses[s]), default=0.0) for e in names}
-    complete = [s for s in students if all(e in responses[s] and responses[s][e].score is not None for e in names)]
-    matrix = np.zeros((len(complete), len(names)))
+    # the items of the totals, correlations and α: the exercises with a score for someone (a written
+    # answer nobody's mark is in yet would leave no student with complete scores)
+    items = [e for e in names if any(e in responses[s] and responses[s][e].score is not None for s in students)]
+    complete = [s for s in students if items and all(e in responses[s] and responses[s][e].score is not None
+                                                     for e in items)]
+    matrix = np.zeros((len(complete), len(items)))
     for i, s in enumerate(complete):
-        for j, e in enumerate(names):
+        for j, e in enumerate(items):
             matrix[i, j] = float(responses[s][e].score or 0.0)  # never None: ``complete``
     totals = matrix.sum(axis=1)
     result.complete = len(complete)
-    result.max_total = float(sum(maxima.values()))
+    result.max_total = float(sum(maxima[e] for e in items))
     result.totals = [float(t) for t in totals]
     n = len(complete)
     too_few = n < MIN_CORRELATION
@@ -279,19 +283,25 @@ def analyse(assignment: str, responses: Mapping[str, Mapping[str, Response]],
     if len(complete) < len(students):
         missing = len(students) - len(complete)
         result.warnings.append(f"{assignment}: {missing} student{'s' * (missing != 1)} without a score for every "
-                               "exercise (still to mark by hand) left out of correlations, discrimination and α")
-    if len(names) < 2:
+                               "scored exercise (still to mark by hand) left out of the totals, correlations, "
+                               "discrimination and α")
+    unscored = [e for e in names if e not in items]
+    if unscored:
+        result.warnings.append(f"{assignment}: no score yet for {', '.join(unscored)} (still to mark by hand): left out "
+                               "of the totals, correlations, discrimination and α")
+    if len(items) == 1:
         result.warnings.append(f"{assignment}: one exercise — no item–rest correlation or α (they need two or more)")
-    elif not too_few:
+    elif len(items) >= 2 and not too_few:
         result.alpha = cronbach_alpha(matrix)
         if result.alpha is None:
             result.warnings.append(f"{assignment}: every student has the same total — Cronbach's α is undefined")
-    for j, name in enumerate(names):
-        result.exercises.append(_exercise(name, maxima[name], j, students, responses, matrix, complete, top))
+    for name in names:
+        column = items.index(name) if name in items else None
+        result.exercises.append(_exercise(name, maxima[name], column, students, responses, matrix, complete, top))
     return result
 
 
-def _exercise(name: str, max_score: float, j: int, students: list[str], responses: Mapping[str, Mapping[str, Response]],
+def _exercise(name: str, max_score: float, j: int | None, students: list[str], responses: Mapping[str, Mapping[str, Response]],
               matrix: np.ndarray, complete: list[str], top: int) -> ExerciseStats:
     present = [responses[s][name] for s in students if name in responses[s]]
     stats = ExerciseStats(name, max_score, students=len(present))
@@ -303,7 +313,7 @@ def _exercise(name: str, max_score: float, j: int, students: list[str], response
     if scored and max_score <= 0:
         stats.warnings.append("worth no points — no facility")
     n = len(complete)
-    if matrix.shape[1] >= 2 and n >= MIN_CORRELATION:
+    if j is not None and matrix.shape[1] >= 2 and n >= MIN_CORRELATION:
         item = matrix[:, j]
         rest = matrix.sum(axis=1) - item
         binary = bool(np.all(np.isclose(item, 0.0) | np.isclose(item, max_score)))
@@ -311,7 +321,7 @@ def _exercise(name: str, max_score: float, j: int, students: list[str], response
         stats.rest_correlation = pearson(item, rest)
         if stats.rest_correlation is None:
             stats.warnings.append("every student scored the same on it, or on the rest — no correlation")
-    if n >= MIN_DISCRIMINATION:
+    if j is not None and n >= MIN_DISCRIMINATION:
         stats.discrimination = upper_lower(matrix[:, j], matrix.sum(axis=1) - matrix[:, j], max_score)
     class_size = len(present)
     stats.not_attempted = Rate("not attempted", sum(not r.attempted for r in present), class_size)
