@@ -11,6 +11,8 @@
     cvkit course table              the grade table of what has been graded
     cvkit course refresh            after marking in the formgrader: pages and exports, without grading
     cvkit course collect            hand-ins from nbgrader's exchange, an LMS download or one notebook
+    cvkit course export --canvas    a CSV Canvas's gradebook imports (--moodle FIELD: Moodle's; docs/lms.md)
+    cvkit course push --lti CONFIG  the grades to the LMS's line items (LTI 1.3 Assignment and Grade Services)
     cvkit demo                      the whole pipeline on three sample submissions of a few chapters
     cvkit demo --all                ... of every chapter
     cvkit hub init                  a JupyterHub for one or more courses (run as root; docs/deploy-jupyterhub.md)
@@ -382,6 +384,63 @@ def _cmd_stats(args) -> int:
     return 0
 
 
+def _cmd_export(args) -> int:
+    """``cvkit course export``: the LMS files (--canvas, --moodle), else grades.csv and exercises.csv."""
+    from .course.lms import canvas_export, grade_sheet, moodle_export
+
+    course = _course(args)
+    if not args.canvas and not args.moodle:
+        if args.roster or args.roster_column:
+            raise ValueError("--roster and --roster-column go with --canvas or --moodle")
+        print(f"wrote {course.export()}")
+        return 0
+    if args.canvas and args.moodle:
+        raise ValueError("--canvas and --moodle: one LMS at a time (the --roster of each is its own)")
+    if args.roster_column and not args.canvas:
+        raise ValueError("--roster-column goes with --canvas (Moodle's roster is matched by student_id)")
+    roster = Path(args.roster) if args.roster else None
+    if roster is not None and not roster.is_file():
+        raise FileNotFoundError(f"--roster {roster}: no such file")
+    sheet = grade_sheet(course, args.assignment or None)
+    folder = course.root / "exports"
+    if args.canvas:
+        done = canvas_export(sheet, folder / "canvas_grades.csv", roster, args.roster_column or "SIS Login ID")
+    else:
+        done = moodle_export(sheet, folder / "moodle_grades.csv", args.moodle, roster)
+    for line in done.lines:
+        _show(line)
+    graded = sum(1 for g in sheet.grades.values() if g.points is not None)
+    print(f"wrote {done.path}: {len(sheet.students)} student{'s' * (len(sheet.students) != 1)}, "
+          f"{len(sheet.assignments)} assignment{'s' * (len(sheet.assignments) != 1)}, {graded} grade"
+          f"{'s' * (graded != 1)} (after late penalties); {len(done.blank)} blank or left out, with the reason, "
+          f"in {done.reasons}")
+    return 0
+
+
+def _cmd_push(args) -> int:
+    """``cvkit course push --lti CONFIG``: the grades to the platform's line items."""
+    from .course.lms import grade_sheet
+    from .course.lti import load_config, push
+
+    config = load_config(args.lti)
+    course = _course(args)
+    report = push(grade_sheet(course, args.assignment or None), config)
+    for line in report.lines:
+        _show(line)
+    if report.created:
+        print(f"line items made: {', '.join(report.created)}")
+    if report.reused:
+        print(f"line items updated: {', '.join(report.reused)}")
+    counts: dict[str, int] = {}
+    for outcome in report.outcomes:
+        counts[outcome.status] = counts.get(outcome.status, 0) + 1
+        if outcome.status != "posted":
+            _show(f"  {outcome.student} {outcome.assignment}: {outcome.status}: {outcome.detail}")
+    print(", ".join(f"{n} {status}" for status, n in sorted(counts.items())) or "no students: nothing posted",
+          f"({report.retried} request{'s' * (report.retried != 1)} repeated)" if report.retried else "")
+    return 1 if report.failed else 0
+
+
 def _cmd_table(args) -> int:
     course = _course(args)
     for a in args.assignment or sorted({a for _, a in course.submissions()}):
@@ -620,6 +679,24 @@ def build_parser() -> argparse.ArgumentParser:
                    help="when the hand-ins arrived, e.g. '2027-03-01 23:10:00 UTC' (default: now)")
     p.add_argument("--update", action="store_true", help="replace hand-ins collected before with newer files")
     p.set_defaults(func=_cmd_collect)
+    p = csub.add_parser("export", help="the grades as files: for Canvas (--canvas) or Moodle (--moodle FIELD) "
+                                       "to import; without either, grades.csv and exercises.csv again")
+    course_options(p)
+    p.add_argument("--canvas", action="store_true", help="exports/canvas_grades.csv for Canvas's gradebook import")
+    p.add_argument("--moodle", choices=("email", "username", "idnumber"), metavar="FIELD",
+                   help="exports/moodle_grades.csv for Moodle's grade import, users identified by FIELD: email, "
+                        "username or idnumber")
+    p.add_argument("--roster", metavar="CSV",
+                   help="with --canvas: Canvas's gradebook export, to copy the students' identities and assignment "
+                        "ids from; with --moodle: a CSV with the columns student_id and FIELD")
+    p.add_argument("--roster-column", metavar="COLUMN",
+                   help="with --canvas --roster: the roster's column that holds cvkit's student ids (default "
+                        "'SIS Login ID')")
+    p.set_defaults(func=_cmd_export)
+    p = csub.add_parser("push", help="the grades to the LMS through LTI 1.3 Assignment and Grade Services")
+    course_options(p)
+    p.add_argument("--lti", required=True, metavar="CONFIG", help="the LTI configuration (TOML; docs/lms.md)")
+    p.set_defaults(func=_cmd_push)
     p = csub.add_parser("refresh", help="after marking in the formgrader: write the pages whose marks changed "
                                         "and the exports again, without grading")
     course_options(p)

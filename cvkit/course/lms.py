@@ -171,6 +171,16 @@ def _student_cell(text: str) -> str:
     return csv_safe(printable(text))
 
 
+def _unsafe_identifier(text: str) -> str:
+    """Why ``text`` cannot identify a user in an LMS file ("" when it can): a cell is made
+    printable and never a spreadsheet formula, so such an id would reach the LMS changed, and
+    match nobody (or stop a Moodle import)."""
+    if not text.strip():
+        return "empty"
+    return "" if _student_cell(text) == text else f"{_student_cell(text)!r} would be written changed (control " \
+        "characters or a leading =, +, -, @ that spreadsheets run)"
+
+
 def write_csv(path: Path, rows: list[list[str]]) -> Path:
     """``rows`` as RFC 4180 CSV in UTF-8 (no byte-order mark), CRLF line ends."""
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -190,7 +200,7 @@ class Export:
 
 
 def _reasons_rows(blank: list[tuple[str, str, str]]) -> list[list[str]]:
-    return [["student", "assignment", "reason"]] + [[_student_cell(s), a, r] for s, a, r in blank]
+    return [["student", "assignment", "reason"]] + [[_student_cell(s), _student_cell(a), _student_cell(r)] for s, a, r in blank]
 
 
 def read_canvas_roster(path: Path, column: str = "SIS Login ID") -> tuple[list[str], list[dict[str, str]]]:
@@ -277,8 +287,12 @@ def canvas_export(sheet: GradeSheet, target: Path, roster: Path | None = None,
             extra.append([entry.get(c, "") for c in CANVAS_IDENTITY] + [""] * len(sheet.assignments))
     else:
         for student in sheet.students:
-            cell = _student_cell(student)
-            identities[student] = [cell, "", "", cell, ""]
+            why = _unsafe_identifier(student)
+            if why:
+                lines.append(f"{_student_cell(student)}: left out of the file: the id {why}; use --roster")
+                blank.append((student, "", f"left out: the id {why}"))
+                continue
+            identities[student] = [student, "", "", student, ""]
     rows = [list(CANVAS_IDENTITY) + [headers[a] for a in sheet.assignments],
             [CANVAS_POINTS_ROW, "", "", "", ""] + [points_text(sheet.points_possible.get(a))
                                                     for a in sheet.assignments]]
@@ -350,6 +364,11 @@ def moodle_export(sheet: GradeSheet, target: Path, field_name: str, roster: Path
     rows = [[MOODLE_FIELDS[field_name]] + list(sheet.assignments)]
     for student in sheet.students:
         identifier = ids.get(student, "")
+        why = _unsafe_identifier(identifier) if identifier else ""
+        if why:
+            lines.append(f"{_student_cell(student)}: left out of the file: their {field_name} {why}")
+            blank.append((student, "", f"left out: their {field_name} {why}"))
+            continue
         if not identifier:
             lines.append(f"{printable(student)}: no {field_name} in {source}: left out of the file (Moodle stops the "
                          "import at a user it cannot find)")
@@ -361,7 +380,7 @@ def moodle_export(sheet: GradeSheet, target: Path, field_name: str, roster: Path
             cells.append(points_text(grade.points))
             if grade.points is None:
                 blank.append((student, a, grade.reason))
-        rows.append([_student_cell(identifier)] + cells)
+        rows.append([identifier] + cells)
     tops = ", ".join(f"{a} {points_text(sheet.points_possible.get(a)) or '?'}" for a in sheet.assignments)
     if tops:
         lines.append(f"grade items' maximum points (set them in Moodle; a new item gets 100): {tops}")
