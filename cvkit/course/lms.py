@@ -106,7 +106,9 @@ def grade_sheet(course: Course, assignments: Iterable[str] | None = None) -> Gra
         The students are the gradebook's and those with a submission folder; the points possible
         are the gradebook's maximum of the assignment (None, with a note, for one never built).
     """
-    from nbgrader.api import Gradebook, MissingEntry
+    from nbgrader.api import MissingEntry
+
+    from .plan import gradebook_of
 
     plan = course.plan()
     chosen = list(dict.fromkeys(assignments)) if assignments else plan.ids()
@@ -118,7 +120,7 @@ def grade_sheet(course: Course, assignments: Iterable[str] | None = None) -> Gra
     submitted = set(course.submissions(chosen)) | {tuple(k.split("/", 1)) for k in not_graded}
     sheet = GradeSheet(chosen, [], {}, titles={a: (plan.get(a).title or a) for a in chosen})  # type: ignore[union-attr]
     students: set[str] = {s for s, a in submitted if a in chosen}
-    with Gradebook(course.db_url) as gb:
+    with gradebook_of(course.db_url) as gb:  # a course never graded has an empty one
         for student in gb.students:
             students.add(student.id)
             if student.email:
