@@ -273,15 +273,19 @@ def canvas_export(sheet: GradeSheet, target: Path, roster: Path | None = None,
                 blank.append((entry["Student"], "", f"in the Canvas roster without a {column}: grades blank"))
                 extra.append([entry.get(c, "") for c in CANVAS_IDENTITY] + [""] * len(sheet.assignments))
                 continue
+            if key in by_key:
+                lines.append(f"roster: {column} {key} is on two rows ({by_key[key]['Student']}, {entry['Student']}): "
+                             "the second left out of the file; fix the roster")
+                blank.append((entry["Student"], "", f"a second Canvas roster row with {column} {key}: not in the file"))
+                continue
             by_key[key] = entry
         for student in sheet.students:
-            entry = by_key.pop(student, None)
-            if entry is None:
+            if student not in by_key:
                 lines.append(f"{printable(student)} is in the course but not in the Canvas roster ({column}): "
                              "left out of the file (add them in Canvas, export the gradebook again)")
                 blank.append((student, "", f"in the course, not in the Canvas roster ({column}): not in the file"))
                 continue
-            identities[student] = [entry.get(c, "") for c in CANVAS_IDENTITY]
+            identities[student] = [by_key.pop(student).get(c, "") for c in CANVAS_IDENTITY]
         for key, entry in sorted(by_key.items()):
             lines.append(f"{entry['Student']} ({column} {key}) is in the Canvas roster but not in the course: "
                          "their row is in the file with blank grades")

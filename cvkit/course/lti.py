@@ -115,17 +115,20 @@ def load_config(path: str | Path) -> LtiConfig:
         if not file.is_file():
             raise FileNotFoundError(f"{where}: {key} = {data[key]!r}: no such file ({file})")
         files[key] = file
-    numbers = {}
-    for key, default, kind in (("retries", 4, int), ("backoff", 1.0, float), ("timeout", 30.0, float)):
+    numbers: dict[str, float] = {}
+    for key, default in (("retries", 4), ("backoff", 1.0), ("timeout", 30.0)):
         value = data.get(key, default)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0 or (kind is int and value != int(value)):
-            raise ValueError(f"{where}: {key} must be a number ≥ 0 ({KEYS[key]}), got {value!r}")
-        numbers[key] = kind(value)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0 \
+                or (key == "retries" and value != int(value)):
+            raise ValueError(f"{where}: {key} must be a number ≥ 0{' (whole)' * (key == 'retries')} ({KEYS[key]}), "
+                             f"got {value!r}")
+        numbers[key] = float(value)
     token_url = _url(data["token_url"], "token_url", where)
     return LtiConfig(client_id=str(data["client_id"]), token_url=token_url,
                      lineitems_url=_url(data["lineitems_url"], "lineitems_url", where),
                      private_key=files["private_key"], roster=files["roster"],
-                     audience=str(data.get("audience") or token_url), key_id=str(data.get("key_id", "")), **numbers)
+                     audience=str(data.get("audience") or token_url), key_id=str(data.get("key_id", "")),
+                     retries=int(numbers["retries"]), backoff=numbers["backoff"], timeout=numbers["timeout"])
 
 
 def read_roster(path: Path) -> dict[str, str]:
