@@ -285,7 +285,8 @@ def canvas_export(sheet: GradeSheet, target: Path, roster: Path | None = None,
                              "left out of the file (add them in Canvas, export the gradebook again)")
                 blank.append((student, "", f"in the course, not in the Canvas roster ({column}): not in the file"))
                 continue
-            identities[student] = [by_key.pop(student).get(c, "") for c in CANVAS_IDENTITY]
+            matched = by_key.pop(student)
+            identities[student] = [matched.get(c, "") for c in CANVAS_IDENTITY]
         for key, entry in sorted(by_key.items()):
             lines.append(f"{entry['Student']} ({column} {key}) is in the Canvas roster but not in the course: "
                          "their row is in the file with blank grades")
