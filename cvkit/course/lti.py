@@ -154,8 +154,12 @@ def _b64(data: bytes) -> str:
 
 def client_assertion(config: LtiConfig, now: float | None = None) -> str:
     """The signed JWT (RS256) that authenticates cvkit at the token endpoint (RFC 7523)."""
-    from cryptography.hazmat.primitives import hashes, serialization
-    from cryptography.hazmat.primitives.asymmetric import padding, rsa
+    try:
+        from cryptography.hazmat.primitives import hashes, serialization
+        from cryptography.hazmat.primitives.asymmetric import padding, rsa
+    except ImportError:
+        raise RuntimeError("cvkit course push --lti signs with the cryptography package: pip install "
+                           "'cvkit[lms]'") from None
 
     try:
         key = serialization.load_pem_private_key(config.private_key.read_bytes(), password=None)
