@@ -436,8 +436,13 @@ def _cmd_push(args) -> int:
         counts[outcome.status] = counts.get(outcome.status, 0) + 1
         if outcome.status != "posted":
             _show(f"  {outcome.student} {outcome.assignment}: {outcome.status}: {outcome.detail}")
-    print(", ".join(f"{n} {status}" for status, n in sorted(counts.items())) or "no students: nothing posted",
-          f"({report.retried} request{'s' * (report.retried != 1)} repeated)" if report.retried else "")
+    summary = ", ".join(f"{n} {status}" for status, n in sorted(counts.items())) or "no students: nothing posted"
+    if report.retried:
+        summary += f" ({report.retried} request{'s' * (report.retried != 1)} repeated after a passing failure)"
+    print(summary)
+    if report.failed:
+        print(f"!! {len(report.failed)} score{'s' * (len(report.failed) != 1)} refused by the platform (listed above); "
+              "the others are posted: fix the cause, then push again (posting again is harmless)")
     return 1 if report.failed else 0
 
 

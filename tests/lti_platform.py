@@ -51,6 +51,7 @@ class Platform:
         self.token_requests: list[dict] = []
         self.refuse_users: set[str] = set()
         self.unavailable: dict[str, int] = {}  # userId → how many of its score posts get a 503 first
+        self.lose_created = 0  # how many line items are made but answered with a 503 (the answer lost)
         self.lock = threading.RLock()
         self.server = ThreadingHTTPServer(("127.0.0.1", 0), self._handler())
         self.url = f"http://127.0.0.1:{self.server.server_address[1]}"
@@ -157,6 +158,9 @@ class Platform:
                         return self._reply(400, {"error": "scoreMaximum > 0 and label required"})
                     with platform.lock:
                         made = platform.add_line_item(**item)
+                        if platform.lose_created > 0:
+                            platform.lose_created -= 1
+                            return self._reply(503, {"error": "made, but the answer was lost"})
                     return self._reply(201, made, LINEITEM)
                 if path.endswith("/scores"):
                     return self._score(path[: -len("/scores")], body, scopes)

@@ -136,6 +136,28 @@ def test_gives_up_after_the_retries(tmp_path, key):
         assert {s["userId"] for _, s in platform.scores} == {"u-bob", "u-cyd", "u-zoe"}
 
 
+def test_a_lost_answer_makes_no_second_line_item(tmp_path, key):
+    pem, public = key
+    with Platform("cvkit-tool", public) as platform:
+        platform.lose_created = 1  # ch01's line item is made, the answer lost: a retry must not make another
+        config = load_config(write_config(tmp_path, platform, pem))
+        report = push(sheet(), config, sleep=lambda s: None)
+        assert sorted(i["resourceId"] for i in platform.line_items) == ["ch01_intro", "ch02_formation", "ch03_empty"]
+        assert report.created == ["ch01_intro", "ch02_formation", "ch03_empty"] and report.retried == 1
+        assert {s["userId"] for i, s in platform.scores if i == platform.line_items[0]["id"]} == {"u-ada", "u-bob",
+                                                                                                  "u-zoe"}
+
+
+def test_the_token_goes_to_no_other_host(tmp_path, key):
+    pem, public = key
+    with Platform("cvkit-tool", public) as platform:
+        platform.line_items.append({"id": "https://attacker.example/li/1", "tag": "ch01_intro", "scoreMaximum": 6})
+        config = load_config(write_config(tmp_path, platform, pem))
+        with pytest.raises(RuntimeError, match="not on the host of lineitems_url"):
+            push(sheet(), config, sleep=lambda s: None)
+        assert platform.scores == []
+
+
 def test_config_errors_name_the_key(tmp_path, key):
     pem, _ = key
     (tmp_path / "tool.pem").write_bytes(pem)

@@ -176,8 +176,8 @@ def client_assertion(config: LtiConfig, now: float | None = None) -> str:
     return f"{signing_input}.{_b64(signature)}"
 
 
-class PlatformError(Exception):
-    """A request the platform refused (after the retries): ``status`` and what it said."""
+class PlatformError(RuntimeError):
+    """A request the platform refused (after the retries): ``status`` (0: no answer) and what it said."""
 
     def __init__(self, status: int, message: str):
         super().__init__(f"HTTP {status}: {message}" if status else message)
@@ -212,9 +212,11 @@ class Client:
             return Response(error.code, error.headers, error.read() or b"")
 
     def request(self, method: str, url: str, headers: dict[str, str], body: bytes | None = None,
-                auth: bool = True) -> Response:
-        """``method`` ``url``, repeated (with backoff) on 429, 5xx and network errors, with a new
-        token once on a 401; a refusal raises :class:`PlatformError`."""
+                auth: bool = True, retries: int | None = None) -> Response:
+        """``method`` ``url``, repeated (with backoff; ``retries`` times, default the
+        configuration's) on 429, 5xx and network errors, with a new token once on a 401; a
+        refusal raises :class:`PlatformError`."""
+        retries = self.config.retries if retries is None else retries
         delay = self.config.backoff
         renewed = False
         attempt = 0
@@ -235,7 +237,7 @@ class Client:
                 return reply
             if reply is not None:
                 problem = reply.body.decode("utf-8", "replace")[:300].strip() or "no details"
-            if (reply is None or reply.status in RETRIED) and attempt < self.config.retries:
+            if (reply is None or reply.status in RETRIED) and attempt < retries:
                 attempt += 1
                 self.retried += 1
                 wait = delay
@@ -247,7 +249,7 @@ class Client:
                 self.sleep(wait)
                 delay *= 2
                 continue
-            raise PlatformError(reply.status if reply is not None else 0, problem)
+            raise PlatformError(reply.status if reply is not None else 0, f"{method} {url}: {problem}")
 
     def authenticate(self) -> None:
         """An access token for :data:`SCOPES` (client credentials, signed client assertion)."""
@@ -301,12 +303,22 @@ def _next_link(headers: Any) -> str | None:
     return None
 
 
+def _same_origin(url: str, base: str, what: str) -> str:
+    """``url`` when it is on the host of ``base`` (the token goes nowhere else), else RuntimeError."""
+    a, b = urllib.parse.urlsplit(url), urllib.parse.urlsplit(base)
+    if (a.scheme, a.netloc) != (b.scheme, b.netloc):
+        raise RuntimeError(f"the platform gave {what} {url!r}, not on the host of lineitems_url ({b.netloc}): "
+                           "cvkit sends its access token nowhere else")
+    return url
+
+
 def line_items(client: Client) -> list[dict[str, Any]]:
     """Every line item of the course (all pages)."""
     items: list[dict[str, Any]] = []
     url: str | None = client.config.lineitems_url
     seen = set()
     while url and url not in seen:
+        _same_origin(url, client.config.lineitems_url, "a next page of line items")
         seen.add(url)
         reply = client.request("GET", url, {"Accept": CONTAINER_TYPE})
         page = reply.json()
@@ -315,6 +327,39 @@ def line_items(client: Client) -> list[dict[str, Any]]:
         items += [item for item in page if isinstance(item, dict)]
         url = _next_link(reply.headers)
     return items
+
+
+def _matching(items: list[dict[str, Any]], assignment: str) -> dict[str, Any] | None:
+    """The line item of ``assignment``: its ``resourceId`` or its ``tag`` is the assignment id."""
+    return next((i for i in items if assignment in (i.get("resourceId"), i.get("tag")) and i.get("id")), None)
+
+
+def _create_line_item(client: Client, body: dict[str, Any]) -> str:
+    """Make the line item ``body`` and return its id. A POST that failed for a passing reason may
+    have made it all the same (the answer lost): before asking again, the line items are read and
+    one made meanwhile is taken, so that repeats never make a second one."""
+    delay = client.config.backoff
+    for attempt in range(client.config.retries + 1):
+        try:
+            reply = client.request("POST", client.config.lineitems_url,
+                                   {"Content-Type": LINEITEM_TYPE, "Accept": LINEITEM_TYPE},
+                                   json.dumps(body).encode("utf-8"), retries=0)
+        except PlatformError as error:
+            if (error.status and error.status not in RETRIED) or attempt == client.config.retries:
+                raise
+            client.retried += 1
+            client.sleep(delay)
+            delay *= 2
+            found = _matching(line_items(client), body["resourceId"])
+            if found is not None:
+                return str(found["id"])
+            continue
+        made = reply.json() or {}
+        if not isinstance(made, dict) or not made.get("id"):
+            raise RuntimeError(f"lineitems_url {client.config.lineitems_url}: the new line item for "
+                               f"{body['resourceId']} has no id")
+        return str(made["id"])
+    raise AssertionError("unreachable")  # pragma: no cover
 
 
 def scores_url(line_item: str) -> str:
@@ -339,9 +384,9 @@ def push(sheet: GradeSheet, config: LtiConfig, sleep: Callable[[float], None] = 
     items: dict[str, str] = {}
     for assignment in sheet.assignments:
         top = sheet.points_possible.get(assignment)
-        match = next((i for i in existing if assignment in (i.get("resourceId"), i.get("tag")) and i.get("id")), None)
+        match = _matching(existing, assignment)
         if match is not None:
-            items[assignment] = str(match["id"])
+            items[assignment] = _same_origin(str(match["id"]), config.lineitems_url, "a line item")
             report.reused.append(assignment)
             if top is not None and match.get("scoreMaximum") not in (None, top):
                 report.lines.append(f"{assignment}: the platform's line item has scoreMaximum {match['scoreMaximum']}, "
@@ -352,12 +397,7 @@ def push(sheet: GradeSheet, config: LtiConfig, sleep: Callable[[float], None] = 
             continue
         body = {"scoreMaximum": top, "label": sheet.titles.get(assignment) or assignment, "resourceId": assignment,
                 "tag": assignment}
-        reply = client.request("POST", config.lineitems_url, {"Content-Type": LINEITEM_TYPE, "Accept": LINEITEM_TYPE},
-                               json.dumps(body).encode("utf-8"))
-        made = reply.json() or {}
-        if not made.get("id"):
-            raise RuntimeError(f"lineitems_url {config.lineitems_url}: the new line item for {assignment} has no id")
-        items[assignment] = str(made["id"])
+        items[assignment] = _same_origin(_create_line_item(client, body), config.lineitems_url, "a line item")
         report.created.append(assignment)
     for student in sheet.students:
         user = roster.get(student)
@@ -382,7 +422,7 @@ def push(sheet: GradeSheet, config: LtiConfig, sleep: Callable[[float], None] = 
                 score.update(scoreGiven=grade.points, scoreMaximum=sheet.points_possible.get(assignment),
                              activityProgress="Completed", gradingProgress="FullyGraded")
                 if grade.penalty:
-                    score["comment"] = f"after a late penalty of {grade.penalty:g} points"
+                    score["comment"] = f"after a late penalty of {grade.penalty:g} point{'s' * (grade.penalty != 1)}"
             try:
                 client.request("POST", scores_url(items[assignment]), {"Content-Type": SCORE_TYPE},
                                json.dumps(score).encode("utf-8"))
