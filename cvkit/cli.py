@@ -432,10 +432,16 @@ def _cmd_push(args) -> int:
     if report.reused:
         print(f"line items updated: {', '.join(report.reused)}")
     counts: dict[str, int] = {}
+    grouped: dict[tuple[str, str, str], list[str]] = {}  # (assignment, status, why) → students
     for outcome in report.outcomes:
         counts[outcome.status] = counts.get(outcome.status, 0) + 1
-        if outcome.status != "posted":
-            _show(f"  {outcome.student} {outcome.assignment}: {outcome.status}: {outcome.detail}")
+        if outcome.status == "failed":  # each refusal on its line, with what the platform said
+            _show(f"  {outcome.student} {outcome.assignment}: failed: {outcome.detail}")
+        elif outcome.status != "posted":
+            grouped.setdefault((outcome.assignment, outcome.status, outcome.detail), []).append(outcome.student)
+    for (assignment, status, why), students in sorted(grouped.items()):
+        named = ", ".join(students[:6]) + (f" and {len(students) - 6} more" if len(students) > 6 else "")
+        _show(f"  {assignment}: {status}: {why}: {named}")
     summary = ", ".join(f"{n} {status}" for status, n in sorted(counts.items())) or "no students: nothing posted"
     if report.retried:
         summary += f" ({report.retried} request{'s' * (report.retried != 1)} repeated after a passing failure)"

@@ -133,7 +133,9 @@ def test_push_a_graded_course(graded, tmp_path, monkeypatch, capsys):
         scores = {s["userId"]: s for i, s in platform.scores if i == items[TINY]}
         assert set(scores) == {"1", "2", "3"} and scores["1"]["scoreGiven"] == pytest.approx(6.0)
         assert scores["2"]["scoreGiven"] == pytest.approx(3.0) and scores["3"]["gradingProgress"] == "PendingManual"
-        assert "dan ch99_tiny: skipped: nothing posted: not graded" in out
+        assert "ch99_tiny: skipped: nothing posted: not graded: " in out and out.count("ch99_tiny: skipped") == 1
+        assert "ch98_spare: skipped: nothing posted: no submission: ada, bob, cyd, dan" in out
+        assert "ch99_tiny: pending: PendingManual: cyd" in out
         assert main(argv) == 0 and len(platform.line_items) == 2  # the second push makes no line item
         assert f"line items updated: {TINY}, {SPARE}" in capsys.readouterr().out
 
