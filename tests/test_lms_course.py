@@ -149,3 +149,21 @@ def test_an_empty_class(graded, tmp_path, capsys):
     assert parsed["students"] == [] and parsed["points"] == {TINY: None, SPARE: None}
     assert main(["course", "export", "--canvas", "--assignment", "ch00_nope", "--course-dir", str(empty.root)]) == 2
     assert "--assignment: ch00_nope not in plan.toml" in capsys.readouterr().err
+
+
+def test_a_hand_in_changed_since_grading_is_blank(graded, capsys):
+    from cvkit.course.lms import HANDED_IN_AGAIN
+
+    path = graded.root / "submitted" / "ada" / TINY / f"{TINY}.ipynb"
+    before = path.read_bytes()
+    try:
+        path.write_text(json.dumps(answers("A new answer, handed in after the grading.")))
+        assert main(["course", "export", "--canvas", "--course-dir", str(graded.root)]) == 0
+        rows = {r["SIS Login ID"]: r for r in
+                parse_canvas((graded.root / "exports" / "canvas_grades.csv").read_bytes())["students"]}
+        assert rows["ada"][TINY] == "" and float(rows["bob"][TINY]) == pytest.approx(3.0)  # the old grade is not sent
+        with (graded.root / "exports" / "canvas_blank_reasons.csv").open(encoding="utf-8") as handle:
+            assert {"student": "ada", "assignment": TINY, "reason": HANDED_IN_AGAIN} in list(csv.DictReader(handle))
+    finally:
+        path.write_bytes(before)
+    capsys.readouterr()

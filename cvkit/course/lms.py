@@ -39,6 +39,7 @@ MOODLE_FIELDS = {"email": "Email address", "username": "Username", "idnumber": "
 PENDING = "written answers or open tasks still to be marked by hand (formgrader): no grade until marked"
 NO_SUBMISSION = "no submission"
 NOT_GRADED_YET = "submitted, not graded yet (run cvkit course grade)"
+HANDED_IN_AGAIN = "handed in again since it was graded: grade it (cvkit course grade), then export again"
 
 
 @dataclass(frozen=True)
@@ -120,6 +121,8 @@ def grade_sheet(course: Course, assignments: Iterable[str] | None = None) -> Gra
     submitted = set(course.submissions(chosen)) | {tuple(k.split("/", 1)) for k in not_graded}
     sheet = GradeSheet(chosen, [], {}, titles={a: (plan.get(a).title or a) for a in chosen})  # type: ignore[union-attr]
     students: set[str] = {s for s, a in submitted if a in chosen}
+    journal = course._journal  # the files each submission was graded from (same package)
+    recorded = journal.graded()
     with gradebook_of(course.db_url) as gb:  # a course never graded has an empty one
         for student in gb.students:
             students.add(student.id)
@@ -151,6 +154,10 @@ def grade_sheet(course: Course, assignments: Iterable[str] | None = None) -> Gra
                     sheet.grades[(student, assignment)] = (
                         Grade(None, NOT_GRADED_YET) if (student, assignment) in submitted
                         else Grade(None, NO_SUBMISSION, submitted=False))
+                    continue
+                if key in recorded and (student, assignment) in submitted \
+                        and recorded[key] != journal.submission_hash(student, assignment):
+                    sheet.grades[(student, assignment)] = Grade(None, HANDED_IN_AGAIN)  # the grade is the old files'
                     continue
                 penalty = float(submission.late_submission_penalty or 0.0)
                 if submission.needs_manual_grade:
