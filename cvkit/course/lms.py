@@ -8,7 +8,7 @@ What a cell holds (one rule for every LMS):
   as ``score`` in ``grades.csv``; never below 0), rounded to two decimals;
 - **blank, never 0**, when there is no such number yet: written answers or open tasks still to be
   marked by hand in the formgrader, a submission that could not be graded (with its reason), a
-  submission not graded yet, no submission at all. Each blank cell is listed with its reason in a
+  submission not graded yet or handed in again since it was graded, no submission at all. Each blank cell is listed with its reason in a
   side file (``exports/canvas_blank_reasons.csv``, ``exports/moodle_blank_reasons.csv``), and so
   is every student who is in the LMS's roster but not in the course or the reverse.
 
