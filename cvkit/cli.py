@@ -388,12 +388,8 @@ def _cmd_export(args) -> int:
     """``cvkit course export``: the LMS files (--canvas, --moodle), else grades.csv and exercises.csv."""
     from .course.lms import canvas_export, grade_sheet, moodle_export
 
-    course = _course(args)
-    if not args.canvas and not args.moodle:
-        if args.roster or args.roster_column:
-            raise ValueError("--roster and --roster-column go with --canvas or --moodle")
-        print(f"wrote {course.export()}")
-        return 0
+    if not args.canvas and not args.moodle and (args.roster or args.roster_column):
+        raise ValueError("--roster and --roster-column go with --canvas or --moodle")
     if args.canvas and args.moodle:
         raise ValueError("--canvas and --moodle: one LMS at a time (the --roster of each is its own)")
     if args.roster_column and not args.canvas:
@@ -401,6 +397,10 @@ def _cmd_export(args) -> int:
     roster = Path(args.roster) if args.roster else None
     if roster is not None and not roster.is_file():
         raise FileNotFoundError(f"--roster {roster}: no such file")
+    course = _course(args)
+    if not args.canvas and not args.moodle:
+        print(f"wrote {course.export()}")
+        return 0
     sheet = grade_sheet(course, args.assignment or None)
     folder = course.root / "exports"
     if args.canvas:
