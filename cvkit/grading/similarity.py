@@ -143,7 +143,8 @@ __all__ = [
     "NOISE", "THRESHOLD", "MIN_SIZE", "SOLUTION", "CODE_STUB", "MAX_NOTEBOOK_BYTES", "MAX_ANSWER_CHARS", "ADDED",
     "ALL_ADDED", "MAX_PARSED_CHARS", "SimilarPair", "Exercise", "Answer",
     "answer_sources", "exercise_algorithms", "exercises_from", "student_code", "added_cells_exercise", "similar_pairs",
-    "report", "write_csv", "write_html", "reference_label", "exercise_label",
+    "report", "write_csv", "write_html", "reference_label", "exercise_label", "Member", "SimilarGroup", "groups",
+    "CSV_COLUMNS",
 ]
 
 #: length of the k-grams (normalised characters) fingerprinted: the shortest match that counts
@@ -197,6 +198,11 @@ class SimilarPair:
         What of the two texts is added code: ``""`` (answer cells only), :data:`ALL_ADDED` (a
         pair of :data:`ADDED` texts), or whose answer pulls in which definitions from added
         cells, e.g. ``"ann: _helper; bob: _kernel _inner"``.
+    a_pulled, b_pulled : tuple of str
+        The names of the definitions each text pulls in from added cells (:attr:`Answer.pulled`).
+    textbook : bool or None
+        Whether ``b`` is the instructor's solution or a reference implementation rather than a
+        student (:func:`similar_pairs` sets it; None: told by the name, see :meth:`is_textbook`).
     """
 
     exercise: str
@@ -207,6 +213,16 @@ class SimilarPair:
     b_source: str
     assignment: str = ""
     added: str = ""
+    a_pulled: tuple[str, ...] = ()
+    b_pulled: tuple[str, ...] = ()
+    textbook: bool | None = None
+
+    def is_textbook(self) -> bool:
+        """Whether ``b`` is the instructor's solution or a reference implementation (the
+        ``textbook`` attribute; when it is None, told by ``b``'s name)."""
+        if self.textbook is not None:
+            return bool(self.textbook)
+        return self.b == SOLUTION or (self.b.startswith("(reference ") and self.b.endswith(")"))
 
 
 @dataclass(frozen=True)
@@ -850,7 +866,8 @@ def similar_pairs(answers: Mapping[str, Mapping[str, str | Answer]], exercises: 
             value = comparer.similarity(texts[a][1], texts[b][1], threshold)
             if value >= threshold:
                 added = ALL_ADDED if exercise.added_cells else _added_note(a, pulled.get(a, ()), b, pulled.get(b, ()))
-                pairs.append(SimilarPair(grade_id, a, b, round(value, 6), texts[a][0], texts[b][0], assignment, added))
+                pairs.append(SimilarPair(grade_id, a, b, round(value, 6), texts[a][0], texts[b][0], assignment, added,
+                                         pulled.get(a, ()), pulled.get(b, ()), b in targets))
     return sorted(pairs, key=lambda p: (-p.similarity, p.exercise, p.a, p.b))
 
 
@@ -966,39 +983,264 @@ def report(course_root: str | os.PathLike, source_dir: str | os.PathLike, assign
     return similar_pairs(answers, exercises, threshold=threshold, min_size=min_size, assignment=assignment)
 
 
+# ------------------------------------------------------------------------------- clusters
+@dataclass(frozen=True)
+class Member:
+    """One text of a :class:`SimilarGroup`.
+
+    Attributes
+    ----------
+    name : str
+        A student id, or the instructor's solution (:data:`SOLUTION`) or a reference
+        (:func:`reference_label`) in :attr:`SimilarGroup.textbook`.
+    source : str
+        The text compared.
+    closest : str
+        The other member most similar to this one (ties: the first name in sorted order).
+    similarity : float
+        Their similarity: at least the report's threshold (it is what put this text in the group).
+    to_centre : float or None
+        The similarity to the group's central answer (:attr:`SimilarGroup.centre`), when that pair
+        is at or above the threshold (1.0 for the centre itself); None when it is below.
+    pulled : tuple of str
+        The names of the definitions this text pulls in from the student's added cells.
+    """
+
+    name: str
+    source: str
+    closest: str
+    similarity: float
+    to_centre: float | None = None
+    pulled: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class SimilarGroup:
+    """A cluster of near-identical answers to one exercise (:func:`groups`).
+
+    Attributes
+    ----------
+    exercise : str
+        As in :class:`SimilarPair`.
+    members : tuple of Member
+        The students of the group: the central answer first, then by name.
+    textbook : tuple of Member
+        The instructor's solution and the references that are in the group (empty: none). A group
+        with a textbook member is "everyone who wrote the textbook answer" (or a variant of it):
+        the usual correct answer, a weak signal of copying between its students.
+    assignment : str
+        The assignment, when known.
+    added : bool
+        Whether the texts are a notebook's :data:`ADDED` cells (:data:`ALL_ADDED` pairs).
+    """
+
+    exercise: str
+    members: tuple[Member, ...]
+    textbook: tuple[Member, ...] = ()
+    assignment: str = ""
+    added: bool = False
+
+    @property
+    def centre(self) -> Member:
+        """The central answer: the student whose similarities to the others (those at or above
+        the threshold) add up to the most."""
+        return self.members[0]
+
+    @property
+    def high(self) -> float:
+        """The highest similarity of two texts of the group."""
+        return max(m.similarity for m in self.members + self.textbook)
+
+    @property
+    def low(self) -> float:
+        """The lowest of the members' similarities to their closest member (each at least the
+        threshold)."""
+        return min(m.similarity for m in self.members + self.textbook)
+
+    def shown(self) -> tuple[Member, Member]:
+        """The two texts the page shows side by side: the central answer, and the textbook text
+        most alike to the group (a textbook group) or else the student least alike to the
+        central answer (the spread of the group; the other one in a group of two)."""
+        if self.textbook:
+            return self.centre, max(self.textbook, key=lambda m: (m.to_centre or 0.0, m.similarity))
+        others = self.members[1:]
+        return self.centre, min(others, key=lambda m: (m.to_centre or 0.0, m.name))
+
+
+class _Links:
+    """Union-find over the texts of one exercise, with the similarities of the pairs that linked them."""
+
+    def __init__(self) -> None:
+        self.parent: dict[str, str] = {}
+        self.values: dict[str, dict[str, float]] = {}
+
+    def root(self, name: str) -> str:
+        self.parent.setdefault(name, name)
+        while self.parent[name] != name:
+            self.parent[name] = self.parent[self.parent[name]]
+            name = self.parent[name]
+        return name
+
+    def link(self, a: str, b: str, value: float) -> None:
+        self.values.setdefault(a, {})[b] = value
+        self.values.setdefault(b, {})[a] = value
+        first, second = self.root(a), self.root(b)
+        if first != second:
+            self.parent[max(first, second)] = min(first, second)
+
+    def components(self) -> list[list[str]]:
+        found: dict[str, list[str]] = {}
+        for name in sorted(self.parent):
+            found.setdefault(self.root(name), []).append(name)
+        return list(found.values())
+
+
+def groups(pairs: Iterable[SimilarPair]) -> list[SimilarGroup]:
+    """The clusters of similar answers that ``pairs`` make: per assignment and exercise, the texts
+    connected by pairs at or above the threshold (single linkage: the connected components of the
+    graph of reported pairs, found by union-find).
+
+    Every reported pair is inside one group, so no pair is hidden: two students whose answers are
+    alike are always in the same group. A chain (A like B, B like C, A not like C) is one group;
+    each member's closest member and its similarity to the group's central answer show how it
+    is linked. A group that holds the instructor's solution or a reference is labelled
+    (:attr:`SimilarGroup.textbook`); a student who pasted the reference alone is a group of
+    one student and the reference.
+
+    Parameters
+    ----------
+    pairs : iterable of SimilarPair
+        E.g. :func:`similar_pairs` or :func:`report` (of one or several assignments).
+
+    Returns
+    -------
+    list of SimilarGroup
+        Groups of students' answers first, then the textbook groups; each by decreasing highest
+        similarity, then by size (largest first), assignment, exercise and central answer.
+        Nothing here changes a score.
+    """
+    by_exercise: dict[tuple[str, str], list[SimilarPair]] = {}
+    for pair in _pairs(pairs):
+        by_exercise.setdefault((pair.assignment, pair.exercise), []).append(pair)
+    found = []
+    for (assignment, exercise), listed in by_exercise.items():
+        links = _Links()
+        sources: dict[str, str] = {}
+        pulled: dict[str, tuple[str, ...]] = {}
+        textbook: set[str] = set()
+        added = False
+        for pair in listed:
+            links.link(pair.a, pair.b, pair.similarity)
+            sources.setdefault(pair.a, pair.a_source)
+            sources.setdefault(pair.b, pair.b_source)
+            pulled.setdefault(pair.a, tuple(pair.a_pulled))
+            pulled.setdefault(pair.b, tuple(pair.b_pulled))
+            added = added or pair.added == ALL_ADDED
+            if pair.is_textbook():
+                textbook.add(pair.b)
+        for names in links.components():
+            students = [name for name in names if name not in textbook]
+            if not students:  # the solution like the reference, with no student: nothing to see
+                continue
+            weight = {name: sum(v for other, v in links.values[name].items() if other not in textbook)
+                      for name in students}
+            centre = min(students, key=lambda name: (-weight[name], name))
+
+            def member(name: str) -> Member:
+                near = links.values[name]
+                closest = min(near, key=lambda other: (-near[other], other))
+                to_centre = 1.0 if name == centre else near.get(centre)
+                return Member(name, sources[name], closest, near[closest], to_centre, pulled.get(name, ()))
+
+            found.append(SimilarGroup(
+                exercise, tuple(member(name) for name in [centre] + sorted(n for n in students if n != centre)),
+                tuple(member(name) for name in sorted(n for n in names if n in textbook)), assignment, added))
+    return sorted(found, key=lambda g: (bool(g.textbook), -g.high, -len(g.members), g.assignment, g.exercise,
+                                        g.centre.name))
+
+
 # ------------------------------------------------------------------------------- exports
 def _pairs(pairs: Iterable[SimilarPair]) -> list[SimilarPair]:
     items = list(pairs)
     if not all(isinstance(pair, SimilarPair) for pair in items):
-        raise TypeError("pairs must be an iterable of SimilarPair (see similar_pairs, report)")
+        raise TypeError("pairs must be an iterable of SimilarPair (see similar_pairs, report), "
+                        "or of SimilarGroup (see groups)")
     return sorted(items, key=lambda p: (-p.similarity, p.assignment, p.exercise, p.a, p.b))
 
 
+def _groups(items: Iterable[SimilarPair | SimilarGroup]) -> list[SimilarGroup]:
+    """``items`` as groups: groups as they are, pairs grouped (:func:`groups`)."""
+    items = list(items)
+    if items and all(isinstance(item, SimilarGroup) for item in items):
+        return items  # type: ignore[return-value]
+    return groups(items)  # type: ignore[arg-type]
+
+
 def exercise_label(pair: SimilarPair) -> str:
-    """A pair's exercise as the CSV and the page show it: the exercise, followed, when an
-    answer pulls in added code, by whose and what (``"mean_kernel_answer + added code (ann:
-    _helper)"``); a pair of :data:`ADDED` texts is named by its pseudo-exercise."""
+    """A pair's exercise, followed, when an answer pulls in added code, by whose and what
+    (``"mean_kernel_answer + added code (ann: _helper)"``); a pair of :data:`ADDED` texts is named
+    by its pseudo-exercise."""
     if pair.added and pair.added != ALL_ADDED:
         return f"{pair.exercise} + added code ({pair.added})"
     return pair.exercise
 
 
-def write_csv(pairs: Iterable[SimilarPair], path: str | os.PathLike) -> Path:
-    """Write ``pairs`` as CSV (``exports/similarity.csv``) and return the path.
+def _pulled_note(group: SimilarGroup, member: Member) -> str:
+    """The CSV's ``added_code`` of a member: :data:`ALL_ADDED`, the names its text pulls in from
+    added cells (at most six, each cut at 40 characters), or ``""``."""
+    if group.added:
+        return ALL_ADDED
+    names = [name if len(name) <= 40 else name[:39] + "…" for name in member.pulled[:6]]
+    return " ".join(names) + (f" (+{len(member.pulled) - 6} more)" if len(member.pulled) > 6 else "")
 
-    Columns ``assignment, exercise, student_a, student_b, similarity`` (three decimals), by
-    decreasing similarity; the exercise is :func:`exercise_label` (it says which pairs come
-    from added code). Cells that a spreadsheet would read as a formula are escaped by
-    :func:`cvkit.grading.safety.csv_safe`. Missing parent folders are created.
+
+#: the columns of ``exports/similarity.csv`` (:func:`write_csv`)
+CSV_COLUMNS = ("assignment", "exercise", "cluster", "students", "student", "closest", "similarity", "textbook",
+               "added_code")
+
+
+def write_csv(items: Iterable[SimilarPair | SimilarGroup], path: str | os.PathLike) -> Path:
+    """Write the groups of similar answers as CSV (``exports/similarity.csv``), **one row per
+    student of a group**, and return the path.
+
+    Columns (:data:`CSV_COLUMNS`):
+
+    ``assignment``, ``exercise``
+        The exercise (``"<notebook>:<grade_id>"`` with several notebooks, :data:`ADDED` for the
+        added cells).
+    ``cluster``
+        The group's number, 1, 2, … in the page's order (its anchor ``#cluster-<n>`` in
+        ``similarity.html``); the rows of a group are together, its central answer first.
+    ``students``
+        How many students the group has (the instructor's solution and references not counted).
+    ``student``
+        One student of the group.
+    ``closest``, ``similarity``
+        The text of the group most like this student's (a student, :data:`SOLUTION` or a
+        reference) and their similarity, three decimals, at least the threshold.
+    ``textbook``
+        The instructor's solution and references in the group, ``"; "``-separated: the group is
+        everyone who wrote the textbook answer; empty for a group of students alone.
+    ``added_code``
+        The definitions this student's text pulls in from their added cells, or
+        :data:`ALL_ADDED` for the :data:`ADDED` pseudo-exercise, or empty.
+
+    ``items`` are groups (:func:`groups`), or pairs, which are grouped first. Cells that a
+    spreadsheet would read as a formula are escaped by :func:`cvkit.grading.safety.csv_safe`.
+    Missing parent folders are created.
     """
     from .safety import csv_safe
 
-    rows = [(p.assignment, exercise_label(p), p.a, p.b, f"{p.similarity:.3f}") for p in _pairs(pairs)]
+    rows = []
+    for number, group in enumerate(_groups(items), 1):
+        textbook = "; ".join(m.name for m in group.textbook)
+        rows += [(group.assignment, group.exercise, str(number), str(len(group.members)), m.name, m.closest,
+                  f"{m.similarity:.3f}", textbook, _pulled_note(group, m)) for m in group.members]
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle, lineterminator="\n")
-        writer.writerow(["assignment", "exercise", "student_a", "student_b", "similarity"])
+        writer.writerow(CSV_COLUMNS)
         writer.writerows([csv_safe(printable(cell)) for cell in row] for row in rows)
     return path
 
@@ -1009,45 +1251,81 @@ _PAGE = """<!DOCTYPE html>
 <title>Similar answers</title>
 <style>
 body {{ font-family: sans-serif; margin: 1.5em; }}
-table.index td, table.index th {{ padding: 0.2em 0.8em; text-align: left; }}
+table.index td, table.index th, table.members td, table.members th {{ padding: 0.2em 0.8em; text-align: left; }}
 section {{ border-top: 1px solid #999; margin-top: 1.5em; }}
 .sides {{ display: grid; grid-template-columns: 1fr 1fr; gap: 1em; }}
+.note {{ background: #eef5ee; padding: 0.4em; }}
 pre {{ background: #f4f4f4; padding: 0.6em; overflow-x: auto; white-space: pre; font-size: 0.85em; }}
 </style></head><body>
 <h1>Similar answers</h1>
-<p>{count} pair(s). Similarity: the mean over the two answers of the share of each one's own code
-(the released stub left out) that the other contains, after names, strings and numbers are
+<p>{count} group(s) of similar answers ({students} student answer(s) in all). A group is the
+answers to one exercise that are linked by a similarity at or above the threshold (each is that
+close to at least one other of its group); the two most alike are always in the same group.
+Each group shows its central answer (the most alike to the others) beside the textbook answer
+it is close to or else beside its answer least like the central one, and lists every student
+with the answer closest to theirs. Groups that hold the instructor's solution or a reference
+implementation come last, marked <em>textbook answer</em>: everyone who wrote the usual correct
+answer, a weak signal. Similarity: the mean over the two answers of the share of each one's own
+code (the released stub left out) that the other contains, after names, strings and numbers are
 abstracted (copydetect's winnowing). An answer is its answer cell and the definitions it pulls
-in from the cells the student added or changed (&ldquo;+ added code&rdquo;: whose, and which
-names); &ldquo;{added}&rdquo; compares all of two students' added cells. A signal to look at,
-never a score.</p>
+in from the cells the student added or changed (the list names them); &ldquo;{added}&rdquo;
+compares all of two students' added cells. A signal to look at, never a score.</p>
 {index}
 {sections}
 </body></html>
 """
 
 
-def write_html(pairs: Iterable[SimilarPair], path: str | os.PathLike) -> Path:
-    """Write one self-contained HTML page of ``pairs`` (the two answers side by side, by
-    decreasing similarity) and return the path. Every text is HTML-escaped; the page has no
-    script and a Content-Security-Policy that allows none. Missing parent folders are created."""
-    ordered = _pairs(pairs)
+def _names(group: SimilarGroup, e: Any, most: int = 6) -> str:
+    names = [e(m.name) for m in group.members[:most]]
+    more = f" (+{len(group.members) - most} more)" if len(group.members) > most else ""
+    return ", ".join(names) + more
+
+
+def write_html(items: Iterable[SimilarPair | SimilarGroup], path: str | os.PathLike) -> Path:
+    """Write one self-contained HTML page of the groups of similar answers (:func:`groups`; pairs
+    are grouped first) and return the path: an index of the groups, then per group its students
+    (each with its closest text and its similarity to the central answer) and two texts side by
+    side (:meth:`SimilarGroup.shown`). Its size grows with the number of students in groups,
+    not with the number of similar pairs. Every text is HTML-escaped; the page has no script and
+    a Content-Security-Policy that allows none. Missing parent folders are created."""
+    ordered = _groups(items)
+
     def e(text: object) -> str:
         return html.escape(printable(text, newlines=True))
+
+    def percent(value: float | None) -> str:
+        return f"{value:.0%}" if value is not None else "below the threshold"
+
     rows, sections = [], []
-    for number, p in enumerate(ordered, 1):
-        label = exercise_label(p)
-        where = f"{p.assignment} / {label}" if p.assignment else label
-        rows.append(f'<tr><td><a href="#pair-{number}">{p.similarity:.0%}</a></td><td>{e(where)}</td>'
-                    f"<td>{e(p.a)}</td><td>{e(p.b)}</td></tr>")
+    for number, group in enumerate(ordered, 1):
+        where = e(f"{group.assignment} / {group.exercise}" if group.assignment else group.exercise)
+        spread = f"{group.low:.0%}" if group.low == group.high else f"{group.low:.0%}&ndash;{group.high:.0%}"
+        textbook = ", ".join(e(m.name) for m in group.textbook)
+        kind = f"textbook answer: {textbook}" if textbook else ""
+        rows.append(f'<tr><td><a href="#cluster-{number}">{number}</a></td><td>{where}</td>'
+                    f"<td>{len(group.members)}</td><td>{spread}</td><td>{_names(group, e)}</td><td>{kind}</td></tr>")
+        note = (f'<p class="note">Textbook answer: this group is close to {textbook}. Its students wrote '
+                f"the usual correct answer (or a variant of it); that they are alike is a weak signal.</p>"
+                if textbook else "")
+        members = "".join(
+            f"<tr><td>{e(m.name)}{' (central)' if index == 0 else ''}</td><td>{e(m.closest)}</td>"
+            f"<td>{m.similarity:.0%}</td><td>{percent(m.to_centre) if index else ''}</td>"
+            f"<td>{e(_pulled_note(group, m))}</td></tr>"
+            for index, m in enumerate(group.members))
+        left, right = group.shown()
         sections.append(
-            f'<section id="pair-{number}"><h2>{p.similarity:.0%} &mdash; {e(where)}</h2><div class="sides">'
-            f"<div><h3>{e(p.a)}</h3><pre>{e(p.a_source)}</pre></div>"
-            f"<div><h3>{e(p.b)}</h3><pre>{e(p.b_source)}</pre></div></div></section>")
-    index = ("<table class=\"index\"><tr><th>similarity</th><th>exercise</th><th>a</th><th>b</th></tr>"
-             + "".join(rows) + "</table>") if rows else "<p>No pair above the threshold.</p>"
+            f'<section id="cluster-{number}"><h2>{number}. {where} &mdash; {len(group.members)} '
+            f"student{'s' * (len(group.members) != 1)}, {spread}</h2>{note}"
+            f'<table class="members"><tr><th>student</th><th>closest</th><th>similarity</th>'
+            f"<th>to the central answer</th><th>added code</th></tr>{members}</table>"
+            f'<div class="sides"><div><h3>{e(left.name)}</h3><pre>{e(left.source)}</pre></div>'
+            f"<div><h3>{e(right.name)}</h3><pre>{e(right.source)}</pre></div></div></section>")
+    index = ('<table class="index"><tr><th>group</th><th>exercise</th><th>students</th><th>similarity</th>'
+             "<th>who</th><th></th></tr>" + "".join(rows) + "</table>") if rows \
+        else "<p>No answers alike above the threshold.</p>"
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(_PAGE.format(count=len(ordered), index=index, sections="\n".join(sections), added=e(ADDED)),
-                    encoding="utf-8")
+    path.write_text(_PAGE.format(count=len(ordered), students=sum(len(g.members) for g in ordered),
+                                 index=index, sections="\n".join(sections), added=e(ADDED)), encoding="utf-8")
     return path
