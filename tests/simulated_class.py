@@ -140,31 +140,46 @@ def comment(text: str, rng: random.Random, count: int = 2) -> str:
     return "\n".join(lines)
 
 
-def vary(text: str, rng: random.Random) -> str:
-    """A student's copy of ``text``: names changed, statements swapped, comments added."""
-    return comment(reorder(rename(text, rng), rng), rng, count=rng.randrange(1, 4))
+def pad(text: str, rng: random.Random, count: int = 2) -> str:
+    """``count`` statements of no use added before statements of the function (``_unused = None``):
+    every student's text then differs after normalisation too (the costliest case to compare)."""
+    tree = ast.parse(text)
+    starts = sorted({(s.lineno, s.col_offset) for f in ast.walk(tree) if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
+                     for s in f.body[1:]})
+    lines = text.split("\n")
+    for row, column in sorted(rng.sample(starts, min(count, len(starts))), reverse=True):
+        lines.insert(row - 1, " " * column + "_unused = None")
+    return "\n".join(lines)
+
+
+def vary(text: str, rng: random.Random, *, distinct: bool = False) -> str:
+    """A student's copy of ``text``: names changed, statements swapped, comments added (and, if
+    ``distinct``, useless statements added: :func:`pad`)."""
+    text = comment(reorder(rename(text, rng), rng), rng, count=rng.randrange(1, 4))
+    return pad(text, rng, count=rng.randrange(1, 4)) if distinct else text
 
 
 # ------------------------------------------------------------------------------- the class
-def unique_answers(grade_id: str, chosen: dict[str, dict[str, str]]) -> list[str]:
+def unique_answers(grade_id: str) -> list[str]:
     """Answers to ``grade_id`` that share no source with anyone's: the independent versions of the
     *other* exercises' algorithms (a student who answered with something of their own)."""
-    return [texts["alternative"] for other, texts in sorted(chosen.items()) if other != grade_id]
+    return [inspect.getsource(function) for name, function in inspect.getmembers(alternatives_ch03, inspect.isfunction)
+            if function.__module__ == alternatives_ch03.__name__ and name != grade_id[: -len("_answer")]]
 
 
-def answers(students: int, *, unique: int = 3, seed: int = 0, chosen: dict[str, dict[str, str]] | None = None
-            ) -> dict[str, dict[str, str]]:
+def answers(students: int, *, unique: int = 3, seed: int = 0, chosen: dict[str, dict[str, str]] | None = None,
+            distinct: bool = False) -> dict[str, dict[str, str]]:
     """``{student: {grade_id: text}}``: ``students - unique`` students each answer every exercise
     with a variation of one of the three sources (``s000`` … in turn: solution, reference,
-    alternative), and ``unique`` students (``u00`` …) answer each exercise on their own."""
+    alternative; :func:`vary`), and ``unique`` students (``u00`` …) answer each exercise on their own."""
     rng = random.Random(seed)
     chosen = sources() if chosen is None else chosen
     result: dict[str, dict[str, str]] = {}
     for number in range(students - unique):
         kind = SOURCES[number % len(SOURCES)]
-        result[f"s{number:03d}"] = {grade_id: vary(texts[kind], rng) for grade_id, texts in chosen.items()}
+        result[f"s{number:03d}"] = {grade_id: vary(texts[kind], rng, distinct=distinct) for grade_id, texts in chosen.items()}
     for number in range(unique):
-        result[f"u{number:02d}"] = {grade_id: unique_answers(grade_id, chosen)[number % (len(chosen) - 1)]
+        result[f"u{number:02d}"] = {grade_id: unique_answers(grade_id)[number]
                                     for grade_id in chosen}
     return result
 

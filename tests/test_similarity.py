@@ -264,13 +264,19 @@ def test_html_page_escapes_every_student_text_and_puts_the_answers_side_by_side(
 def test_csv_export_escapes_formulas(tmp_path):
     path = similarity.write_csv([HOSTILE, OTHER], tmp_path / "exports" / "similarity.csv")
     rows = list(csv.reader(path.open(newline="", encoding="utf-8")))
-    assert rows[0] == ["assignment", "exercise", "student_a", "student_b", "similarity"]
-    assert rows[1] == ["ch03_filtering", "pad_answer", "'-1+2", "'+cmd", "0.950"]
-    assert rows[2] == ["ch03_filtering", "gaussian_answer", "<script>alert('a')</script>",
-                       "'=HYPERLINK(\"http://x\")", "0.800"]
-    assert len(rows) == 3
+    header = ["assignment", "exercise", "cluster", "students", "student", "closest", "similarity", "textbook",
+              "added_code"]
+    assert rows[0] == header
+    # one row per student of each group (a pair is a group of two), the groups by decreasing similarity
+    assert rows[1:3] == [["ch03_filtering", "pad_answer", "1", "2", "'+cmd", "'-1+2", "0.950", "", ""],
+                         ["ch03_filtering", "pad_answer", "1", "2", "'-1+2", "'+cmd", "0.950", "", ""]]
+    hyperlink = "'=HYPERLINK(\"http://x\")"
+    assert rows[3:] == [["ch03_filtering", "gaussian_answer", "2", "2", "<script>alert('a')</script>", hyperlink,
+                         "0.800", "", ""],
+                        ["ch03_filtering", "gaussian_answer", "2", "2", hyperlink, "<script>alert('a')</script>",
+                         "0.800", "", ""]]
     empty = similarity.write_csv([], tmp_path / "empty.csv")
-    assert empty.read_text() == "assignment,exercise,student_a,student_b,similarity\n"
+    assert empty.read_text() == ",".join(header) + "\n"
 
 
 # ------------------------------------------------------------------------------- course folders

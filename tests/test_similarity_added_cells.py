@@ -185,12 +185,15 @@ def test_a_copied_helper_in_added_cells_is_reported_for_the_exercise_and_among_t
     # the CSV and the page say which pairs come from added code
     similarity.write_csv(pairs.values(), tmp_path / "similarity.csv")
     rows = list(csv.reader((tmp_path / "similarity.csv").open(newline="", encoding="utf-8")))
-    assert rows[0] == ["assignment", "exercise", "student_a", "student_b", "similarity"]
-    assert [row[1:4] for row in rows[1:]] == [
-        [ADDED, "ann", "bob"], ["bilateral_answer + added code (ann: _bilateral_core; bob: _smooth)", "ann", "bob"]]
+    assert rows[0] == list(similarity.CSV_COLUMNS)
+    # one row per student of each group: the exercise, the student, the closest, what each pulls in
+    assert [row[1:2] + row[4:6] + row[8:] for row in rows[1:]] == [
+        [ADDED, "ann", "bob", ALL_ADDED], [ADDED, "bob", "ann", ALL_ADDED],
+        ["bilateral_answer", "ann", "bob", "_bilateral_core"], ["bilateral_answer", "bob", "ann", "_smooth"]]
     page = similarity.write_html(pairs.values(), tmp_path / "similarity.html").read_text()
-    assert "ch03 / bilateral_answer + added code (ann: _bilateral_core; bob: _smooth)" in page
-    assert "ch03 / (added cells)" in page
+    assert "ch03 / bilateral_answer" in page and "ch03 / (added cells)" in page
+    section = page[page.index('id="cluster-2"'):]
+    assert "<td>_bilateral_core</td>" in section and "<td>_smooth</td>" in section
 
 
 def test_an_honest_pair_with_their_own_helpers_is_compared_but_not_reported(source):

@@ -250,14 +250,17 @@ def export_similarity(course: Course, assignments: Iterable[str] | None = None, 
             bar.describe(f"similarity {assignment}")
             pairs += similarity.report(course.root, course.source_dir, assignment)
             bar.update()
+    groups = similarity.groups(pairs)
     folder = course.root / "exports"
-    similarity.write_html(pairs, folder / "similarity.html")
-    return similarity.write_csv(pairs, folder / "similarity.csv")
+    similarity.write_html(groups, folder / "similarity.html")
+    return similarity.write_csv(groups, folder / "similarity.csv")
 
 
 def similar_pairs(course: Course) -> list[dict[str, str]]:
-    """The pairs of the last similarity report (``exports/similarity.csv``), most similar first:
-    dicts with ``assignment``, ``exercise``, ``student_a``, ``student_b``, ``similarity``."""
+    """The rows of the last similarity report (``exports/similarity.csv``): one per student of
+    each group of similar answers, the groups in the page's order, as dicts with the columns of
+    :data:`cvkit.grading.similarity.CSV_COLUMNS` (``assignment``, ``exercise``, ``cluster``,
+    ``students``, ``student``, ``closest``, ``similarity``, ``textbook``, ``added_code``)."""
     path = course.root / "exports" / "similarity.csv"
     if not path.is_file():
         return []
@@ -266,23 +269,30 @@ def similar_pairs(course: Course) -> list[dict[str, str]]:
 
 
 def similarity_summary(course: Course, top: int = 5) -> list[str]:
-    """A few lines for ``cvkit course grade``'s summary: how many similar pairs, the ``top`` ones."""
-    pairs = similar_pairs(course)
+    """A few lines for ``cvkit course grade``'s summary: how many groups of similar answers,
+    the ``top`` ones (groups of students first, textbook groups after)."""
+    rows = similar_pairs(course)
     path = course.root / "exports" / "similarity.html"
-    if not pairs:
+    clusters: dict[str, list[dict[str, str]]] = {}
+    for row in rows:
+        clusters.setdefault(row.get("cluster") or "", []).append(row)
+    if not clusters:
         return [f"similar answers: none above the threshold ({path})"]
-    from ..grading.similarity import SOLUTION
-
-    references = sum(p["student_b"].startswith("(reference") for p in pairs)
-    solutions = sum(p["student_b"] == SOLUTION for p in pairs)
-    kinds = [f"{len(pairs) - references - solutions} between students"]
-    kinds += [f"{references} with the reference"] if references else []
-    kinds += [f"{solutions} with the instructor's solution"] if solutions else []
-    lines = [f"similar answers: {len(pairs)} pair{'s' * (len(pairs) != 1)} ({', '.join(kinds)}; a signal for the "
-             f"instructor, never a score change): {path}"]
-    for pair in pairs[:top]:
-        a, b, exercise, assignment = (printable(pair[k]) for k in ("student_a", "student_b", "exercise", "assignment"))
-        lines.append(f"  {float(pair['similarity']):>4.0%}  {assignment} · {exercise}: {a} ↔ {b}")
-    if len(pairs) > top:
-        lines.append(f"  ... and {len(pairs) - top} more in {path.name}")
+    textbook = sum(bool(members[0].get("textbook")) for members in clusters.values())
+    students = len(rows)
+    kinds = [f"{students} student answer{'s' * (students != 1)} in all"]
+    kinds += [f"{textbook} close to the instructor's solution or the reference"] if textbook else []
+    lines = [f"similar answers: {len(clusters)} group{'s' * (len(clusters) != 1)} ({', '.join(kinds)}; a signal "
+             f"for the instructor, never a score change): {path}"]
+    for members in list(clusters.values())[:top]:
+        first = members[0]
+        names = [printable(m.get("student", "")) for m in members]
+        shown = " ↔ ".join(names[:3]) + (f" (+{len(names) - 3} more)" if len(names) > 3 else "")
+        if first.get("textbook"):
+            shown += f" ≈ {printable(first['textbook'])}"
+        best = max(float(m.get("similarity") or 0.0) for m in members)
+        assignment, exercise = printable(first.get("assignment", "")), printable(first.get("exercise", ""))
+        lines.append(f"  {best:>4.0%}  {assignment} · {exercise}: {shown}")
+    if len(clusters) > top:
+        lines.append(f"  ... and {len(clusters) - top} more in {path.name}")
     return lines
