@@ -170,12 +170,13 @@ def test_the_similarity_summary_is_printable(project, tmp_path):
     course = Course(tmp_path / "course", project=project)
     (course.root / "exports").mkdir()
     (course.root / "exports" / "similarity.csv").write_bytes(
-        b"assignment,exercise,student_a,student_b,similarity\n"
-        b"ch99_tiny,mean_kernel_answer,ada,st\xffudent,1.000\n"
-        b"ch99_tiny,mean_kernel_answer,ada,mal\x1b]0;pwned\x07,0.950\n")
+        b"assignment,exercise,cluster,students,student,closest,similarity,textbook,added_code\n"
+        b"ch99_tiny,mean_kernel_answer,1,2,ada,st\xffudent,1.000,,\n"
+        b"ch99_tiny,mean_kernel_answer,1,2,st\xffudent,ada,1.000,,\n"
+        b"ch99_tiny,mean_kernel_answer,2,1,mal\x1b]0;pwned\x07,(reference x\x1b[2J),0.950,(reference x\x1b[2J),\n")
     lines = similarity_summary(course)
     assert lines[1:] == ["  100%  ch99_tiny · mean_kernel_answer: ada ↔ st\\xffudent",
-                         "   95%  ch99_tiny · mean_kernel_answer: ada ↔ mal\\x1b]0;pwned\\x07"]
+                         "   95%  ch99_tiny · mean_kernel_answer: mal\\x1b]0;pwned\\x07 ≈ (reference x\\x1b[2J)"]
     assert not unsafe("".join(lines))
 
 
