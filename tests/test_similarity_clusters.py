@@ -82,7 +82,10 @@ def test_a_class_of_60_from_three_sources_gives_one_group_per_source_and_a_page_
     page = similarity.write_html(groups, tmp_path / "similarity.html")
     text = page.read_text(encoding="utf-8")
     assert page.stat().st_size < 2 * MB, page.stat().st_size
-    assert text.count("<section") == 39 and text.count("<pre>") == 2 * 39  # one side-by-side view per group
+    # one side-by-side view per group: its central answer and its answer least like it, and in the
+    # 26 textbook groups the textbook text too
+    assert text.count("<section") == 39 and text.count('class="sides"') == 39
+    assert text.count("<pre>") == 13 * 2 + 26 * 3
     assert text.count('class="note">Textbook answer') == 26
     rows = list(csv.DictReader(similarity.write_csv(groups, tmp_path / "similarity.csv").open(encoding="utf-8")))
     assert len(rows) == 13 * 57  # one row per student of a group
@@ -118,8 +121,8 @@ def test_a_copied_pair_among_unique_answers_is_a_group_of_two(chapter, tmp_path)
     assert [m.name for m in group.members] == ["cop_a", "cop_b"] and group.textbook == ()
     assert group.members[0].closest == "cop_b" and group.members[1].closest == "cop_a"
     assert group.members[0].similarity >= THRESHOLD
-    left, right = group.shown()  # the two answers side by side
-    assert (left.source, right.source) == (answers["cop_a"][grade_id], answers["cop_b"][grade_id])
+    # the two answers side by side
+    assert [m.source for m in group.shown()] == [answers["cop_a"][grade_id], answers["cop_b"][grade_id]]
     rows = list(csv.reader(similarity.write_csv(groups, tmp_path / "s.csv").open(encoding="utf-8")))
     assert [row[2:6] for row in rows[1:]] == [["1", "2", "cop_a", "cop_b"], ["1", "2", "cop_b", "cop_a"]]
 
@@ -135,8 +138,9 @@ def test_the_textbook_group_is_labelled_and_shown_beside_the_textbook(chapter, t
     assert [sorted(m.name for m in g.members) for g in groups] == [["pair_a", "pair_b"], ["st0", "st1", "st2", "st3"]]
     textbook = groups[1]
     assert [m.name for m in textbook.textbook] == [SOLUTION] and groups[0].textbook == ()
-    left, right = textbook.shown()
-    assert left.name.startswith("st") and right.name == SOLUTION and right.source == exercises[grade_id].solution
+    shown = textbook.shown()  # a small group: every answer, then the textbook text
+    assert [m.name for m in shown[:-1]] == [m.name for m in textbook.members] and shown[0] == textbook.centre
+    assert shown[-1].name == SOLUTION and shown[-1].source == exercises[grade_id].solution
     page = similarity.write_html(groups, tmp_path / "s.html").read_text(encoding="utf-8")
     second = page[page.index('id="cluster-2"'):]
     assert "Textbook answer: this group is close to (instructor&#x27;s solution)" in second
@@ -174,19 +178,20 @@ def test_a_chain_is_one_group_whose_members_say_how_they_are_linked():
     def pair(a, b, value):
         return SimilarPair("ex", a, b, value, f"text of {a}", f"text of {b}", "hw1")
 
-    pairs = [pair("ann", "bob", 0.9), pair("bob", "cyd", 0.7), pair("cyd", "dan", 0.65), pair("eve", "fay", 0.8),
-             pair("gus", "hal", 0.99)]
+    pairs = [pair("ann", "bob", 0.9), pair("bob", "cyd", 0.7), pair("cyd", "dan", 0.65), pair("dan", "eli", 0.62),
+             pair("eve", "fay", 0.8), pair("gus", "hal", 0.99)]
     groups = similarity.groups(pairs + [SimilarPair("other", "ann", "bob", 0.61, "x", "y", "hw1")])
     assert [[m.name for m in g.members] for g in groups] == [
-        ["gus", "hal"], ["bob", "ann", "cyd", "dan"], ["eve", "fay"], ["ann", "bob"]]
+        ["gus", "hal"], ["bob", "ann", "cyd", "dan", "eli"], ["eve", "fay"], ["ann", "bob"]]
     chain = groups[1]
     assert chain.centre.name == "bob" and chain.centre.to_centre == 1.0  # 0.9 + 0.7: the most linked
     members = {m.name: m for m in chain.members}
     assert (members["ann"].closest, members["ann"].similarity, members["ann"].to_centre) == ("bob", 0.9, 0.9)
     assert (members["dan"].closest, members["dan"].similarity, members["dan"].to_centre) == ("cyd", 0.65, None)
-    assert (chain.low, chain.high) == (0.65, 0.9)
-    left, right = chain.shown()  # the central answer beside the one least like it
-    assert (left.name, right.name) == ("bob", "dan")
+    assert (chain.low, chain.high) == (0.62, 0.9)
+    # more than SHOWN_ALL students: the central answer beside the first of those least like it
+    assert [m.name for m in chain.shown()] == ["bob", "dan"] and len(chain.members) > similarity.SHOWN_ALL
+    assert [m.name for m in groups[2].shown()] == ["eve", "fay"]
     assert similarity.groups([]) == []
     with pytest.raises(TypeError, match="pairs must be an iterable of SimilarPair"):
         similarity.groups(["ann"])  # type: ignore[list-item]

@@ -628,7 +628,8 @@ class Course:
         """The similarity report of ``assignments`` (default: every assignment of the plan with
         submissions): ``exports/similarity.csv`` and ``exports/similarity.html``, answers compared
         across students and with the reference and the instructor's solution
-        (:func:`cvkit.grading.similarity.report`). A signal for the instructor, never a score
-        change. Returns the CSV's path."""
+        (:func:`cvkit.grading.similarity.report`) and gathered into groups of similar answers
+        (:func:`cvkit.grading.similarity.groups`; the CSV has one row per student of a group). A
+        signal for the instructor, never a score change. Returns the CSV's path."""
         return exports.export_similarity(self, assignments, progress)
 

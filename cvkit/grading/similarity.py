@@ -7,8 +7,10 @@ implementation of the exercise's algorithm (its source, :func:`inspect.getsource
 instructor's solution (the source notebook's text between ``### BEGIN SOLUTION`` and
 ``### END SOLUTION``); all of a student's added code is also compared with the other students'
 (the pseudo-exercise :data:`ADDED`). Pairs above a threshold are listed (:func:`similar_pairs`,
-:func:`report`) and exported (:func:`write_csv`, :func:`write_html`). It is a signal for the
-instructor, never a score change: nothing here touches a grade.
+:func:`report`), gathered into groups of near-identical answers (:func:`groups`) and exported,
+one row per student of a group and one section per group (:func:`write_csv`,
+:func:`write_html`). It is a signal for the instructor, never a score change: nothing here
+touches a grade.
 
 Method
 ------
@@ -120,6 +122,31 @@ pulled-in code and 0.91 among the added cells; the instructor's solution pasted 
 scores 0.97 against the solution; two honest students' own helpers score 0. The independent
 solutions above, each moved whole into a helper that the answer cell calls, score at most 0.41
 among themselves (0.39 as plain answers; 0.59 without the wrapper boilerplate).
+
+Groups
+------
+A real class's correct answers come from a few common sources (the textbook, a popular version,
+each other), so the pairs above the threshold grow with the square of the class: a simulated
+class of 60 students answering Chapter 3's 13 exercises from three sources
+(``tests/simulated_class.py``) gives 7,163 pairs, and a page of one side-by-side view per pair
+was 24.7 MB. The report is made of **groups** instead (:func:`groups`): per exercise, the
+connected components of the graph whose edges are the pairs at or above the threshold
+(single linkage, found by union-find over the pairs :func:`similar_pairs` already measured: no
+comparison more). Single linkage was chosen over average or complete linkage because it hides
+nothing: every reported pair is inside one group, so two answers alike are always seen together
+(a copied pair among unique answers is a group of two); its weakness, chaining (A like B, B like
+C, A not like C), is shown rather than hidden — each member is listed with the text closest to
+it and its similarity to the group's central answer, "below the threshold" when that pair is not
+alike. The instructor's solution and the references are members like the students: a group that
+holds one is labelled *textbook answer* (everyone who wrote the usual correct answer: a weak
+signal) and listed after the groups of students alone; a student who pasted the reference is a
+group of one student and the reference. Each group shows its answers side by side: all of them
+in a group of up to :data:`SHOWN_ALL` students, else its central answer (the student whose
+similarities to the others add up to the most) and its student least like the central answer
+(the spread); then the textbook text, in a textbook group. The
+page and the CSV grow with the number of students in groups, not with the pairs: the simulated
+class of 60 gives 39 groups and a page of 0.2 MB, a class of 300 a page of 0.4 MB
+(``tests/test_similarity_clusters.py``; times in ``benchmarks/README.md``).
 """
 from __future__ import annotations
 
@@ -146,7 +173,7 @@ __all__ = [
     "ALL_ADDED", "MAX_PARSED_CHARS", "SimilarPair", "Exercise", "Answer",
     "answer_sources", "exercise_algorithms", "exercises_from", "student_code", "added_cells_exercise", "similar_pairs",
     "report", "write_csv", "write_html", "reference_label", "exercise_label", "Member", "SimilarGroup", "groups",
-    "CSV_COLUMNS",
+    "CSV_COLUMNS", "SHOWN_ALL",
 ]
 
 #: length of the k-grams (normalised characters) fingerprinted: the shortest match that counts
@@ -1064,14 +1091,22 @@ class SimilarGroup:
         threshold)."""
         return min(m.similarity for m in self.members + self.textbook)
 
-    def shown(self) -> tuple[Member, Member]:
-        """The two texts the page shows side by side: the central answer, and the textbook text
-        most alike to the group (a textbook group) or else the student least alike to the
-        central answer (the spread of the group; the other one in a group of two)."""
+    def shown(self) -> tuple[Member, ...]:
+        """The texts the page shows side by side: in a group of at most :data:`SHOWN_ALL`
+        students, every student's (the central answer first); in a larger one, the central
+        answer and the student least alike to it (the spread of the group). In a textbook group,
+        followed by the textbook text most alike to the group."""
+        if len(self.members) <= SHOWN_ALL:
+            students = self.members
+        else:
+            students = self.centre, min(self.members[1:], key=lambda m: (m.to_centre or 0.0, m.name))
         if self.textbook:
-            return self.centre, max(self.textbook, key=lambda m: (m.to_centre or 0.0, m.similarity))
-        others = self.members[1:]
-        return self.centre, min(others, key=lambda m: (m.to_centre or 0.0, m.name))
+            return students + (max(self.textbook, key=lambda m: (m.to_centre or 0.0, m.similarity, m.name)),)
+        return students
+
+
+#: a group of at most this many students shows all their answers (a larger one, two of them)
+SHOWN_ALL = 4
 
 
 class _Links:
@@ -1268,9 +1303,10 @@ pre {{ background: #f4f4f4; padding: 0.6em; overflow-x: auto; white-space: pre; 
 <p>{count} group(s) of similar answers ({students} student answer(s) in all). A group is the
 answers to one exercise that are linked by a similarity at or above the threshold (each is that
 close to at least one other of its group); the two most alike are always in the same group.
-Each group shows its central answer (the most alike to the others) beside the textbook answer
-it is close to or else beside its answer least like the central one, and lists every student
-with the answer closest to theirs. Groups that hold the instructor's solution or a reference
+Each group lists every student with the answer closest to theirs, and shows its answers side by
+side: all of them in a group of up to {shown_all} students, else its central answer (the most
+alike to the others) and its answer least like the central one; then the textbook answer the
+group is close to, if any. Groups that hold the instructor's solution or a reference
 implementation come last, marked <em>textbook answer</em>: everyone who wrote the usual correct
 answer, a weak signal. Similarity: the mean over the two answers of the share of each one's own
 code (the released stub left out) that the other contains, after names, strings and numbers are
@@ -1320,19 +1356,19 @@ def write_html(items: Iterable[SimilarPair | SimilarGroup], path: str | os.PathL
             f"<td>{m.similarity:.0%}</td><td>{percent(m.to_centre) if index else ''}</td>"
             f"<td>{e(_pulled_note(group, m))}</td></tr>"
             for index, m in enumerate(group.members))
-        left, right = group.shown()
+        shown = "".join(f"<div><h3>{e(m.name)}</h3><pre>{e(m.source)}</pre></div>" for m in group.shown())
         sections.append(
             f'<section id="cluster-{number}"><h2>{number}. {where} &mdash; {len(group.members)} '
             f"student{'s' * (len(group.members) != 1)}, {spread}</h2>{note}"
             f'<table class="members"><tr><th>student</th><th>closest</th><th>similarity</th>'
             f"<th>to the central answer</th><th>added code</th></tr>{members}</table>"
-            f'<div class="sides"><div><h3>{e(left.name)}</h3><pre>{e(left.source)}</pre></div>'
-            f"<div><h3>{e(right.name)}</h3><pre>{e(right.source)}</pre></div></div></section>")
+            f'<div class="sides">{shown}</div></section>')
     index = ('<table class="index"><tr><th>group</th><th>exercise</th><th>students</th><th>similarity</th>'
              "<th>who</th><th></th></tr>" + "".join(rows) + "</table>") if rows \
         else "<p>No answers alike above the threshold.</p>"
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(_PAGE.format(count=len(ordered), students=sum(len(g.members) for g in ordered),
-                                 index=index, sections="\n".join(sections), added=e(ADDED)), encoding="utf-8")
+                                 index=index, sections="\n".join(sections), added=e(ADDED), shown_all=SHOWN_ALL),
+                    encoding="utf-8")
     return path
