@@ -140,15 +140,19 @@ def comment(text: str, rng: random.Random, count: int = 2) -> str:
     return "\n".join(lines)
 
 
+_FILLERS = ("_unused = None", "_unused = []", "_unused = {}", "_unused = ()", "pass", "_unused = 0 + 0")
+
+
 def pad(text: str, rng: random.Random, count: int = 2) -> str:
-    """``count`` statements of no use added before statements of the function (``_unused = None``):
-    every student's text then differs after normalisation too (the costliest case to compare)."""
+    """``count`` statements of no use added before statements of the function (``_unused = None``
+    and the like): nearly every student's text then differs after normalisation too (the
+    costliest case to compare)."""
     tree = ast.parse(text)
     starts = sorted({(s.lineno, s.col_offset) for f in ast.walk(tree) if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
                      for s in f.body[1:]})
     lines = text.split("\n")
     for row, column in sorted(rng.sample(starts, min(count, len(starts))), reverse=True):
-        lines.insert(row - 1, " " * column + "_unused = None")
+        lines.insert(row - 1, " " * column + rng.choice(_FILLERS))
     return "\n".join(lines)
 
 

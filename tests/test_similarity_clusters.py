@@ -12,6 +12,7 @@ import inspect
 import random
 import sys
 from collections import Counter
+from itertools import combinations
 from pathlib import Path
 
 import pytest
@@ -227,8 +228,8 @@ def test_the_vectorized_values_are_copydetects_on_the_simulated_class(chapter):
     from copydetect import compare_files
 
     exercises, sources = chapter
-    answers = simulated_class.answers(30, unique=3, seed=7, chosen=sources)
-    checked = 0
+    answers = simulated_class.answers(30, unique=3, seed=7, chosen=sources, distinct=True)
+    checked = batched = 0
     for grade_id in ("add_salt_and_pepper_answer", "nl_means_answer", "pad_answer"):
         comparer = similarity._Comparer(exercises[grade_id].stub)
         texts = sorted({similarity._normalised(a[grade_id]) for a in answers.values()})
@@ -240,4 +241,11 @@ def test_the_vectorized_values_are_copydetects_on_the_simulated_class(chapter):
                 _, shares, _ = compare_files(one.fingerprint, two.fingerprint)
                 assert (one.share(two), two.share(one)) == pytest.approx(shares, abs=1e-12)
                 checked += 1
-    assert checked > 300
+        # all the pairs at once (what similar_pairs uses) give the same values as one pair at a time
+        comparer.measure_all(texts)
+        for one, two in combinations(texts, 2):
+            key = (one, two) if one <= two else (two, one)
+            first, second = comparer.documents[one], comparer.documents[two]
+            assert comparer.values[key] == pytest.approx((first.share(second) + second.share(first)) / 2, abs=1e-12)
+            batched += 1
+    assert checked > 300 and batched > 300

@@ -798,12 +798,54 @@ class _Comparer:
         self.boilerplate = _boilerplate(stub, wrappers)
         self.documents: dict[str, _Document] = {}
         self.values: dict[tuple[str, str], float] = {}
+        self.checked: set[tuple[str, str]] = set()
 
     def size(self, normalised: str) -> float:
         """Normalised characters of the text's own code (covered by k-grams not in the stub)."""
         if normalised not in self.documents:
             self.documents[normalised] = _Document(normalised, self.boilerplate)
         return float(self.documents[normalised].fingerprint.token_coverage)
+
+    def measure_all(self, texts: Iterable[str]) -> None:
+        """Measure every pair of the distinct ``texts`` (normalised, each passed to :meth:`size`
+        before) at once: for each text, the share of its own code found in every other text, one text
+        against all the others in a few array operations (:meth:`_Document.share`'s values:
+        tested). :meth:`similarity` then reads them."""
+        import numpy as np
+
+        names = [text for text in dict.fromkeys(texts) if text in self.documents]
+        if len(names) < 3:
+            return
+        documents = [self.documents[name] for name in names]
+        count = len(documents)
+        vocabulary = np.unique(np.concatenate([d.unique for d in documents]))
+        member = np.zeros((count, vocabulary.size), dtype=bool)
+        for row, document in enumerate(documents):
+            member[row, np.searchsorted(vocabulary, document.unique)] = True
+        shares = np.zeros((count, count))
+        far = np.iinfo(np.int64).max // 4
+        for row, document in enumerate(documents):
+            coverage = document.fingerprint.token_coverage
+            if not coverage or document.hashes.size == 0:
+                continue
+            order = np.argsort(document.positions, kind="stable")
+            positions = document.positions[order]
+            columns = np.searchsorted(vocabulary, document.hashes[order])
+            k = document.fingerprint.k
+            step = max(1, _BATCH // positions.size)
+            for start in range(0, count, step):  # a block of the other texts at a time (bounded memory)
+                found = member[start:start + step, columns]  # others x this text's positions: k-gram shared?
+                at = np.where(found, positions, far)
+                following = np.minimum.accumulate(at[:, ::-1], axis=1)[:, ::-1]
+                following = np.concatenate([following[:, 1:], np.full((found.shape[0], 1), far)], axis=1)
+                # copydetect's get_copied_slices: the union of the shared k-grams [p, p + k)
+                covered = np.where(found, np.minimum(k, following - positions), 0).sum(axis=1)
+                shares[row, start:start + step] = covered.astype(np.float64) / float(coverage)
+        for one in range(count):
+            for two in range(one + 1, count):
+                first, second = names[one], names[two]
+                key = (first, second) if first <= second else (second, first)
+                self.values.setdefault(key, (float(shares[one, two]) + float(shares[two, one])) / 2.0)
 
     def similarity(self, first: str, second: str, threshold: float) -> float:
         """Mean over the two texts of the fraction of each one's own code found in the other.
@@ -814,16 +856,19 @@ class _Comparer:
         from copydetect import compare_files
 
         key = (first, second) if first <= second else (second, first)
-        if key not in self.values:
+        if key not in self.checked:
             one, two = self.documents[key[0]], self.documents[key[1]]
-            value = (one.share(two) + two.share(one)) / 2.0
+            value = self.values[key] if key in self.values else (one.share(two) + two.share(one)) / 2.0
             if abs(value - threshold) <= _MARGIN and value > 0.0:
                 _, (share_one, share_two), _ = compare_files(one.fingerprint, two.fingerprint)
                 value = (float(share_one) + float(share_two)) / 2.0
             self.values[key] = value
+            self.checked.add(key)
         return self.values[key]
 
 
+#: elements of one block of :meth:`_Comparer.measure_all` (other texts x positions of a text)
+_BATCH = 2_000_000
 #: a pair whose vectorized similarity is this close to the threshold is measured again by
 #: copydetect itself (the two agree to about 1e-15; rounding must not decide a pair)
 _MARGIN = 1e-6
@@ -895,6 +940,7 @@ def similar_pairs(answers: Mapping[str, Mapping[str, str | Answer]], exercises: 
                 texts[name] = (text, _normalised(text))
                 if comparer.size(texts[name][1]) >= min_size:
                     targets.append(name)
+        comparer.measure_all(texts[name][1] for name in students + targets)
         comparisons = list(combinations(students, 2)) + [(a, b) for a in students for b in targets]
         for a, b in comparisons:
             value = comparer.similarity(texts[a][1], texts[b][1], threshold)
