@@ -129,7 +129,7 @@ A real class's correct answers come from a few common sources (the textbook, a p
 each other), so the pairs above the threshold grow with the square of the class: a simulated
 class of 60 students answering Chapter 3's 13 exercises from three sources
 (``tests/simulated_class.py``) gives 7,163 pairs, and a page of one side-by-side view per pair
-was 24.7 MB. The report is made of **groups** instead (:func:`groups`): per exercise, the
+was 23.8 MB (a class of 300: 191,763 pairs, about 640 MB). The report is made of **groups** instead (:func:`groups`): per exercise, the
 connected components of the graph whose edges are the pairs at or above the threshold
 (single linkage, found by union-find over the pairs :func:`similar_pairs` already measured: no
 comparison more). Single linkage was chosen over average or complete linkage because it hides
@@ -143,10 +143,12 @@ signal) and listed after the groups of students alone; a student who pasted the 
 group of one student and the reference. Each group shows its answers side by side: all of them
 in a group of up to :data:`SHOWN_ALL` students, else its central answer (the student whose
 similarities to the others add up to the most) and its student least like the central answer
-(the spread); then the textbook text, in a textbook group. The
-page and the CSV grow with the number of students in groups, not with the pairs: the simulated
-class of 60 gives 39 groups and a page of 0.2 MB, a class of 300 a page of 0.4 MB
-(``tests/test_similarity_clusters.py``; times in ``benchmarks/README.md``).
+(the spread); then the textbook text, in a textbook group. The page and the CSV grow with the
+number of students in groups, not with the pairs: the simulated class of 60 gives 39 groups and
+a page of 0.24 MB, a class of 300 a page of 0.47 MB (``tests/test_similarity_clusters.py``).
+Measuring, grouping and writing take 2 s of CPU for the class of 60 and 10 to 14 s for the
+class of 300, most of it tokenizing the answers (``benchmarks/bench_similarity.py``; figures in
+``benchmarks/README.md``).
 """
 from __future__ import annotations
 
