@@ -820,10 +820,15 @@ class _Comparer:
             return
         documents = [self.documents[name] for name in names]
         count = len(documents)
-        vocabulary = np.unique(np.concatenate([d.unique for d in documents]))
-        member = np.zeros((count, vocabulary.size), dtype=bool)
+        # only the k-grams found in two texts or more can be shared
+        every, seen = np.unique(np.concatenate([d.unique for d in documents]), return_counts=True)
+        vocabulary = every[seen >= 2]
+        if count * vocabulary.size > 32 * _BATCH:  # too many shared k-grams to hold: one pair at a time
+            return
+        member = np.zeros((count, vocabulary.size + 1), dtype=bool)  # the last column: a k-gram of one text
         for row, document in enumerate(documents):
-            member[row, np.searchsorted(vocabulary, document.unique)] = True
+            member[row, _columns(vocabulary, document.unique)] = True
+        member[:, -1] = False
         shares = np.zeros((count, count))
         far = np.iinfo(np.int64).max // 4
         for row, document in enumerate(documents):
@@ -832,7 +837,7 @@ class _Comparer:
                 continue
             order = np.argsort(document.positions, kind="stable")
             positions = document.positions[order]
-            columns = np.searchsorted(vocabulary, document.hashes[order])
+            columns = _columns(vocabulary, document.hashes[order])
             k = document.fingerprint.k
             step = max(1, _BATCH // positions.size)
             for start in range(0, count, step):  # a block of the other texts at a time (bounded memory)
@@ -867,6 +872,17 @@ class _Comparer:
             self.values[key] = value
             self.checked.add(key)
         return self.values[key]
+
+
+def _columns(vocabulary: Any, hashes: Any) -> Any:
+    """The column of each hash in the sorted ``vocabulary``; ``vocabulary.size`` (the extra
+    column) for a hash that is not in it."""
+    import numpy as np
+
+    if vocabulary.size == 0:
+        return np.zeros(hashes.shape, dtype=np.int64)
+    place = np.minimum(np.searchsorted(vocabulary, hashes), vocabulary.size - 1)
+    return np.where(vocabulary[place] == hashes, place, vocabulary.size)
 
 
 #: elements of one block of :meth:`_Comparer.measure_all` (other texts x positions of a text)
