@@ -66,7 +66,7 @@ LONGEST_FILES = {
     "tests/test_checks_ch09.py": 45,
     "tests/test_course_plan.py": 45,
     "tests/test_item_analysis.py": 40,  # grades a tiny course, then Chromium: 15-41 s on 2 shared cores (2026-12-06)
-    "tests/test_similarity_clusters.py": 30,  # classes of 60 and 300 simulated students: 25 s of CPU, 54-65 s on 2 loaded cores (2026-12-06)
+    "tests/test_similarity_clusters.py": 30,  # 60 and 300 simulated students: 25 s CPU, 54-65 s loaded (2026-12-06)
     "tests/test_course_package.py": 35,
     "tests/test_hand_marks.py": 35,
     "tests/test_checks_ch03.py": 30,

@@ -148,8 +148,8 @@ def pad(text: str, rng: random.Random, count: int = 2) -> str:
     and the like): nearly every student's text then differs after normalisation too (the
     costliest case to compare)."""
     tree = ast.parse(text)
-    starts = sorted({(s.lineno, s.col_offset) for f in ast.walk(tree) if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
-                     for s in f.body[1:]})
+    functions = [f for f in ast.walk(tree) if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))]
+    starts = sorted({(s.lineno, s.col_offset) for f in functions for s in f.body[1:]})
     lines = text.split("\n")
     for row, column in sorted(rng.sample(starts, min(count, len(starts))), reverse=True):
         lines.insert(row - 1, " " * column + rng.choice(_FILLERS))
@@ -181,7 +181,8 @@ def answers(students: int, *, unique: int = 3, seed: int = 0, chosen: dict[str, 
     result: dict[str, dict[str, str]] = {}
     for number in range(students - unique):
         kind = SOURCES[number % len(SOURCES)]
-        result[f"s{number:03d}"] = {grade_id: vary(texts[kind], rng, distinct=distinct) for grade_id, texts in chosen.items()}
+        result[f"s{number:03d}"] = {grade_id: vary(texts[kind], rng, distinct=distinct)
+                                    for grade_id, texts in chosen.items()}
     for number in range(unique):
         result[f"u{number:02d}"] = {grade_id: unique_answers(grade_id)[number]
                                     for grade_id in chosen}

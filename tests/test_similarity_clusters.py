@@ -145,6 +145,7 @@ def test_the_textbook_group_is_labelled_and_shown_beside_the_textbook(chapter, t
     page = similarity.write_html(groups, tmp_path / "s.html").read_text(encoding="utf-8")
     second = page[page.index('id="cluster-2"'):]
     assert "Textbook answer: this group is close to (instructor&#x27;s solution)" in second
+    assert "<tr><td>(instructor&#x27;s solution) (textbook)</td>" in second  # listed with its closest student
     assert "Textbook answer" not in page[page.index('id="cluster-1"'):page.index('id="cluster-2"')]
     rows = list(csv.DictReader(similarity.write_csv(groups, tmp_path / "s.csv").open(encoding="utf-8")))
     assert {row["student"]: row["textbook"] for row in rows} == {

@@ -35,14 +35,16 @@ Renamed variables, other strings and numbers, changed comments and white space d
 the normalised text; reordering independent statements only breaks the k-grams that span the
 moved boundaries, which is why :data:`NOISE` is 20 rather than copydetect's 25.
 
-Every pair of distinct normalised texts is measured by a vectorized equivalent of
-:func:`copydetect.compare_files` (copydetect's own ``get_copied_slices`` on the shared k-grams'
-positions; the same values to rounding, tested); :func:`~copydetect.compare_files` itself
-measures again only the pairs within 1e-6 of the threshold, so that rounding never
-decides a pair. (It used to measure again every pair at or above the threshold: in a class whose
-answers come from a few common sources that is most pairs, and 60 % of the time.) Identical
-normalised texts (copies) are fingerprinted and compared once. Tokenizing (Pygments) costs a few milliseconds per answer,
-a pair well under one.
+Every pair of an exercise's distinct normalised texts is measured by a vectorized equivalent of
+:func:`copydetect.compare_files`: one text against all the others at once, in a few array
+operations over a table of which text holds which shared k-gram, the copied share being the
+union of the shared k-grams' spans, as copydetect's own ``get_copied_slices`` computes it (the
+same values to rounding, tested; with too many shared k-grams to hold, one pair at a time).
+:func:`~copydetect.compare_files` itself measures again only the pairs within 1e-6 of the
+threshold, so that rounding never decides a pair. (It used to measure again every pair at or
+above the threshold: in a class whose answers come from a few common sources that is most pairs,
+and 60 % of the time.) Identical normalised texts (copies) are fingerprinted and compared once.
+Tokenizing (Pygments) costs a few milliseconds per answer, a pair well under one.
 
 Added code
 ~~~~~~~~~~
@@ -129,26 +131,26 @@ A real class's correct answers come from a few common sources (the textbook, a p
 each other), so the pairs above the threshold grow with the square of the class: a simulated
 class of 60 students answering Chapter 3's 13 exercises from three sources
 (``tests/simulated_class.py``) gives 7,163 pairs, and a page of one side-by-side view per pair
-was 23.8 MB (a class of 300: 191,763 pairs, about 640 MB). The report is made of **groups** instead (:func:`groups`): per exercise, the
-connected components of the graph whose edges are the pairs at or above the threshold
-(single linkage, found by union-find over the pairs :func:`similar_pairs` already measured: no
-comparison more). Single linkage was chosen over average or complete linkage because it hides
-nothing: every reported pair is inside one group, so two answers alike are always seen together
-(a copied pair among unique answers is a group of two); its weakness, chaining (A like B, B like
-C, A not like C), is shown rather than hidden — each member is listed with the text closest to
-it and its similarity to the group's central answer, "below the threshold" when that pair is not
-alike. The instructor's solution and the references are members like the students: a group that
-holds one is labelled *textbook answer* (everyone who wrote the usual correct answer: a weak
-signal) and listed after the groups of students alone; a student who pasted the reference is a
-group of one student and the reference. Each group shows its answers side by side: all of them
-in a group of up to :data:`SHOWN_ALL` students, else its central answer (the student whose
-similarities to the others add up to the most) and its student least like the central answer
-(the spread); then the textbook text, in a textbook group. The page and the CSV grow with the
-number of students in groups, not with the pairs: the simulated class of 60 gives 39 groups and
-a page of 0.24 MB, a class of 300 a page of 0.47 MB (``tests/test_similarity_clusters.py``).
-Measuring, grouping and writing take 2 s of CPU for the class of 60 and 10 to 14 s for the
-class of 300, most of it tokenizing the answers (``benchmarks/bench_similarity.py``; figures in
-``benchmarks/README.md``).
+was 23.8 MB (a class of 300: 191,763 pairs, about 640 MB). The report is made of **groups**
+instead (:func:`groups`): per exercise, the connected components of the graph whose edges are
+the pairs at or above the threshold (single linkage, found by union-find over the pairs
+:func:`similar_pairs` already measured: no comparison more). Single linkage was chosen over
+average or complete linkage because it hides nothing: every reported pair is inside one group,
+so two answers alike are always seen together (a copied pair among unique answers is a group of
+two); its weakness, chaining (A like B, B like C, A not like C), is shown rather than hidden —
+each member is listed with the text closest to it and its similarity to the group's central
+answer, "below the threshold" when that pair is not alike. The instructor's solution and the
+references are members like the students: a group that holds one is labelled *textbook answer*
+(everyone who wrote the usual correct answer: a weak signal) and listed after the groups of
+students alone; a student who pasted the reference is a group of one student and the reference.
+Each group shows its answers side by side: all of them in a group of up to :data:`SHOWN_ALL`
+students, else its central answer (the student whose similarities to the others add up to the
+most) and its student least like the central answer (the spread); then the textbook text, in a
+textbook group. The page and the CSV grow with the number of students in groups, not with the
+pairs: the simulated class of 60 gives 39 groups and a page of 0.24 MB, a class of 300 a page of
+0.47 MB (``tests/test_similarity_clusters.py``). Measuring, grouping and writing take 2 s of CPU
+for the class of 60 and 10 to 14 s for the class of 300, most of it tokenizing the answers
+(``benchmarks/bench_similarity.py``; figures in ``benchmarks/README.md``).
 """
 from __future__ import annotations
 
@@ -1416,10 +1418,10 @@ def write_html(items: Iterable[SimilarPair | SimilarGroup], path: str | os.PathL
                 f"the usual correct answer (or a variant of it); that they are alike is a weak signal.</p>"
                 if textbook else "")
         members = "".join(
-            f"<tr><td>{e(m.name)}{' (central)' if index == 0 else ''}</td><td>{e(m.closest)}</td>"
-            f"<td>{m.similarity:.0%}</td><td>{percent(m.to_centre) if index else ''}</td>"
-            f"<td>{e(_pulled_note(group, m))}</td></tr>"
-            for index, m in enumerate(group.members))
+            f"<tr><td>{e(m.name)}{' (central)' if index == 0 else ' (textbook)' if index >= len(group.members) else ''}"
+            f"</td><td>{e(m.closest)}</td><td>{m.similarity:.0%}</td><td>{percent(m.to_centre) if index else ''}</td>"
+            f"<td>{e(_pulled_note(group, m)) if index < len(group.members) else ''}</td></tr>"
+            for index, m in enumerate(group.members + group.textbook))
         shown = "".join(f"<div><h3>{e(m.name)}</h3><pre>{e(m.source)}</pre></div>" for m in group.shown())
         sections.append(
             f'<section id="cluster-{number}"><h2>{number}. {where} &mdash; {len(group.members)} '
