@@ -42,6 +42,7 @@ def responses(course: Course, assignment: str) -> tuple[list[str], dict[str, dic
     found: dict[str, dict[str, Response]] = {}
     for student, exercises in table.items():
         cases = case_verdicts(course.root / "autograded" / student / assignment)
+        runs = visible_runs(course.root / "submitted" / student / assignment)
         row = {}
         for e in exercises:
             if e.name == NOTEBOOK:
@@ -51,7 +52,7 @@ def responses(course: Course, assignment: str) -> tuple[list[str], dict[str, dic
             row[e.name] = Response(None if e.to_mark else float(e.score), float(e.max_score),
                                    mistakes=list(e.mistakes), problems=list(e.problems), flagged=bool(e.flags),
                                    attempted=not any(str(p).startswith("not implemented") for p in e.problems),
-                                   cases=cases.get(e.name, []))
+                                   cases=cases.get(e.name, []), visible_runs=runs.get(e.name))
         found[student] = row
     return order, found
 
@@ -76,6 +77,30 @@ def case_verdicts(folder: Path) -> dict[str, list[tuple[str, bool]]]:
                     if isinstance(case, dict) and "passed" in case:
                         label = str(case.get("label") or f"case {int(case.get('index', 0)) + 1}")
                         found.setdefault(name, []).append((label, bool(case["passed"])))
+    return found
+
+
+def visible_runs(folder: Path) -> dict[str, int]:
+    """exercise → how many times the student ran its visible test before handing in, as the
+    hand-in's notebooks say (``visible_runs`` in the metadata of the report ``check()`` displays:
+    counted in the student's kernel since it started, saved with the notebook — data the student
+    controls, for analytics only, never for a grade)."""
+    found: dict[str, int] = {}
+    for path in sorted(folder.glob("*.ipynb")):
+        try:
+            cells = json.loads(path.read_text()).get("cells", [])
+        except (OSError, ValueError, AttributeError):
+            continue
+        for cell in cells if isinstance(cells, list) else []:
+            cell_id = grade_id(cell) if isinstance(cell, dict) else None
+            if not cell_id or not cell_id.endswith("_visible"):
+                continue
+            for output in cell.get("outputs", []) or []:
+                meta = (output.get("metadata") or {}).get(MIME_TYPE) if isinstance(output, dict) else None
+                runs = meta.get("visible_runs") if isinstance(meta, dict) else None
+                if isinstance(runs, int) and not isinstance(runs, bool) and 0 < runs <= 100_000:
+                    name = exercise_name(cell_id, answers=False)
+                    found[name] = max(found.get(name, 0), runs)
     return found
 
 
@@ -197,9 +222,24 @@ def _rows(results: list[AssignmentStats]) -> list[list[Any]]:
                      for p in e.parameters]
             rows += [[a, x, "case_failure_rate", c.name, value(c.share), c.count, c.of, "failed cases of graded cases"]
                      for c in e.cases]
+            if e.visible_runs:
+                rows.append([a, x, "visible_test_runs_median", "", value(_median(e.visible_runs)), "",
+                             len(e.visible_runs), STUDENT_CONTROLLED])
+                rows.append([a, x, "visible_test_runs_max", "", e.visible_runs[-1], "", len(e.visible_runs),
+                             STUDENT_CONTROLLED])
             rows += [[a, x, "warning", "", "", "", "", w] for w in e.warnings]
             rows += [[a, x, "reading", "", "", "", "", text] for text in reading(e)]
     return rows
+
+
+#: how the page and the CSV mark the visible-test runs
+STUDENT_CONTROLLED = ("student-controlled data: counted in the student's kernel and saved in their notebook "
+                      "(a restart starts again; a student can change it); analytics only")
+
+
+def _median(values: list[int]) -> float:
+    middle = len(values) // 2
+    return float(values[middle]) if len(values) % 2 else (values[middle - 1] + values[middle]) / 2
 
 
 def write_csv(results: list[AssignmentStats], path: Path) -> Path:
@@ -437,6 +477,12 @@ def _exercise_html(e: Any) -> str:
     if e.cases:
         parts.append("<details><summary>Failure rate per case</summary>"
                      + _table(e.cases, ("case", "cases failed")) + "</details>")
+    if e.visible_runs:
+        runs = e.visible_runs
+        quartiles = f"{runs[len(runs) // 4]}–{runs[(3 * len(runs)) // 4 if len(runs) > 1 else 0]}"
+        parts.append(f"<h4>Runs of the visible test before handing in</h4><p>median {_median(runs):g}, middle half "
+                     f"{quartiles}, at most {runs[-1]} ({len(runs)} student{'s' * (len(runs) != 1)} whose notebook "
+                     f"says)</p><p class=\"muted\">{_e(STUDENT_CONTROLLED)}.</p>")
     return "".join(parts) + "</details>"
 
 

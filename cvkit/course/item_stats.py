@@ -85,6 +85,7 @@ class Response:
     flagged: bool = False
     attempted: bool = True
     cases: Sequence[tuple[str, bool]] = ()
+    visible_runs: int | None = None  # runs of the visible test in the student's kernel (student-controlled)
 
 
 @dataclass
@@ -119,6 +120,9 @@ class ExerciseStats:
     parameters: list[Rate] = field(default_factory=list)     # count = failed cases, of = graded cases
     cases: list[Rate] = field(default_factory=list)          # per case label
     warnings: list[str] = field(default_factory=list)
+    #: runs of the visible test before the hand-in, of the students whose notebook says (sorted):
+    #: counted in the student's kernel and saved in their notebook, so the student controls it
+    visible_runs: list[int] = field(default_factory=list)
 
 
 @dataclass
@@ -305,6 +309,7 @@ def _exercise(name: str, max_score: float, j: int | None, students: list[str], r
               matrix: np.ndarray, complete: list[str], top: int) -> ExerciseStats:
     present = [responses[s][name] for s in students if name in responses[s]]
     stats = ExerciseStats(name, max_score, students=len(present))
+    stats.visible_runs = sorted(int(r.visible_runs) for r in present if r.visible_runs is not None)
     scored = [float(r.score) for r in present if r.score is not None]
     stats.graded = len(scored)
     if scored:

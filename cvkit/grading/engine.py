@@ -669,8 +669,14 @@ def identical(a: Any, b: Any) -> bool:
         return False
 
 
-def _show(report: Report) -> None:
-    """Display the report in a Jupyter kernel (HTML + text + JSON), else print the text."""
+#: algorithm id → runs of its visible test in this kernel (:func:`check`), saved with each report
+#: the notebook shows (``visible_runs`` in the output's metadata) for the item analysis
+_VISIBLE_RUNS: dict[str, int] = {}
+
+
+def _show(report: Report, visible_runs: int | None = None) -> None:
+    """Display the report in a Jupyter kernel (HTML + text + JSON; ``visible_runs`` in the
+    output's metadata), else print the text."""
     try:
         from IPython import get_ipython
 
@@ -685,7 +691,8 @@ def _show(report: Report) -> None:
             bundle["text/html"] = report._repr_html_()
         except Exception:
             pass
-        display(bundle, raw=True)
+        metadata = {MIME_TYPE: {"visible_runs": visible_runs}} if visible_runs else None
+        display(bundle, raw=True, metadata=metadata)
     else:
         print(report.text())
 
@@ -720,7 +727,9 @@ def check(algorithm_id: str, candidate: Callable, hidden: bool = False, points: 
     if not report.passed and not any(case.timed_out for case in report.cases):
         # (not after a timeout: grading again would cost another time limit)
         report = _with_reference_building_blocks(algorithm_id, candidate, report, hidden, seed)
-    _show(report)
+    if not hidden:  # analytics for the instructor (the item analysis): never part of a grade
+        _VISIBLE_RUNS[algorithm_id] = _VISIBLE_RUNS.get(algorithm_id, 0) + 1
+    _show(report, None if hidden else _VISIBLE_RUNS[algorithm_id])
     if hidden:
         value = report.score if points is None else report.score * float(points)
         return round(float(value), 6)
