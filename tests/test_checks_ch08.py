@@ -185,6 +185,100 @@ def test_alternative_detector_passes_many_seeds():
 
 
 # --------------------------------------------------------------------------------------------
+# the corner steps are graded by what they are for (issue #38): a correct method other than
+# the reference's passes although its output differs; a wrong one fails
+# --------------------------------------------------------------------------------------------
+def _cases(algorithm_id, seed):
+    spec = _check(algorithm_id)
+    return spec.public_cases() if seed is None else spec.hidden_cases(np.random.default_rng(seed))
+
+
+def test_a_harris_corner_detector_passes_corner_candidates():
+    """Harris peaks moved to the most X-like pixel and refined by a saddle fit: sub-pixel points,
+    other pixels and another order than the reference's, yet every inner corner is found."""
+    harness.assert_passes_everywhere("calibration.corner_candidates", alt.corner_candidates_harris, SEEDS)
+    reference = _reference("calibration.corner_candidates")
+    compare = _check("calibration.corner_candidates").compare
+    differ = 0
+    for seed in (None,) + SEEDS:
+        for case in _cases("calibration.corner_candidates", seed):
+            mine = alt.corner_candidates_harris(*case.args, **case.kwargs)
+            theirs = reference(*case.args, **case.kwargs)
+            if len(theirs[0]) == 0:
+                continue
+            assert not np.array_equal(mine[0], np.round(mine[0]))                  # not whole pixels
+            differ += compare._same(mine, theirs) is not None                       # the former verdict
+    assert differ >= 10
+
+
+def test_a_detector_that_keeps_every_harris_peak_fails_corner_candidates():
+    for seed in SEEDS:
+        report = evaluate("calibration.corner_candidates", alt.corner_candidates_harris_no_x_test, hidden=True,
+                          seed=seed)
+        assert not report.passed
+        assert any("not inner corners" in case.message for case in report.cases), report.text()
+
+
+def test_corner_candidates_are_judged_against_the_rendered_corners():
+    compare = _check("calibration.corner_candidates").compare
+    case = _cases("calibration.corner_candidates", None)[0]
+    corners, lines = case.truth
+    count = case.args[1]
+    rng = np.random.default_rng(0)
+    exact = (corners + rng.uniform(-1, 1, corners.shape), lines[:, ::-1] * -1)          # any order, any sign
+    assert compare.judge(exact, case.truth, count) is None
+    far = (corners + 2.0, lines)
+    assert "no candidate within" in compare.judge(far, case.truth, count).message
+    strays = (np.vstack([corners, rng.uniform(0, 60, (max(3, count // 4) + 1, 2))]),
+              np.vstack([lines, np.tile(lines[:1], (max(3, count // 4) + 1, 1, 1))]))
+    assert "not inner corners" in compare.judge(strays, case.truth, count).message
+    stray_first = (np.vstack([[[1.0, 1.0]], corners]), np.vstack([lines[:1], lines]))
+    assert "put the most corner-like candidates first" in compare.judge(stray_first, case.truth, count).message
+    turned = (corners, lines @ np.array([[np.cos(0.4), -np.sin(0.4)], [np.sin(0.4), np.cos(0.4)]]))
+    assert "Edge directions off" in compare.judge(turned, case.truth, count).message
+
+
+def test_a_grid_grown_another_way_passes_grow_grid():
+    """Another queue, averaged predictions, another acceptance radius and a test on the edge
+    directions: the same board, so it passes, though its answers differ from the reference's
+    where the seed is a stray (not graded)."""
+    harness.assert_passes_everywhere("calibration.grow_grid", alt.grow_grid_wide, SEEDS)
+    reference = _reference("calibration.grow_grid")
+    compare = _check("calibration.grow_grid").compare
+    differ = sum(compare._same(alt.grow_grid_wide(*case.args), reference(*case.args)) is not None
+                 for seed in (None,) + SEEDS for case in _cases("calibration.grow_grid", seed))
+    assert differ >= 1
+
+
+def test_an_affine_lattice_fails_grow_grid():
+    """Labels from one affine lattice ignore perspective: the far corners are mislabelled."""
+    for seed in SEEDS:
+        report = evaluate("calibration.grow_grid", alt.grow_grid_affine, hidden=True, seed=seed)
+        assert not report.passed
+
+
+def test_grow_grid_is_judged_by_the_board_not_the_reference():
+    compare = _check("calibration.grow_grid").compare
+    case = next(c for c in _cases("calibration.grow_grid", None) if not isinstance(c.truth, str))
+    labels, positions, step = case.truth
+    points = np.asarray(case.args[0], dtype=np.float64)
+    index = [int(np.argmin(np.hypot(*(points - p).T))) for p in positions]
+    right = np.column_stack([labels, index])
+    assert compare(right[::-1], right, case) is None                                   # any row order
+    assert "not corners of the board" in compare(np.column_stack([labels + [5, 0], index]), right, case).message
+    assert "missing" in compare(right[1:], right, case).message
+    swapped = np.column_stack([labels[:, ::-1], index])
+    assert compare(swapped, right, case) is not None
+    assert compare(None, right, case).message.startswith("you returned None")
+    stray = next(c for c in _cases("calibration.grow_grid", 303) if isinstance(c.truth, str) and c.truth == "any")
+    assert compare(None, reference_grid(stray), stray) is None                         # a stray seed: not graded
+
+
+def reference_grid(case):
+    return _reference("calibration.grow_grid")(*case.args)
+
+
+# --------------------------------------------------------------------------------------------
 # the comparators
 # --------------------------------------------------------------------------------------------
 def test_homography_close_judges_the_mapping_and_the_scale():

@@ -481,13 +481,18 @@ chessboard_points = Check(
 # calibration.find_chessboard_corners (§8.3)
 # --------------------------------------------------------------------------------------------
 def _board_image(rng, cols, rows, size=(100, 136), tilt=0.5, spin=0.3, flip=False, noise=0.008, color=False,
-                 dtype="float", k=None, square_fill=(0.6, 0.8)):
+                 dtype="float", k=None, square_fill=(0.6, 0.8), truth=False):
     """A rendered view of a random board for the detection checks.
 
     Rendered with 4 × 4 samples per edge pixel rather than the default 8 × 8: the area
     quantisation (1/16 of the contrast, about the size of the added sensor noise) does not
     matter to a check that compares a student's answer with the reference's on the same
     pixels, and drawing is 2.5 times faster; grading draws these images for every student.
+
+    With ``truth=True`` it returns ``(image, corners, directions)``: where the renderer put the
+    inner corners, ``(cols·rows, 2)`` pixel positions ``(x, y)``, and the two unit directions of
+    the board's lines through each, ``(cols·rows, 2, 2)`` (along a row, down a column; lens
+    distortion included). No random number is drawn for them: the image is the same either way.
     """
     from ..data import random_board_poses, render_chessboard
 
@@ -504,7 +509,17 @@ def _board_image(rng, cols, rows, size=(100, 136), tilt=0.5, spin=0.3, flip=Fals
         image = np.round(image * 255).astype(np.uint8)
     elif dtype == "scaled":
         image = image * 1000.0 - 200.0
-    return image
+    if not truth:
+        return image
+    board = _chessboard_points(cols, rows, 10.0)
+    corners = _project_full(board, A, R[0], t[0], k)
+    lines = []
+    for axis in (0, 1):                                   # a small step along the board's x, then y
+        step = np.zeros(3)
+        step[axis] = 0.01
+        d = _project_full(board + step, A, R[0], t[0], k) - _project_full(board - step, A, R[0], t[0], k)
+        lines.append(d / np.linalg.norm(d, axis=1, keepdims=True))
+    return image, corners, np.stack(lines, axis=1)
 
 
 @mistake("(row, col) returned instead of (x, y)",
@@ -641,68 +656,120 @@ def _line_angles(got_dirs, exp_dirs):
 
 @dataclass
 class CandidatesClose(Comparator):
-    """``(points, directions)`` of corner candidates: the same pixels as the reference (within
-    ``radius`` px; ``slack`` points more or fewer tolerated), in the same order (strongest first),
-    and edge directions within ``degrees`` of the reference's (either order, either sign)."""
+    """``(points, directions)`` of corner candidates.
 
-    radius: float = 0.5
+    On a rendered board whose corners are known (a :class:`TruthCase`), by what the candidates
+    are for: every inner corner has a candidate within ``radius`` px, whose two edge directions
+    are within ``degrees`` of the board's lines through that corner (either order, either sign);
+    at most ``max(3, count // 4)`` candidates are not inner corners, and the first ``lead`` are
+    inner corners (the grid step takes its seeds from the front). Any correct detector passes,
+    whichever pixels it settles on. Against an output that is itself wrong (a mistake of the
+    bank, to recognise it) and on cases without a truth: the same pixels as that output (within
+    0.5 px, ``slack`` more or fewer), in the same order, directions within 3°."""
+
+    radius: float = 1.5
+    degrees: float = 15.0
+    lead: int = 3
     slack: int = 1
-    degrees: float = 3.0
 
     def describe(self) -> str:
-        return (f"the same candidate pixels (at most {self.slack} more or fewer), strongest first, "
-                f"edge directions within {self.degrees:g}°")
+        return (f"every inner corner found within {self.radius:g} px, its edge directions within "
+                f"{self.degrees:g}°, few false candidates, inner corners first")
 
-    def __call__(self, got, expected, case=None):
+    def _arrays(self, got):
         problem = tuple_problem(got, ("points", "directions"))
         if problem:
-            return Mismatch(problem)
+            return None, None, Mismatch(problem)
         try:
             pts = np.asarray(got[0], dtype=np.float64).reshape(-1, 2)
             dirs = np.asarray(got[1], dtype=np.float64)
         except (TypeError, ValueError) as exc:
-            return Mismatch(f"points must be (K, 2) and directions (K, 2, 2) float arrays ({exc})")
+            return None, None, Mismatch(f"points must be (K, 2) and directions (K, 2, 2) float arrays ({exc})")
+        if dirs.shape != (len(pts), 2, 2):
+            return None, None, Mismatch(f"directions must be (K, 2, 2) for K = {len(pts)} points, got shape {dirs.shape}")
+        if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(dirs))):
+            return None, None, Mismatch("your points or directions contain NaN or inf")
+        return pts, dirs, None
+
+    def judge(self, got, truth, count):
+        """The verdict on ``got`` from the corners the renderer drew."""
+        pts, dirs, problem = self._arrays(got)
+        if problem is not None:
+            return problem
+        corners, lines = truth
+        allowed = max(3, int(count) // 4)
+        if len(corners) == 0:
+            if len(pts) <= allowed:
+                return None
+            return Mismatch(f"There is no board in this image, yet you found {len(pts)} candidates "
+                            f"(at most {allowed} false ones are tolerated)", mismatched=len(pts), total=allowed)
+        if len(pts) == 0:
+            return Mismatch(f"you found no candidates; the board has {len(corners)} inner corners")
+        d = np.hypot(*(corners[:, None, :] - pts[None, :, :]).transpose(2, 0, 1))     # [corner, candidate]
+        nearest = d.argmin(axis=1)
+        found = d[np.arange(len(corners)), nearest] <= self.radius
+        if not found.all():
+            miss = corners[~found]
+            return Mismatch(f"{len(miss)} of the {len(corners)} inner corners have no candidate within "
+                            f"{self.radius:g} px, e.g. the corner at (x, y) = ({miss[0, 0]:.4g}, {miss[0, 1]:.4g})",
+                            mismatched=len(miss), total=len(corners))
+        true_ones = (d <= self.radius).any(axis=0)
+        false = np.flatnonzero(~true_ones)
+        if len(false) > allowed:
+            p = pts[false[0]]
+            return Mismatch(f"{len(false)} of your {len(pts)} candidates are not inner corners of the board (at most "
+                            f"{allowed} are tolerated), e.g. (x, y) = ({p[0]:.4g}, {p[1]:.4g}): an L-corner of the "
+                            "outline, an edge or noise", mismatched=len(false), total=len(pts))
+        lead = min(self.lead, len(pts))
+        if not true_ones[:lead].all():
+            k = int(np.argmin(true_ones[:lead]))
+            return Mismatch(f"your candidate number {k + 1}, at ({pts[k, 0]:.4g}, {pts[k, 1]:.4g}), is not an inner "
+                            "corner: put the most corner-like candidates first (the grid step tries them as seeds)")
+        angles = _line_angles(dirs[nearest], lines)
+        worst = int(np.argmax(angles))
+        if angles[worst] > self.degrees:
+            p = corners[worst]
+            return Mismatch(f"Edge directions off by {angles[worst]:.3g}° (at most {self.degrees:g}°) at the corner "
+                            f"({p[0]:.4g}, {p[1]:.4g}): yours {np.round(dirs[nearest][worst], 3).tolist()}, the board's "
+                            f"lines {np.round(lines[worst], 3).tolist()}",
+                            max_abs=float(angles[worst]), worst=(worst,),
+                            mismatched=int(np.count_nonzero(angles > self.degrees)), total=len(angles))
+        return None
+
+    def __call__(self, got, expected, case=None):
+        truth = getattr(case, "truth", None)
+        if truth is not None:
+            count = case.args[1] if len(case.args) > 1 else case.kwargs.get("count", len(truth[0]))
+            if self.judge(expected, truth, count) is None:
+                return self.judge(got, truth, count)
+        return self._same(got, expected)
+
+    def _same(self, got, expected):
+        pts, dirs, problem = self._arrays(got)
+        if problem is not None:
+            return problem
         exp_pts, exp_dirs = (np.asarray(v, dtype=np.float64) for v in expected)
         exp_pts = exp_pts.reshape(-1, 2)
-        if dirs.shape != (len(pts), 2, 2):
-            return Mismatch(f"directions must be (K, 2, 2) for K = {len(pts)} points, got shape {dirs.shape}")
-        if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(dirs))):
-            return Mismatch("your points or directions contain NaN or inf")
         if len(exp_pts) == 0 or len(pts) == 0:
             if len(exp_pts) == len(pts):
                 return None
             return Mismatch(f"you found {len(pts)} candidates, expected {len(exp_pts)}")
         d = np.hypot(*(exp_pts[:, None, :] - pts[None, :, :]).transpose(2, 0, 1))
         nearest = d.argmin(axis=1)
-        matched = d[np.arange(len(exp_pts)), nearest] <= self.radius
+        matched = d[np.arange(len(exp_pts)), nearest] <= 0.5
         missing = exp_pts[~matched]
         used = np.zeros(len(pts), dtype=bool)
         used[nearest[matched]] = True
         extra = pts[~used]
         if len(missing) + len(extra) > self.slack:
-            parts = []
-            if len(missing):
-                parts.append(f"{len(missing)} expected candidate(s) missing, e.g. (x, y) = "
-                             f"({missing[0, 0]:.4g}, {missing[0, 1]:.4g})")
-            if len(extra):
-                parts.append(f"{len(extra)} candidate(s) too many, e.g. (x, y) = ({extra[0, 0]:.4g}, {extra[0, 1]:.4g})")
-            return Mismatch(f"Not the same candidates ({len(pts)} yours, {len(exp_pts)} expected): "
-                            + "; ".join(parts), mismatched=len(missing) + len(extra), total=len(exp_pts))
+            return Mismatch(f"Not the same candidates ({len(pts)} yours, {len(exp_pts)} expected)",
+                            mismatched=len(missing) + len(extra), total=len(exp_pts))
         order = nearest[matched]
         if np.any(np.diff(order) < 0):
-            i = int(np.argmax(np.diff(order) < 0))
-            return Mismatch("The candidates are not in the expected order: sort them by decreasing response "
-                            f"(strongest first); expected candidate {i + 1} is your number {order[i + 1] + 1}, "
-                            f"before your number {order[i] + 1}")
+            return Mismatch("The candidates are not in the same order")
         angles = _line_angles(dirs[order], exp_dirs[matched])
-        worst = int(np.argmax(angles))
-        if angles[worst] > self.degrees:
-            p = exp_pts[matched][worst]
-            return Mismatch(f"Edge directions off by {angles[worst]:.3g}° (at most {self.degrees:g}°) at the "
-                            f"candidate ({p[0]:.4g}, {p[1]:.4g}): yours {np.round(dirs[order][worst], 3).tolist()}, "
-                            f"expected {np.round(exp_dirs[matched][worst], 3).tolist()}",
-                            max_abs=float(angles[worst]), worst=(worst,),
-                            mismatched=int(np.count_nonzero(angles > self.degrees)), total=len(angles))
+        if angles.max() > 3.0:
+            return Mismatch(f"Edge directions off by {angles.max():.3g}°")
         return None
 
 
@@ -854,47 +921,62 @@ def _cc_eigenvectors(image, count, sigma=1.5):
     return points, np.linalg.eigh(H)[1].transpose(0, 2, 1).copy()
 
 
-@mistake("candidates not sorted by strength",
-         "Return the candidates strongest response first (np.argsort(-strength, kind='stable')): the "
-         "grid step takes its seeds from the front")
-def _cc_unsorted(image, count, sigma=1.5):
+@mistake("maxima at the corner of their 5 × 5 window (2 px off)",
+         "A window's maximum belongs to the window's centre pixel: with np.lib.stride_tricks.sliding_window_view "
+         "(or shifted copies of a padded array) the index of a window is 2 px up and left of its centre")
+def _cc_window_corner(image, count, sigma=1.5):
     points, directions = _corner_candidates(image, count, sigma)
-    order = np.lexsort((points[:, 0], points[:, 1]))          # row by row, as np.nonzero gives them
-    return points[order], directions[order]
+    return points - 2.0, directions
+
+
+def _cc_case(rng, label, cols, rows, count=None, kwargs=None, **board):
+    image, corners, lines = _board_image(rng, cols, rows, truth=True, **board)
+    return TruthCase((image, cols * rows if count is None else count), dict(kwargs or {}), label,
+                     truth=(corners, lines))
 
 
 def _cc_public():
     rng = np.random.default_rng(80311)
     return [
-        Case((_board_image(rng, 5, 4, size=(80, 108), spin=0.4), 20), {}, "grey 80×108, 5 × 4 board, tilted"),
-        Case((_board_image(rng, 4, 3, size=(72, 96), color=True, dtype="uint8"), 12), {"sigma": 1.2},
-             "RGB uint8, 4 × 3 board, sigma = 1.2"),
+        _cc_case(rng, "grey 80×108, 5 × 4 board, tilted", 5, 4, size=(80, 108), spin=0.4),
+        _cc_case(rng, "RGB uint8, 4 × 3 board, sigma = 1.2", 4, 3, kwargs={"sigma": 1.2}, size=(72, 96), color=True,
+                 dtype="uint8"),
     ]
 
 
 def _cc_hidden(rng):
+    nothing = np.full((40, 50), 0.5) + rng.normal(0, 0.01, (40, 50))
     return [
-        Case((_board_image(rng, 5, 4, spin=0.5), 20), {}, "grey 5 × 4 board"),
-        Case((_board_image(rng, 6, 4, size=(110, 150), tilt=0.6), 24), {}, "6 × 4 board, strong tilt"),
-        Case((_board_image(rng, 4, 3, flip=True), 12), {}, "4 × 3 board upside down"),
-        Case((_board_image(rng, 5, 4, color=True), 20), {}, "RGB float image"),
-        Case((_board_image(rng, 4, 3, dtype="uint8", spin=0.6), 12), {}, "uint8 image, rotated board"),
-        Case((_board_image(rng, 4, 4, spin=0.3), 16), {"sigma": 1.2}, "square 4 × 4 board, sigma = 1.2"),
-        Case((_board_image(rng, 5, 4, dtype="scaled", noise=0.015), 20), {}, "values in [-200, 800], more noise"),
-        Case((_board_image(rng, 5, 4, k=(-0.3, 0.05)), 20), {}, "strong barrel distortion"),
-        Case((_board_image(rng, 4, 3), int(rng.integers(6, 10))), {}, "count smaller than the board"),
-        Case((np.full((40, 50), 0.5) + rng.normal(0, 0.01, (40, 50)), 12), {}, "no board at all (noise)"),
+        _cc_case(rng, "grey 5 × 4 board", 5, 4, spin=0.5),
+        _cc_case(rng, "6 × 4 board, strong tilt", 6, 4, size=(110, 150), tilt=0.6),
+        _cc_case(rng, "4 × 3 board upside down", 4, 3, flip=True),
+        _cc_case(rng, "RGB float image", 5, 4, color=True),
+        _cc_case(rng, "uint8 image, rotated board", 4, 3, dtype="uint8", spin=0.6),
+        _cc_case(rng, "square 4 × 4 board, sigma = 1.2", 4, 4, kwargs={"sigma": 1.2}, spin=0.3),
+        _cc_case(rng, "values in [-200, 800], more noise", 5, 4, dtype="scaled", noise=0.015),
+        _cc_case(rng, "strong barrel distortion", 5, 4, k=(-0.3, 0.05)),
+        _cc_case(rng, "count smaller than the board", 4, 3, count=int(rng.integers(6, 10))),
+        TruthCase((nothing, 12), {}, "no board at all (noise)", truth=(np.zeros((0, 2)), np.zeros((0, 2, 2)))),
     ]
 
 
 corner_candidates = Check(
     public=_cc_public,
     hidden=_cc_hidden,
-    compare=CandidatesClose(radius=0.5, slack=1, degrees=3.0),
-    mistakes=[_cc_swapped, _cc_no_ring_test, _cc_eigenvectors, _cc_unsorted],
+    compare=CandidatesClose(radius=1.5, degrees=15.0, lead=3),
+    mistakes=[_cc_swapped, _cc_no_ring_test, _cc_eigenvectors, _cc_window_corner],
     allowed=("calibration.chessboard_response", "filters.gaussian", "filters.correlate", "filters.convolve",
              "warp.bilinear_sample"),
 )
+
+
+@dataclass
+class TruthCase(Case):
+    """A case that also carries what it was drawn from (``truth``): the comparator judges an
+    answer by what it is for, not by the reference's way of finding it. The truth never
+    reaches the candidate, which is called with ``args`` and ``kwargs`` only."""
+
+    truth: Any = None
 
 
 # calibration.order_grid_corners --------------------------------------------------------------
@@ -918,17 +1000,34 @@ def _grid_points(rng, board, noise=0.03, spin=0.5):
     return np.round(m, 3), dirs
 
 
-def _grid_case(rng, label, board, ask=None, strays=3, stuck=False, missing=False, square=False, flip_seed=False):
+def _grid_case(rng, label, board, ask=None, strays=3, stuck=False, missing=False, square=False, flip_seed=False,
+               truth=False):
+    """A case for order_grid_corners: a board's corners (shuffled, their two directions in either
+    order and sign) with stray points. With ``truth=True`` it also returns, for every point of
+    the case, its board position ``(row, col)``, or ``(-1, -1)`` for a stray, and the board's
+    two unit directions ``(along a row, down a column)`` at each point."""
     m, dirs = _grid_points(rng, board, spin=2.0 if square else 0.5)
     br, bc = m.shape[:2]
     pts, ds = m.reshape(-1, 2), dirs.reshape(-1, 2, 2)
+    where = np.stack(np.meshgrid(np.arange(br), np.arange(bc), indexing="ij"), -1).reshape(-1, 2)
     if missing:
         k = int((br // 2) * bc + bc // 2)                                 # an interior corner
         pts, ds = np.delete(pts, k, axis=0), np.delete(ds, k, axis=0)
+        where = np.delete(where, k, axis=0)
+    true_dirs = ds.copy()
     extra_pts, extra_dirs = [], []
     lo, hi = pts.min(axis=0) - 8, pts.max(axis=0) + 8
+    # strays keep at least 0.45 of a step away from the board's corners and from the lattice's
+    # next ring around it: nearer, which point is the corner would be a matter of taste
+    wide = np.concatenate([2 * m[:, :1] - m[:, 1:2], m, 2 * m[:, -1:] - m[:, -2:-1]], axis=1)
+    ahead = np.concatenate([2 * wide[:1] - wide[1:2], wide, 2 * wide[-1:] - wide[-2:-1]], axis=0).reshape(-1, 2)
+    step = float(np.median(np.hypot(*np.diff(m, axis=1).reshape(-1, 2).T)))
     for _ in range(strays):
-        extra_pts.append(rng.uniform(lo, hi))
+        for _ in range(50):
+            point = rng.uniform(lo, hi)
+            if np.hypot(*(ahead - point).T).min() >= 0.45 * step:
+                break
+        extra_pts.append(point)
         a = rng.uniform(0, np.pi)
         extra_dirs.append([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
     if stuck:                                                             # one step beyond the end of a row
@@ -936,46 +1035,116 @@ def _grid_case(rng, label, board, ask=None, strays=3, stuck=False, missing=False
         extra_pts.append(2 * m[r, -1] - m[r, -2] + rng.normal(0, 0.2, 2))
         extra_dirs.append(dirs[r, -1])
     order = rng.permutation(len(pts))
-    pts, ds = pts[order], ds[order]
+    pts, ds, where, true_dirs = pts[order], ds[order], where[order], true_dirs[order]
     signs = rng.choice([-1.0, 1.0], (len(ds), 2, 1))
     ds = np.where(rng.random(len(ds))[:, None, None] < 0.5, ds, ds[:, ::-1]) * signs
     if extra_pts:
-        pts = np.vstack([pts[:5], extra_pts, pts[5:]]) if flip_seed else np.vstack([pts, extra_pts])
-        ds = np.vstack([ds[:5], extra_dirs, ds[5:]]) if flip_seed else np.vstack([ds, extra_dirs])
+        stray_where = np.full((len(extra_pts), 2), -1)
+        stray_dirs = np.asarray(extra_dirs, dtype=np.float64)
+        if flip_seed:
+            pts, ds = np.vstack([pts[:5], extra_pts, pts[5:]]), np.vstack([ds[:5], extra_dirs, ds[5:]])
+            where = np.vstack([where[:5], stray_where, where[5:]])
+            true_dirs = np.vstack([true_dirs[:5], stray_dirs, true_dirs[5:]])
+        else:
+            pts, ds = np.vstack([pts, extra_pts]), np.vstack([ds, extra_dirs])
+            where, true_dirs = np.vstack([where, stray_where]), np.vstack([true_dirs, stray_dirs])
     cols, rows = ask if ask is not None else board
-    return Case((np.round(pts, 3), np.round(ds, 6), cols, rows), {}, label)
+    case = Case((np.round(pts, 3), np.round(ds, 6), cols, rows), {}, label)
+    return (case, where, true_dirs) if truth else case
 
 
 # calibration.grow_grid -----------------------------------------------------------------------
 @dataclass
 class GridEqual(Comparator):
-    """The nodes ``(i, j, k)`` of a grid grown from a seed, exactly: the same set of rows (any
-    row order), or None where the seed has no neighbour along one of its directions."""
+    """The nodes ``(i, j, k)`` of a grid grown from a seed.
+
+    On a case drawn from a known board (a :class:`TruthCase`), by what the grid is for: the
+    labels ``(i, j)`` are exactly the board's corners, counted in steps from the seed along
+    ``d1`` and ``d2``, and each node's candidate ``k`` lies within ``tolerance`` × the board's
+    step of the corner its label names (a stray dropped on top of a corner may stand for it);
+    None for a lone seed; anything well formed for a seed that is not a corner of the board.
+    Any correct method passes, whatever its thresholds. Against an output that is itself wrong
+    (a mistake of the bank, to recognise it) and on cases without a truth: the same rows as that
+    output, exactly."""
+
+    tolerance: float = 0.25
 
     def describe(self) -> str:
-        return "the same grid nodes (i, j, candidate index), exactly"
+        return "the board's corners, each labelled (i, j) by its steps from the seed along d1 and d2"
 
-    def __call__(self, got, expected, case=None):
-        if expected is None:
-            if got is None:
-                return None
-            return Mismatch("expected None: this seed has no first neighbour along one of its two directions "
-                            "(nearest candidate within 20° of ±d1 and of ±d2)")
-        exp = np.asarray(expected, dtype=np.int64).reshape(-1, 3)
-        if got is None:
-            return Mismatch(f"you returned None, but this seed grows a grid of {len(exp)} nodes")
+    def _rows(self, got):
+        """(rows as a set, None) or (None, Mismatch) for a malformed output."""
         try:
             arr = np.asarray(got)
             rows = arr.astype(np.int64)
         except (TypeError, ValueError) as exc:
-            return Mismatch(f"your output could not be turned into an integer array ({exc})")
+            return None, Mismatch(f"your output could not be turned into an integer array ({exc})")
         if arr.ndim != 2 or arr.shape[1:] != (3,):
-            return Mismatch(f"expected an (N, 3) array of rows (i, j, candidate index), got shape {arr.shape}")
+            return None, Mismatch(f"expected an (N, 3) array of rows (i, j, candidate index), got shape {arr.shape}")
         if arr.dtype.kind == "f" and not np.array_equal(arr, rows):
-            return Mismatch("your rows (i, j, candidate index) are not whole numbers")
+            return None, Mismatch("your rows (i, j, candidate index) are not whole numbers")
         mine = {tuple(int(v) for v in r) for r in rows}
         if len(mine) != len(rows):
-            return Mismatch("some of your rows appear twice")
+            return None, Mismatch("some of your rows appear twice")
+        return mine, None
+
+    def judge(self, got, truth, case):
+        """The verdict on ``got`` from the board the case was drawn from."""
+        if isinstance(truth, str) and truth == "none":
+            if got is None:
+                return None
+            return Mismatch("expected None: the seed is a lone point, with no other candidate anywhere near "
+                            "its two edge directions")
+        if got is None:
+            if isinstance(truth, str):
+                return None
+            return Mismatch(f"you returned None, but the seed is a corner of a board of {len(truth[0])} corners")
+        mine, problem = self._rows(got)
+        if problem is not None or isinstance(truth, str):
+            return problem
+        labels, positions, step = truth
+        points = np.asarray(case.args[0], dtype=np.float64).reshape(-1, 2)
+        wanted = {(int(i), int(j)): p for (i, j), p in zip(labels, positions)}
+        have = {(i, j) for i, j, _ in mine}
+        missing, extra = sorted(set(wanted) - have), sorted(have - set(wanted))
+        if missing or extra:
+            parts = []
+            if missing:
+                parts.append(f"{len(missing)} corner(s) of the board missing, e.g. (i, j) = {missing[0]}")
+            if extra:
+                parts.append(f"{len(extra)} label(s) that are not corners of the board, e.g. (i, j) = {extra[0]}")
+            return Mismatch(f"Not the board's grid ({len(mine)} nodes yours, {len(wanted)} corners): "
+                            + "; ".join(parts), mismatched=len(missing) + len(extra), total=len(wanted))
+        if len({k for _, _, k in mine}) != len(mine):
+            return Mismatch("one candidate appears under two labels")
+        for i, j, k in sorted(mine):
+            if not 0 <= k < len(points):
+                return Mismatch(f"node ({i}, {j}) names candidate {k}, but there are {len(points)} candidates")
+            gap = float(np.hypot(*(points[k] - wanted[(i, j)])))
+            if gap > self.tolerance * step:
+                return Mismatch(f"node (i, j) = ({i}, {j}) is candidate {k} at ({points[k][0]:.4g}, {points[k][1]:.4g}), "
+                                f"but the corner {i} steps along d1 and {j} along d2 from the seed is at "
+                                f"({wanted[(i, j)][0]:.4g}, {wanted[(i, j)][1]:.4g}) ({gap / step:.2g} of a step away)",
+                                mismatched=1, total=len(wanted))
+        return None
+
+    def __call__(self, got, expected, case=None):
+        truth = getattr(case, "truth", None)
+        if truth is not None and self.judge(expected, truth, case) is None:
+            return self.judge(got, truth, case)
+        return self._same(got, expected)
+
+    def _same(self, got, expected):
+        if expected is None:
+            if got is None:
+                return None
+            return Mismatch("expected None: this seed has no first neighbour along one of its two directions")
+        exp = np.asarray(expected, dtype=np.int64).reshape(-1, 3)
+        if got is None:
+            return Mismatch(f"you returned None, but this seed grows a grid of {len(exp)} nodes")
+        mine, problem = self._rows(got)
+        if problem is not None:
+            return problem
         theirs = {tuple(int(v) for v in r) for r in exp}
         if mine == theirs:
             return None
@@ -1019,10 +1188,11 @@ _gg_lines_only = variant(_gg_variant, parallelogram=False)
 def _gg_case(rng, label, board, seed="board", scale=False, as_list=False, **options):
     """:func:`_gg_draw`, drawn again (up to 30 times) until the grid does not depend on the order
     in which the nodes are visited (last-in-first-out, first-in-first-out and random orders of
-    growth agree)."""
+    growth agree) and the reference finds the board (a stray dropped next to a corner can make
+    a case ambiguous or mislead a greedy growth: such draws are not used)."""
     for _ in range(30):
         case = _gg_draw(rng, label, board, seed, scale, as_list, **options)
-        if _gg_order_free(*case.args):
+        if _gg_order_free(*case.args) and GridEqual().judge(_grow_grid_reference(*case.args), case.truth, case) is None:
             break
     return case
 
@@ -1041,7 +1211,8 @@ def _gg_draw(rng, label, board, seed="board", scale=False, as_list=False, **opti
     """A case of :func:`_grid_case` with a seed (a candidate's index): a random board corner
     ('board'), the board corner farthest from the centre ('edge'), the first stray ('stray') or a
     lone point added away from the board, which has no neighbours ('far')."""
-    points, directions, _, _ = _grid_case(rng, label, board, **options).args
+    case, where, true_dirs = _grid_case(rng, label, board, truth=True, **options)
+    points, directions, _, _ = case.args
     n_board = board[0] * board[1] - (1 if options.get("missing") else 0)
     n_extra = len(points) - n_board
     first = 5 if options.get("flip_seed") else n_board                   # where the strays start
@@ -1060,9 +1231,36 @@ def _gg_draw(rng, label, board, seed="board", scale=False, as_list=False, **opti
         index = len(points) - 1
     if scale:
         directions = np.round(directions * rng.uniform(0.2, 5.0, (len(directions), 2, 1)), 6)
+    truth = _true_grid(points, directions, int(index), where, true_dirs)
     if as_list:
         points, directions = points.tolist(), directions.tolist()
-    return Case((points, directions, int(index)), {}, label)
+    return TruthCase((points, directions, int(index)), {}, label, truth=truth)
+
+
+def _true_grid(points, directions, seed, where, true_dirs):
+    """What grow_grid is for, from what the case was drawn from: ``(labels (N, 2), positions
+    (N, 2), step)`` — every corner of the board labelled by its steps ``(i, j)`` from the seed
+    along the seed's two directions, the corner's position and the smallest distance between
+    neighbouring corners; ``"none"`` for a lone point (no neighbours: the answer is None) and
+    ``"any"`` for a seed that is not a corner of the board (a stray: not graded)."""
+    if seed >= len(where):
+        return "none"
+    if where[seed][0] < 0:
+        return "any"
+    d1, d2 = np.asarray(directions[seed], dtype=np.float64)
+    along, down = true_dirs[seed]
+    if abs(d1 @ along) > abs(d1 @ down):                                 # i counts columns, j rows
+        axes, signs = (1, 0), (np.sign(d1 @ along), np.sign(d2 @ down))
+    else:
+        axes, signs = (0, 1), (np.sign(d1 @ down), np.sign(d2 @ along))
+    board = [k for k, rc in enumerate(where) if rc[0] >= 0]
+    labels = np.array([[signs[0] * (where[k][axes[0]] - where[seed][axes[0]]),
+                        signs[1] * (where[k][axes[1]] - where[seed][axes[1]])] for k in board], dtype=np.int64)
+    positions = np.asarray(points, dtype=np.float64)[board]
+    gaps = np.hypot(*(positions[:, None] - positions[None]).transpose(2, 0, 1))
+    steps = [gaps[a, b] for a in range(len(board)) for b in range(len(board))
+             if np.abs(labels[a] - labels[b]).sum() == 1]
+    return labels, positions, float(min(steps))
 
 
 def _gg_public():
