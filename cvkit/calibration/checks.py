@@ -896,8 +896,9 @@ def _cc_swapped(image, count, sigma=1.5):
 
 
 @mistake("no ring test (L-corners and edges kept)",
-         "Keep only X-junctions: the ring of radius 3 px around a corner must change sign 4 times "
-         "around its mean, with a contrast of at least 0.15")
+         "Keep only X-junctions: an L-corner of the board's outline or a noisy edge also gives a saddle-like "
+         "response. Test the neighbourhood: e.g. a small circle around an X-junction crosses its mean "
+         "intensity four times, around an L-corner twice")
 def _cc_no_ring_test(image, count, sigma=1.5):
     img = np.asarray(image, dtype=np.float64)
     response = _chessboard_response(img, sigma)
@@ -910,8 +911,8 @@ def _cc_no_ring_test(image, count, sigma=1.5):
 
 
 @mistake("Hessian eigenvectors instead of the edge directions",
-         "The eigenvectors bisect the edges; the edges are where the quadratic form vanishes: "
-         "e1 ± √(λ1/−λ0)·e0, normalised")
+         "The Hessian's eigenvectors bisect the angles between the edges; the edges are the two "
+         "directions d along which the quadratic form dᵀ H d vanishes")
 def _cc_eigenvectors(image, count, sigma=1.5):
     points, _ = _corner_candidates(image, count, sigma)
     S = _cr_parts(image, sigma)
