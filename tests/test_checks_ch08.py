@@ -18,7 +18,7 @@ import cvkit.calibration
 import cvkit.warp
 from cvkit import registry
 from cvkit.grading.runtime.problems import Jacobian, Residuals, rebuild
-from cvkit.calibration.checks import CalibrationClose, CornersClose, HomographyClose, MinimumClose
+from cvkit.calibration.checks import CalibrationClose, CornersClose, HomographyClose, MinimumClose, PointsClose
 from cvkit.grading import Case, evaluate
 from cvkit.warp.checks import WarpClose
 
@@ -255,6 +255,26 @@ def test_an_affine_lattice_fails_grow_grid():
     for seed in SEEDS:
         report = evaluate("calibration.grow_grid", alt.grow_grid_affine, hidden=True, seed=seed)
         assert not report.passed
+
+
+def test_a_gradient_orthogonality_refinement_passes_refine_corners():
+    """Förstner's / cornerSubPix's least squares instead of Newton's method: its corners differ
+    from the reference's by more than the former tolerance (0.01 px on average), yet they are
+    as close to the corners the renderer drew."""
+    harness.assert_passes_everywhere("calibration.refine_corners", alt.refine_corners_subpix, SEEDS)
+    reference = _reference("calibration.refine_corners")
+    compare = _check("calibration.refine_corners").compare
+    former = PointsClose(mean=0.01, maximum=0.05)
+    differ = sum(former(alt.refine_corners_subpix(*case.args), reference(*case.args), case) is not None
+                 for seed in (None,) + SEEDS for case in _cases("calibration.refine_corners", seed))
+    assert differ >= 10
+    case = _cases("calibration.refine_corners", None)[0]
+    targets, moved = case.truth
+    start = np.asarray(case.args[1], dtype=np.float64)
+    exact = np.where(moved[:, None], targets, start)
+    assert compare.judge(exact, case) is None
+    assert "Corners differ" in compare.judge(np.where(moved[:, None], targets + 0.3, start), case).message
+    assert "must come back unchanged" in compare.judge(np.where(moved[:, None], targets, start + 1.0), case).message
 
 
 def test_grow_grid_is_judged_by_the_board_not_the_reference():

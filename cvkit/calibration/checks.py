@@ -54,6 +54,7 @@ from ._pattern import chessboard_response as _chessboard_response
 from ._pattern import corner_candidates as _corner_candidates
 from ._pattern import order_grid_corners as _order_grid_corners
 from ._pattern import grow_grid as _grow_grid_reference
+from ._pattern import refine_corners as _refine_corners_reference
 from ._pattern import _grid_rows, _grow_grid
 from ._pattern import _LUMA, _derivatives, _edge_directions, _grey01, _hessian_map, _strongest_peaks
 from ..filters import gaussian as _gaussian
@@ -1438,14 +1439,64 @@ _rc_no_shift_limit = variant(_rc_newton, max_shift=None)
 
 
 def _rc_case(rng, label, cols, rows, sigma, offset=0.6, odd=0, **board):
-    image = _board_image(rng, cols, rows, **board)
+    """A rendered board, starts near its corners (and ``odd`` starts 2.2 px from a corner along an
+    edge), and the truth: for every start, the corner the renderer drew there, or the start
+    itself for the far ones (they must come back unchanged)."""
+    image, corners, _ = _board_image(rng, cols, rows, truth=True, **board)
     points, directions = _corner_candidates(image, cols * rows)
     points = points[:cols * rows]
-    start = np.round(points + rng.uniform(-offset, offset, points.shape), 2)
+    for _ in range(10):              # starts from which the reference reaches every corner (nearly always the first)
+        start = np.round(points + rng.uniform(-offset, offset, points.shape), 2)
+        reached = _refine_corners_reference(image, start, sigma)
+        if np.hypot(*(reached - corners[np.hypot(*(points[:, None, :] - corners[None]).transpose(2, 0, 1))
+                                        .argmin(axis=1)]).T).max() <= 0.2:
+            break
+    nearest = np.hypot(*(points[:, None, :] - corners[None]).transpose(2, 0, 1)).argmin(axis=1)
+    targets, moved = corners[nearest], np.ones(len(start), dtype=bool)
     if odd:                          # points 2.2 px from a corner along an edge: they converge too far to count
         far = points[:odd] + 2.2 * directions[:odd, 0] * rng.choice([-1.0, 1.0], (odd, 1))
         start = np.vstack([start, np.round(far, 2)])
-    return Case((image, start, sigma), {}, label)
+        targets, moved = np.vstack([targets, start[-odd:]]), np.concatenate([moved, np.zeros(odd, dtype=bool)])
+    return TruthCase((image, start, sigma), {}, label, truth=(targets, moved))
+
+
+@dataclass
+class RefinedClose(PointsClose):
+    """Refined corners. On a rendered board (a :class:`TruthCase`), by what they are for: the
+    starts near a corner end within ``true_mean`` px of the corners the renderer drew on average
+    and ``true_max`` px each; the starts too far from a corner come back unchanged. Any correct
+    sub-pixel method passes. Against an output that is itself wrong (a mistake of the bank, to
+    recognise it) and without a truth: within ``mean`` / ``maximum`` px of that output."""
+
+    true_mean: float = 0.15
+    true_max: float = 0.4
+
+    def describe(self) -> str:
+        return (f"within {self.true_mean:g} px of the true corners on average and {self.true_max:g} px each; "
+                "far starts unchanged")
+
+    def judge(self, got, case):
+        pts, problem = as_float_array(got, shape=np.shape(case.args[1]), layout=self.layout, nonfinite=self.nonfinite)
+        if problem is not None:
+            return Mismatch(problem)
+        targets, moved = case.truth
+        start = np.asarray(case.args[1], dtype=np.float64)
+        stay = np.flatnonzero(~moved)
+        if len(stay):
+            shift = np.hypot(*(pts[stay] - start[stay]).T)
+            if shift.max() > 1e-6:
+                k = int(stay[np.argmax(shift)])
+                return Mismatch(f"the start ({start[k, 0]:.4g}, {start[k, 1]:.4g}) lies 2.2 px from a corner along an "
+                                f"edge: it does not start at a corner and must come back unchanged, yours moved it "
+                                f"{shift.max():.3g} px", mismatched=int(np.count_nonzero(shift > 1e-6)), total=len(stay))
+        d = np.hypot(*(pts[moved] - targets[moved]).T)
+        return _distances_mismatch(d, pts[moved], targets[moved], self.true_mean, self.true_max,
+                                   ("Corners", "corner", 5), self.true_max)
+
+    def __call__(self, got, expected, case=None):
+        if getattr(case, "truth", None) is not None and self.judge(expected, case) is None:
+            return self.judge(got, case)
+        return super().__call__(got, expected, case)
 
 
 def _rc_public():
@@ -1474,7 +1525,7 @@ def _rc_hidden(rng):
 refine_corners = Check(
     public=_rc_public,
     hidden=_rc_hidden,
-    compare=PointsClose(mean=0.01, maximum=0.05),
+    compare=RefinedClose(mean=0.01, maximum=0.05, true_mean=0.15, true_max=0.4),
     mistakes=[
         _rc_identity,
         Mistake("a single Newton step", _rc_one_step,
