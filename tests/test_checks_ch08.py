@@ -277,6 +277,22 @@ def test_a_gradient_orthogonality_refinement_passes_refine_corners():
     assert "must come back unchanged" in compare.judge(np.where(moved[:, None], targets, start + 1.0), case).message
 
 
+def test_find_chessboard_corners_is_judged_against_the_rendered_corners():
+    compare = _check("calibration.find_chessboard_corners").compare
+    case = _cases("calibration.find_chessboard_corners", None)[0]
+    truth = case.truth
+    rng = np.random.default_rng(1)
+    reference_like = truth - 0.1 + rng.normal(0, 0.02, truth.shape)     # a right answer, not the truth
+    assert compare(truth.copy(), reference_like, case) is None
+    assert compare(truth[::-1].copy(), reference_like, case) is None     # the 180° turn is accepted
+    other_side = truth + 0.1                                             # 0.14 px from the truth, 0.28 from it
+    assert compare(other_side, reference_like, case) is None
+    assert CornersClose()(other_side, reference_like) is not None        # (judged against the reference: fails)
+    assert compare(truth + 0.5, reference_like, case) is not None
+    rounded = np.round(truth)                                            # a mistake's output is matched as it is
+    assert compare(rounded, rounded, case) is None
+
+
 def test_grow_grid_is_judged_by_the_board_not_the_reference():
     compare = _check("calibration.grow_grid").compare
     case = next(c for c in _cases("calibration.grow_grid", None) if not isinstance(c.truth, str))
