@@ -1712,6 +1712,7 @@ def _hd_hidden(rng):
 
 
 homography_dlt = Check(
+    rules=("integer",),
     public=_hd_public,
     hidden=_hd_hidden,
     compare=HomographyClose(atol=1e-4, rtol=1e-8),

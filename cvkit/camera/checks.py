@@ -214,6 +214,7 @@ def _th_hidden(rng):
 
 
 to_homogeneous = Check(
+    rules=("integer", "single point"),
     public=[
         Case((np.array([[0.5, -1.25], [3.0, 4.0], [-2.0, 0.75], [10.0, -7.5]]),), {}, "4 image points (x, y)"),
         Case((np.array([[1, 2, 3], [-4, 0, 6], [7, -8, 9]]),), {}, "3 integer world points (x, y, z)"),
@@ -296,6 +297,7 @@ def _fh_hidden(rng):
 
 
 from_homogeneous = Check(
+    rules=("no warnings", "single point"),
     public=[
         Case((np.array([[6.0, -4.0, 2.0], [3.0, 1.5, -3.0], [-1.0, 2.0, 0.5], [7.0, 5.0, 4.0]]),), {},
              "4 image points with w = 2, −3, 0.5, 4"),
@@ -644,6 +646,7 @@ _P1 = _projection_matrix(_A1, _R1, _T1)
 _P2 = _projection_matrix(_A2, _R2, _T2)
 
 project = Check(
+    rules=("no warnings",),
     public=[
         Case((_P1, _WORLD), {}, "6 world points (N, 3)"),
         Case((-0.01 * _P1, np.array([[2.0, -1.0, 4.0, 2.0], [0.5, 0.25, -0.5, 0.5], [1.0, 1.0, 1.0, 1.0],

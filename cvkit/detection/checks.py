@@ -455,6 +455,7 @@ def _tm_hidden(rng):
 
 
 match_template = Check(
+    rules=("integer", "no warnings"),
     public=_tm_public,
     hidden=_tm_hidden,
     compare=_SCORES,

@@ -314,6 +314,7 @@ def _gradient_hidden(rng):
 
 
 gradient = Check(
+    rules=("integer",),
     public=[
         Case((_distinct((5, 6)),), {}, "5×6 image, central differences, reflect101 (defaults)"),
         Case((_distinct((6, 5)),), {"scheme": "forward", "border": "replicate"}, "forward differences, replicate"),
@@ -398,6 +399,9 @@ def _magnitude_hidden(rng):
     cases.append(Case((ix, iy), {"norm": "l1"}, "single row 1×N, l1"))
     ix, iy = _pair_of(rng, (_size(rng, 3, 5), _size(rng, 3, 5), 3))
     cases.append(Case((ix, iy), {"norm": "max"}, "3-D arrays (H, W, 3), max"))
+    # squares of ±1020 overflow int16 (largest 32767): compute in float64
+    ix, iy = (a.astype(np.int16) for a in _pair_of(rng, (_size(rng, 3, 6), _size(rng, 4, 8)), "int64"))
+    cases.append(Case((ix, iy), {}, "int16 derivatives up to ±1020, l2 (their squares overflow int16)"))
     return cases
 
 
@@ -414,6 +418,7 @@ magnitude = Check(
     hidden=_magnitude_hidden,
     compare=_POINTWISE,
     mistakes=[_mag_always_l2, _mag_squared, _mag_l1_no_abs, _mag_max_no_abs, _mag_l1_max_swapped],
+    rules=("integer", "narrow integer"),
 )
 
 
@@ -465,6 +470,7 @@ def _direction_hidden(rng):
 
 
 direction = Check(
+    rules=("integer",),
     public=[
         Case((np.array([[1.0, 0.0, -1.0, 0.0], [2.0, -3.0, -1.0, 4.0], [0.5, -2.0, 3.0, -1.0]]),
               np.array([[0.0, 1.0, 0.5, -2.0], [2.0, 1.0, -1.0, -3.0], [-0.5, -0.5, 1.0, 2.0]])), {},

@@ -499,6 +499,7 @@ def _moravec_hidden(rng):
 
 
 moravec = Check(
+    rules=("uint8",),
     public=lambda: [
         Case((_distinct((7, 8), seed=3) / 10.0, 3), {}, "distinct values 7×8, 3×3 window"),
         Case((_corner_image(10, 11), 5), {"border": "replicate"}, "two rectangles, 5×5 window, replicate"),
@@ -1909,6 +1910,7 @@ def _kdtree_hidden(rng):
 
 
 KDTree = Check(
+    rules=("single point",),
     public=_kdtree_public,
     hidden=_kdtree_hidden,
     compare=NeighbourSearch(),

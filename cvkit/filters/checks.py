@@ -921,6 +921,7 @@ def _tm_hidden(rng):
 
 
 temporal_mean = Check(
+    rules=("integer",),
     public=[
         Case((np.array([[[200, 10, 7, 255, 0], [1, 2, 3, 4, 5], [90, 91, 92, 93, 94]],
                         [[100, 21, 8, 255, 3], [9, 8, 7, 6, 5], [90, 0, 180, 30, 60]],

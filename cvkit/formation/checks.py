@@ -108,6 +108,7 @@ def _pp_hidden(rng):
 
 
 project_pinhole = Check(
+    rules=("integer",),
     public=[
         Case((np.array([[1.0, 2.0, 4.0], [-3.0, 0.5, 6.0], [0.25, -1.5, 2.5]]), 2.5), {},
              "three points, f = 2.5"),
@@ -192,6 +193,7 @@ def _dd_hidden(rng):
 
 
 depth_from_disparity = Check(
+    rules=("integer",),
     public=[
         Case((np.array([[8.0, 16.5, 0.0, -2.0, 40.0], [1.0, 0.5, 3.0, 70.0, -0.5]]), 0.12, 700.0), {},
              "disparities with a zero and negatives, b = 0.12 m, f = 700 px"),
@@ -441,6 +443,7 @@ def _q_hidden(rng):
 
 
 quantize = Check(
+    rules=("integer", "uint8"),
     public=[
         Case((np.array([[-0.2, 0.0, 0.1, 0.2, 0.3], [0.45, 0.6, 0.9, 1.0, 1.4]]), 2), {},
              "2 bits (levels 0, 1/3, 2/3, 1), values outside [0, 1] too"),
@@ -803,6 +806,7 @@ def _demosaic_hidden(rng):
 
 
 demosaic_bilinear = Check(
+    rules=("integer",),
     public=[
         Case((np.random.default_rng(11).permutation(48).reshape(6, 8) / 47.0,), {},
              "6×8 raw image, default pattern RGGB"),

@@ -36,6 +36,10 @@ def _describe_value(value: Any) -> str:
     return repr(value)
 
 
+#: what :attr:`Check.rules` may name (see there)
+RULES = frozenset({"integer", "narrow integer", "uint8", "single point", "single row", "no warnings"})
+
+
 @dataclass
 class Case:
     """One call of the algorithm: positional ``args`` and keyword ``kwargs``.
@@ -143,6 +147,14 @@ class Check:
         the grading sandbox, which holds NumPy and that package only; the trusted grader sends
         its name) that only passes plain data in and out, e.g.
         :func:`instance_call` to grade a class by building it and calling one of its methods.
+    rules : tuple of str, optional
+        The rules of the exercise's statement about inputs and side effects, each of which some
+        case (visible or hidden) exercises (``tests/test_statement_rules.py`` proves it), from
+        :data:`RULES`: ``"integer"`` (integer arrays are valid input), ``"narrow integer"``
+        (integer input in a dtype that overflows when squared or multiplied: int16),
+        ``"uint8"``, ``"single point"`` (one point of shape ``(d,)`` besides ``(N, d)``),
+        ``"single row"``, ``"no warnings"`` (a right value that raised a warning fails its case,
+        with a sentence naming the warning).
     output_names : tuple of str, optional
         The names of the results when the algorithm returns a tuple (``("gx", "gy")``), as
         reports name them ("`gx`: 12 of 48 values differ"); by default they are read from the
@@ -161,8 +173,12 @@ class Check:
     arg_names: tuple = ()
     call: Callable | None = None
     output_names: tuple = ()
+    rules: tuple = ()
 
     def __post_init__(self) -> None:
+        unknown = [r for r in self.rules if r not in RULES]
+        if isinstance(self.rules, str) or unknown:
+            raise ValueError(f"Check.rules must be a tuple of {sorted(RULES)}; got {self.rules!r}")
         # functions marked with @mistake stand for their Mistake; the bank keeps the listed order
         self.mistakes = [m if isinstance(m, Mistake) else Mistake.of(m) for m in self.mistakes]
 

@@ -35,10 +35,12 @@ class CaseResult:
     details: str = ""                 # the technical part of the message (tolerances), shown on demand
     diagnosis: str | None = None      # what the wrong output looks like, or why the code crashed
     timed_out: bool = False           # the candidate did not return within the case's time limit
+    unexplained: bool = False         # failed, and no mistake of the bank reproduces it (course tools count these)
 
     #: what :meth:`to_dict` keeps (the report's JSON in notebooks and the course's results);
     #: the input, the outputs and the traceback stay out of it
-    WIRE_FIELDS = ("index", "label", "passed", "message", "details", "diagnosis", "mistake", "elapsed", "warnings")
+    WIRE_FIELDS = ("index", "label", "passed", "message", "details", "diagnosis", "mistake", "unexplained", "elapsed",
+                   "warnings")
 
     def to_dict(self) -> dict:
         data = {name: getattr(self, name) for name in self.WIRE_FIELDS}
@@ -68,6 +70,7 @@ class Report:
     dropped: list = field(default_factory=list)  # cases the reference could not compute (instructor's bug)
     fallback: str | None = None  # why the cases graded are the visible ones although hidden=True
     cascade: str | None = None  # graded with a reference building block: which of the student's functions to fix
+    notes: list = field(default_factory=list)  # a passing visible test: what the hidden cases will check besides
 
     @property
     def passed(self) -> bool:
@@ -131,6 +134,8 @@ class Report:
             text += f"\n{self.fallback}"
         elif self.dropped:
             text += f"\n{self.dropped_note()}"
+        for note in self.notes:
+            text += f"\nNote: {note}"
         if self.mistake:
             text += f"\nYour output matches a known mistake: {self.mistake}. {self.hint}"
         elif self._diagnosis_line():
@@ -212,7 +217,7 @@ class Report:
 
     #: what :meth:`to_dict` keeps, in this order (the cases as :meth:`CaseResult.to_dict`)
     WIRE_FIELDS = ("algorithm", "section", "hidden", "seed", "passed", "score", "mistake", "hint", "diagnosis",
-                   "problem", "cases", "dropped", "fallback", "cascade")
+                   "problem", "cases", "dropped", "fallback", "cascade", "notes")
 
     def to_dict(self) -> dict:
         """The report as JSON-ready data. A hidden report leaves its seed out: with the public
@@ -244,6 +249,8 @@ class Report:
             f"<p class='cvkit-summary' style='margin:2px 0;font-weight:bold;color:{_TEXT}'>"
             f"<span aria-hidden='true' style='color:{accent}'>{'✓' if self.passed else '✗'} </span>{title}</p>",
         ]
+        for note in self.notes:
+            parts.append(f"<p class='cvkit-note' style='color:{_TEXT}'><b>Note:</b> {html.escape(note)}</p>")
         if self.cascade:
             parts.append(f"<p class='cvkit-cascade' style='color:{_TEXT}'><b>Note:</b> {html.escape(self.cascade)}</p>")
         for note in filter(None, (self.fallback, self.dropped_note() if not self.fallback else "")):

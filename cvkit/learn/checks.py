@@ -248,6 +248,7 @@ def _softmax_hidden(rng):
 
 
 softmax = Check(
+    rules=("integer", "no warnings", "single point"),
     public=[
         Case((np.array([[1.0, 2.0, 0.5, -1.0], [0.0, 0.0, 3.0, 1.0], [-2.0, 1.0, 1.0, 0.0]]),), {},
              "3 × 4 scores"),
@@ -529,6 +530,7 @@ def _ng_hidden(rng):
 
 
 numerical_gradient = Check(
+    rules=("integer",),
     public=[
         Case(("cubic", np.array([[1.0, -2.0, 0.5, 1.5], [0.5, 1.0, -1.0, 0.0], [1.0, 0.0, 2.0, -1.0]]),
               np.array([1.0, -0.5, 2.0, 0.3])), {}, "cubic, 1-D x, default eps"),
@@ -840,6 +842,7 @@ def _topk_hidden(rng):
 
 
 top_k_accuracy = Check(
+    rules=("integer",),
     public=[
         Case((np.array([[0.9, 0.1, 0.5, 0.3], [0.2, 0.8, 0.7, 0.1], [0.1, 0.2, 0.3, 0.4], [0.6, 0.5, 0.4, 0.3],
                         [0.25, 0.35, 0.15, 0.05], [0.3, 0.1, 0.2, 0.9]]),

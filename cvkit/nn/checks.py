@@ -305,6 +305,7 @@ _X_PUBLIC = np.array([[-2.0, -0.5, 0.0, 0.25, 1.5, 3.0], [4.0, -1.0, 0.0, 2.0, -
 
 
 relu_forward = Check(
+    rules=("no warnings",),
     public=[
         Case((_X_PUBLIC,), {}, "negatives, zeros and positives"),
         Case((_distinct((2, 2, 3, 3), seed=1),), {}, "(N, C, H, W) feature maps"),
@@ -422,6 +423,7 @@ sigmoid_forward = Check(
     compare=_forward_compare(_TIGHT),
     call=call_sigmoid_forward,
     mistakes=[_sigmoid_sign, _sigmoid_overflow, _sigmoid_tanh, _sigmoid_no_out],
+    rules=("no warnings",),
 )
 
 
@@ -507,6 +509,7 @@ def _leaky_hidden(rng):
 
 
 leaky_relu_forward = Check(
+    rules=("no warnings",),
     public=[
         Case((_X_PUBLIC,), {"alpha": 0.1}, "alpha 0.1"),
         Case((_distinct((2, 2, 2, 2), seed=6),), {}, "default alpha 0.01"),

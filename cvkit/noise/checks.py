@@ -144,6 +144,7 @@ def _gaussian_hidden(rng):
 
 
 add_gaussian = Check(
+    rules=("integer",),
     public=[
         Case((np.random.default_rng(100).random((64, 64)), 0.1), {"rng": 0}, "64×64 image in [0, 1], σ = 0.1"),
         Case((np.random.default_rng(101).random((40, 40, 3)), 0.2), {"rng": 1}, "colour 40×40×3 image, σ = 0.2"),

@@ -318,6 +318,7 @@ def _public():
 
 
 block_matching = Check(
+    rules=("integer", "uint8"),
     public=_public,
     hidden=_hidden,
     compare=DisparityMaps(),

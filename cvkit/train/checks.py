@@ -1053,6 +1053,7 @@ def _rrc_public():
 
 
 random_resized_crop = Check(
+    rules=("integer",),
     public=_rrc_public,
     hidden=_rrc_hidden,
     compare=Statistics(statistics=_rrc_statistics, tolerance=_rrc_tolerance, dtype_kind="f"),
