@@ -807,7 +807,7 @@ def _hl(edges, theta_step=math.pi / 180, rho_step=1.0, *, kind):
     if kind == "xy":
         x, y = y, x
     acc = np.zeros((rhos.size, thetas.size), dtype=np.int64)
-    angles = np.degrees(thetas) if kind == "degrees" else thetas
+    angles = np.degrees(thetas) if kind in ("degrees", "degrees_trig") else thetas
     for j, t in enumerate(angles):
         v = (x * math.cos(t) + y * math.sin(t)) / rho_step
         if kind == "trunc":
@@ -883,6 +883,9 @@ hough_lines = Check(
     mistakes=[
         Mistake("θ in degrees", _hlk("degrees"),
                 "Angles are radians: θk = −π/2 + k·theta_step, and np.cos/np.sin take radians"),
+        Mistake("θ in degrees inside np.cos/np.sin", _hlk("degrees_trig"),
+                "Your θ values are radians, but the votes use cos and sin of θ in degrees: "
+                "np.cos/np.sin take radians, so vote with np.cos(theta), np.sin(theta) of the θk you return"),
         Mistake("ρ from 0 only (negative ρ wrap around)", _hlk("positive"),
                 "ρ = x cos θ + y sin θ is negative for half of the θ range: the bins go from −ceil(diag/step) to "
                 "+ceil(diag/step) (offset the index by the number of negative bins)"),

@@ -174,7 +174,8 @@ class Report:
                 lines.append(f"  → matches the mistake “{case.mistake}”: {case.hint}")
         notes = sorted({w for c in self.cases for w in c.warnings})
         if notes:
-            lines.append("\nWarnings raised by your code (they cost no points, but look at them):")
+            costly = any("raised a warning (" in c.message for c in self.cases if not c.passed)
+            lines.append("\nWarnings raised by your code" + (":" if costly else " (they cost no points, but look at them):"))
             lines += [f"  {w}" for w in notes[:5]]
         printed = next((c.stdout for c in self.cases if c.stdout), "")
         if printed:

@@ -1266,6 +1266,8 @@ def _bn_variant(x, gamma, beta, running_mean, running_var, training, momentum=0.
         m_old, m_new = (momentum, 1.0 - momentum) if swap_momentum else (1.0 - momentum, momentum)
         new_mean = m_old * rm + m_new * mean if update else rm.copy()
         new_var = m_old * rv + m_new * (var_u if run_ddof else var_b) if update else rv.copy()
+        if norm_stats == "updated":  # the running statistics updated first, then used to normalise
+            use_mean, use_var = new_mean, new_var
     else:
         use_mean, use_var = (mean, var_b) if eval_stats == "batch" else (rm, rv)
         new_mean, new_var = rm.copy(), rv.copy()
@@ -1280,6 +1282,13 @@ def _bn_variant(x, gamma, beta, running_mean, running_var, training, momentum=0.
          "In training normalise with the mean and variance of this batch (per channel over N, H, W)")
 def _bn_running_in_training(*a, **k):
     return _bn_variant(*a, **k, norm_stats="running")
+
+
+@mistake("updated running statistics used to normalise in training",
+         "In training normalise with this batch's mean and (biased) variance; the running statistics are "
+         "updated for evaluation, not used on the batch they were just updated with")
+def _bn_updated_running_in_training(*a, **k):
+    return _bn_variant(*a, **k, norm_stats="updated")
 
 
 @mistake("unbiased variance used to normalise",
@@ -1376,7 +1385,7 @@ batchnorm2d_forward = Check(
     hidden=_bn_hidden,
     compare=_forward_compare(_SUMS),
     call=call_batchnorm2d_forward,
-    mistakes=[_bn_running_in_training, _bn_unbiased_norm, _bn_biased_running, _bn_swapped_momentum, _bn_all_channels,
+    mistakes=[_bn_running_in_training, _bn_updated_running_in_training, _bn_unbiased_norm, _bn_biased_running, _bn_swapped_momentum, _bn_all_channels,
               _bn_eps_outside, _bn_not_updated, _bn_batch_in_eval],
 )
 

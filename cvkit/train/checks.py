@@ -324,6 +324,7 @@ def _warm_with(fraction):
 _wu_never = _warm_with(lambda t, W: np.minimum(t, W - 1) / W)
 _wu_no_clamp = _warm_with(lambda t, W: t / W)
 _wu_ahead = _warm_with(lambda t, W: np.minimum(t + 1, W) / W)
+_wu_floor = _warm_with(lambda t, W: np.minimum(t, W) // W)
 
 
 @mistake("lr_start ignored (ramps up from 0)",
@@ -380,6 +381,8 @@ warmup = Check(
     mistakes=[
         Mistake("warm-up never reaches the target (stops at (W − 1)/W)", _wu_never,
                 "At step W (and after) the rate must equal lr_target: use min(step, W) / W, not min(step, W − 1) / W"),
+        Mistake("integer division (//) in the ramp: stays at lr_start until step W", _wu_floor,
+                "min(step, W) // W is 0 for every step before W: use true division, min(step, W) / W"),
         Mistake("no clamp: keeps rising after W", _wu_no_clamp,
                 "After W steps the rate stays at lr_target: min(step, W) / W"),
         Mistake("one step ahead ((step + 1) / W)", _wu_ahead,
