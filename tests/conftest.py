@@ -60,6 +60,7 @@ LONGEST_FILES = {
     "tests/test_course.py": 75,
     "tests/test_lms_course.py": 50,  # grades a tiny course once (40-50 s on 2 shared cores, 2026-12-06)
     "tests/test_checks_ch05.py": 70,
+    "tests/test_visible_probes.py": 60,  # 4 variants of every reference, hidden and visible, 2026-12-06
     "tests/test_dask_cluster.py": 60,  # measured 55-75 s on 2 shared cores (2026-12-06)
     "tests/test_allowed_helpers.py": 55,
     "tests/test_trusted.py": 50,
