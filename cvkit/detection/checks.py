@@ -451,11 +451,19 @@ def _tm_hidden(rng):
         Case((t_a, t_a[::-1].copy(), "ncc"), {}, "template as large as the image (a 1×1 map)"),
         Case((row, t_row), {}, "single row 1×N, default measure (zncc)"),
         Case((u8, t_u8), {"measure": "zncc"}, "uint8, zncc by keyword"),
+        _tm_int16(rng),
     ]
 
 
+def _tm_int16(rng):
+    # squares and products of ±1000 overflow int16 (largest 32767): compute in float64
+    image = rng.integers(-1000, 1001, (_size(rng, 8, 11), _size(rng, 9, 12))).astype(np.int16)
+    template, _ = _cut(rng, image, 3, _size(rng, 2, 4))
+    return Case((image, template, "ssd"), {}, "int16 values up to ±1000, ssd (their squares overflow int16)")
+
+
 match_template = Check(
-    rules=("integer", "no warnings"),
+    rules=("integer", "narrow integer", "no warnings"),
     public=_tm_public,
     hidden=_tm_hidden,
     compare=_SCORES,
