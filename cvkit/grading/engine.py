@@ -426,6 +426,17 @@ def evaluate(
     error and the message is read against the inputs
     (:func:`~cvkit.grading.diagnose.explain_exception`).
 
+    **Rules of the statement.** A check whose :attr:`~cvkit.grading.Check.rules` include
+    ``"no warnings"`` fails a case whose values are right but whose code raised a warning, with
+    a sentence naming it. A failing case that no mistake of the bank reproduces is marked
+    ``CaseResult.unexplained`` (course tools count them, to find the next mistakes to bank).
+
+    **Notes on a passing visible test.** When the candidate runs here and passes every visible
+    case, :func:`cvkit.grading.probes.notes` runs it on the public inputs in the dtypes,
+    containers and shapes the hidden cases use (int16, uint8, a list, a single point...) and
+    looks for float32 results; what differs becomes ``report.notes`` ("passes the shown cases,
+    but …"), one line each in the report. Notes never change the verdict or the score.
+
     **A case that does not return stops the check.** The first case that runs out of its time
     limit (``Check.time_limit``) fails with advice that fits where the candidate was stopped
     (:func:`cvkit.grading.runtime.guard.loop_evidence`: in a ``while`` loop, its exit
