@@ -627,7 +627,8 @@ def evaluate(
         passed = [(c.got, c.expected) for c in report.cases]
         try:  # the notes are a courtesy: they never change the verdict, nor stop the report
             report.notes = probes.notes(spec, list(cases), passed, run_here,
-                                        lambda probe: _reference_output(record.reference, probe, spec.call), headline)
+                                        lambda probe: _reference_output(record.reference, probe, spec.call), headline,
+                                        budget=max(2.0, sum(c.elapsed for c in report.cases)))
         except Exception:
             report.notes = []
     if mistake_votes:

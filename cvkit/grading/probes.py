@@ -273,22 +273,22 @@ def computes_in_float32(got: Any, expected: Any) -> bool:
 
 
 def notes(spec: Check, cases: list[Case], outputs: list[tuple[Any, Any]], run: Callable[[Case], Any],
-          reference: Callable[[Case], Any], headline: Callable[[str], str]) -> list[str]:
+          reference: Callable[[Case], Any], headline: Callable[[str], str], budget: float = 5.0) -> list[str]:
     """The one-line notes of a passing visible evaluation (see the module's docstring).
 
     ``outputs`` are the (candidate's, reference's) results of the passed public cases; ``run``
     runs the candidate on a case under the guard (an :class:`~cvkit.grading.runtime.guard.Outcome`);
     ``reference`` computes the reference's output (raising when it cannot); ``headline`` makes a
-    failure message short.
+    failure message short; the probes stop once the candidate has run ``budget`` seconds on them.
     """
     found: list[str] = []
     if any(computes_in_float32(got, expected) for got, expected in outputs):
         found.append("passes the shown cases, but computes in float32 — the hidden cases compare in "
                      "float64: compute (and return) float64")
-    runs = 0
+    runs, spent = 0, 0.0
     tried: set = set()
     for what, probe in variants(spec, cases):
-        if runs >= MAX_PROBES:
+        if runs >= MAX_PROBES or spent >= budget:
             break
         if what in tried:
             continue
@@ -299,6 +299,7 @@ def notes(spec: Check, cases: list[Case], outputs: list[tuple[Any, Any]], run: C
         runs += 1
         tried.add(what)
         outcome = run(probe)
+        spent += getattr(outcome, "elapsed", 0.0) or 0.0
         if outcome is None or outcome.timed_out:
             continue
         if outcome.error is not None:
