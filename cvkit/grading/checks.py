@@ -155,6 +155,11 @@ class Check:
         ``"uint8"``, ``"single point"`` (one point of shape ``(d,)`` besides ``(N, d)``),
         ``"single row"``, ``"no warnings"`` (a right value that raised a warning fails its case,
         with a sentence naming the warning).
+    credit : callable, optional
+        A **measured** check: ``credit(output, case) -> float`` in [0, 1] is the share of a
+        case's points the candidate's output earns (e.g. an accuracy put through a published
+        scale), whether or not the comparator passes it; a case that passes earns 1. Without
+        it a case earns 1 when it passes and 0 otherwise.
     output_names : tuple of str, optional
         The names of the results when the algorithm returns a tuple (``("gx", "gy")``), as
         reports name them ("`gx`: 12 of 48 values differ"); by default they are read from the
@@ -174,6 +179,7 @@ class Check:
     call: Callable | None = None
     output_names: tuple = ()
     rules: tuple = ()
+    credit: Callable[[Any, Case], float] | None = None
 
     def __post_init__(self) -> None:
         unknown = [r for r in self.rules if r not in RULES]

@@ -602,6 +602,11 @@ def evaluate(
             else:
                 result.message, result.details = _plain_words(mismatch)
                 result.worst = mismatch.worst
+            if spec.credit is not None:
+                try:
+                    result.credit = 1.0 if result.passed else min(1.0, max(0.0, float(spec.credit(outcome.value, case))))
+                except Exception:
+                    result.credit = 0.0
         if not result.passed and result.got is not None and not warned:
             # every known mistake that reproduces this wrong output gets this case's vote (one
             # case may not tell two mistakes apart; the other cases then decide)

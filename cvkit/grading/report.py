@@ -36,14 +36,24 @@ class CaseResult:
     diagnosis: str | None = None      # what the wrong output looks like, or why the code crashed
     timed_out: bool = False           # the candidate did not return within the case's time limit
     unexplained: bool = False         # failed, and no mistake of the bank reproduces it (course tools count these)
+    credit: float | None = None       # a measured check's share of the case's points (0..1), else None
 
     #: what :meth:`to_dict` keeps (the report's JSON in notebooks and the course's results);
     #: the input, the outputs and the traceback stay out of it
     WIRE_FIELDS = ("index", "label", "passed", "message", "details", "diagnosis", "mistake", "unexplained", "elapsed",
                    "warnings")
 
+    @property
+    def worth(self) -> float:
+        """What the case counts for in the score: its credit when measured, else passed (1) or not (0)."""
+        if self.credit is not None:
+            return 1.0 if self.passed else min(1.0, max(0.0, float(self.credit)))
+        return 1.0 if self.passed else 0.0
+
     def to_dict(self) -> dict:
         data = {name: getattr(self, name) for name in self.WIRE_FIELDS}
+        if self.credit is not None:
+            data["credit"] = round(float(self.credit), 6)
         data["elapsed"] = round(self.elapsed, 4)
         return data
 
@@ -78,10 +88,11 @@ class Report:
 
     @property
     def score(self) -> float:
-        """Fraction of the counted cases passed, 0..1 (dropped cases are not counted)."""
+        """Fraction of the counted cases passed, 0..1 (dropped cases are not counted); a case of
+        a measured check (:attr:`~cvkit.grading.Check.credit`) counts for its credit."""
         if self.problem is not None or not self.cases:
             return 0.0
-        return sum(c.passed for c in self.cases) / len(self.cases)
+        return sum(c.worth for c in self.cases) / len(self.cases)
 
     @property
     def gradable(self) -> bool:

@@ -1795,3 +1795,104 @@ ema_update = Check(
     compare=_UPDATE,
     mistakes=[_ema_inverted, _ema_plain_mean, _ema_no_complement, _ema_params_only],
 )
+
+
+# --------------------------------------------------------------------------------------------
+# §12.5.4 the measured exercise: a CNN trained on the digits, graded by its held-out accuracy
+# --------------------------------------------------------------------------------------------
+from ..grading.runtime.adapters import train_then_predict  # noqa: E402
+from ._digits import ACCURACY_SCALE, BUDGET_SECONDS, accuracy_credit, held_out_split, public_split  # noqa: E402
+from ._digits import train_cnn as _train_cnn  # noqa: E402
+
+
+@dataclass
+class MeasuredCase(Case):
+    """A case whose answer is measured: ``truth`` holds the labels of the evaluation images.
+    Only ``args`` and ``kwargs`` enter the sandbox; ``truth`` stays with the grader."""
+
+    truth: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+
+def _digits_public() -> list[Case]:
+    x_train, y_train, x_eval, y_eval = public_split()
+    return [MeasuredCase((x_train, y_train, x_eval, 0), {},
+                         f"cvkit.data.digits' split in 8-bit grey levels: {len(y_train)} to train, "
+                         f"{len(y_eval)} to predict", truth=y_eval)]
+
+
+def _digits_hidden(rng: np.random.Generator) -> list[Case]:
+    seed = _seed(rng)
+    x_train, y_train, x_eval, y_eval = held_out_split(seed)
+    return [MeasuredCase((x_train, y_train, x_eval, _seed(rng)), {},
+                         f"your own split of the digits, in the grey levels of an unknown camera: {len(y_train)} to "
+                         f"train, {len(y_eval)} perturbed digits to predict", truth=y_eval)]
+
+
+def _scale_text() -> str:
+    return ", ".join(f"{100 * a:g} % → {p:g}" for a, p in ACCURACY_SCALE)
+
+
+class HeldOutAccuracy(Comparator):
+    """Passes when the predicted labels reach the top of :data:`ACCURACY_SCALE` on the case's
+    ``truth``; the case's credit (:func:`accuracy_credit`) follows the scale below it. The
+    ``expected`` output (the reference recipe's predictions) only serves for comparison in
+    the message: the answer is judged by what it achieves, not by its agreement."""
+
+    top = ACCURACY_SCALE[-1][0]
+
+    @staticmethod
+    def accuracy(got: Any, case: Any) -> float:
+        truth = np.asarray(getattr(case, "truth", np.zeros(0)))
+        labels = np.asarray(got)
+        if labels.shape != truth.shape or truth.size == 0:
+            return 0.0
+        return float(np.mean(labels == truth))
+
+    def __call__(self, got: Any, expected: Any, case: Any = None) -> Mismatch | None:
+        achieved = self.accuracy(got, case)
+        if achieved >= self.top:
+            return None
+        truth = np.asarray(getattr(case, "truth", np.zeros(0)))
+        labels = np.asarray(got)
+        if labels.shape != truth.shape:
+            return Mismatch(f"predict returned shape {labels.shape}; expected one label per image, {truth.shape}")
+        words = (f"accuracy {100 * achieved:.2f} % on {truth.size} digits, below {100 * self.top:g} %, the top of "
+                 f"the scale; it earns {accuracy_credit(achieved):.2f} of the points (scale: {_scale_text()}).")
+        reference = self.accuracy(expected, case)
+        if reference:
+            words += f" The reference recipe reached {100 * reference:.2f} % on the same digits."
+        if labels.size and np.bincount(labels.astype(np.int64).clip(0), minlength=1).max() > 0.5 * labels.size:
+            words += (" Most predictions are one class: the training diverged or never started — normalise "
+                      "the inputs (their grey levels can be in the hundreds) and try a smaller learning rate.")
+        return Mismatch(words)
+
+
+def _digits_credit(got: Any, case: Any) -> float:
+    return accuracy_credit(HeldOutAccuracy.accuracy(got, case))
+
+
+@mistake("no normalisation (raw grey levels, no batch norm)",
+         "Standardise the inputs with the training set's mean and standard deviation, and keep the batch norm "
+         "layers: with grey levels in the hundreds the first steps blow the weights up")
+def _digits_no_normalisation(x_train, y_train, rng=None):
+    return _train_cnn(x_train, y_train, rng, normalise=False)
+
+
+@mistake("learning rate 100 times too large",
+         "Divide the learning rate: a sweep on a validation split (§12.2) finds the largest rate that still "
+         "decreases the loss steadily")
+def _digits_lr_times_100(x_train, y_train, rng=None):
+    return _train_cnn(x_train, y_train, rng, lr=100 * 0.3)
+
+
+train_digits = Check(
+    public=_digits_public,
+    hidden=_digits_hidden,
+    compare=HeldOutAccuracy(),
+    mistakes=[_digits_no_normalisation, _digits_lr_times_100],
+    call=train_then_predict,
+    arg_names=("x_train", "y_train", "x_eval", "seed"),
+    output_names=("labels",),
+    time_limit=BUDGET_SECONDS,
+    credit=_digits_credit,
+)

@@ -12,7 +12,7 @@ from typing import Callable
 
 from .problems import least_squares_call
 
-__all__ = ["bind_call", "instance_call", "least_squares_call", "call_with_test_function", "TestFunction", "TEST_FUNCTIONS",
+__all__ = ["bind_call", "instance_call", "train_then_predict", "least_squares_call", "call_with_test_function", "TestFunction", "TEST_FUNCTIONS",
            "CACHE_KEYS", "call_relu_forward", "call_sigmoid_forward", "call_leaky_relu_forward", "call_linear_forward",
            "call_conv2d_forward", "call_maxpool2d_forward", "call_global_avg_pool_forward", "call_batchnorm2d_forward",
            "call_dropout_forward", "call_residual_block_forward"]
@@ -40,6 +40,24 @@ def instance_call(cls, arg, method, *args, **kwargs):
     class by building ``cls(points)`` and returning ``.query(q, k=2)``.
     """
     return getattr(cls(arg), method)(*args, **kwargs)
+
+
+def train_then_predict(candidate, x_train, y_train, x_eval, seed):
+    """``candidate(x_train, y_train, rng)`` returns a ``predict`` function; the case's output is
+    ``predict(x_eval)`` as int64 labels: a :attr:`Check.call` for exercises that train a model
+    (the labels of ``x_eval`` never enter the sandbox; the check's comparator keeps them).
+    ``rng`` is ``np.random.default_rng(seed)``."""
+    predict = candidate(x_train, y_train, np.random.default_rng(seed))
+    if not callable(predict):
+        raise TypeError(f"{getattr(candidate, '__name__', 'the function')} must return a function that predicts "
+                        f"labels, got {type(predict).__name__}")
+    labels = np.asarray(predict(np.array(x_eval, copy=True)))
+    if labels.shape != (len(x_eval),):
+        raise ValueError(f"predict(x) must return one label per image, shape ({len(x_eval)},), got shape "
+                         f"{labels.shape}")
+    if labels.dtype.kind not in "iub" and not (labels.dtype.kind == "f" and np.all(labels == np.round(labels))):
+        raise TypeError(f"predict(x) must return integer labels, got dtype {labels.dtype}")
+    return labels.astype(np.int64)
 
 
 # ---------------------------------------------------------------------------- learn
