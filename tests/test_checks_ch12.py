@@ -34,6 +34,8 @@ ARRAY_RANDOM = ["train.stochastic_depth", "train.random_resized_crop", "train.cu
 _check = harness.check_of
 _reference = harness.reference_of
 MISTAKES = harness.mistakes_of(CH12)
+#: the measured exercise (§12.5.4): graded by the accuracy it reaches, not value by value
+MEASURED = ["train.train_digits"]
 
 
 # --------------------------------------------------------------------------------------------
@@ -41,8 +43,8 @@ MISTAKES = harness.mistakes_of(CH12)
 # --------------------------------------------------------------------------------------------
 def test_every_catalog_id_of_the_chapter_is_registered_with_a_check():
     ids = {a.id for a in registry.algorithms() if a.module == "train"}
-    assert ids == set(CH12)
-    for algorithm_id in CH12:
+    assert ids == set(CH12) | set(MEASURED)
+    for algorithm_id in CH12 + MEASURED:
         record = registry.get(algorithm_id)
         assert record.section.startswith("12.")
         assert record.check is getattr(train_checks, algorithm_id.split(".")[1])
@@ -140,7 +142,7 @@ def _notebook_solutions():
 def test_notebook_solutions_pass_public_and_hidden_cases():
     solutions = _notebook_solutions()
     # the chapter's own ids, plus the dropout layer of §12.3.6 (its check lives with the nn layers)
-    assert set(solutions) == set(CH12) | {"nn.dropout_forward", "nn.dropout_backward"}
+    assert set(solutions) == set(CH12) | set(MEASURED) | {"nn.dropout_forward", "nn.dropout_backward"}
     for algorithm_id, function in solutions.items():
         harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
 
@@ -264,3 +266,146 @@ def test_float32_results_are_refused_where_float64_is_the_convention():
     report = evaluate("train.ensemble_predict", ensemble_predict, hidden=True, seed=SEEDS[0])
     failed = [c for c in report.cases if not c.passed]
     assert [c.label for c in failed] == ["float32 logits"], report.text()
+
+
+# --------------------------------------------------------------------------------------------
+# the measured exercise: train.train_digits, graded by its accuracy on held-out digits
+# --------------------------------------------------------------------------------------------
+from cvkit.grading import hidden_seed  # noqa: E402
+from cvkit.train import _digits as digits_task  # noqa: E402
+
+DIGITS = "train.train_digits"
+DIGIT_SEEDS = (101, 202)
+
+
+def _credits(report):
+    return [case.credit for case in report.cases]
+
+
+def test_the_scale_is_piecewise_linear_between_its_published_corners():
+    credit = digits_task.accuracy_credit
+    for accuracy, share in digits_task.ACCURACY_SCALE:
+        assert credit(accuracy) == pytest.approx(share)
+    (a0, s0), (a1, s1) = digits_task.ACCURACY_SCALE[:2]
+    assert credit((a0 + a1) / 2) == pytest.approx((s0 + s1) / 2)
+    assert credit(0.0) == 0.0 and credit(0.5) == 0.0          # flat below the bottom
+    assert credit(1.0) == 1.0                                  # and above the top
+    shares = [s for _, s in digits_task.ACCURACY_SCALE]
+    assert shares[0] == 0.0 and shares[-1] == 1.0 and shares == sorted(shares)
+
+
+def test_the_notebook_publishes_the_scale_and_the_budget_the_check_applies():
+    spec = _check(DIGITS)
+    assert spec.time_limit == digits_task.BUDGET_SECONDS == 30.0
+    cells = json.loads(NOTEBOOK.read_text())["cells"]
+    statement = next("".join(c["source"]) for c in cells
+                     if c["cell_type"] == "markdown" and "`train_digits(x_train, y_train, rng)`" in "".join(c["source"]))
+    assert f"**{digits_task.BUDGET_SECONDS:g} seconds**" in statement
+    row = next(line for line in statement.splitlines() if line.strip().startswith("| share of"))
+    for accuracy, share in digits_task.ACCURACY_SCALE:
+        assert f"{100 * accuracy:g} %" in statement
+        assert f" {share:g} |" in row
+    hidden = next(c for c in cells if c.get("metadata", {}).get("nbgrader", {}).get("grade_id") == "train_digits_hidden")
+    points = hidden["metadata"]["nbgrader"]["points"]
+    assert f"hidden test's {points} points" in statement
+    assert f"points={points})" in "".join(hidden["source"])
+
+
+def test_the_reference_recipe_clears_the_top_of_the_scale():
+    """Public case and the hidden cases of two students: every case passes with full credit,
+    and the accuracy reached is at the top of the scale or above."""
+    top = digits_task.ACCURACY_SCALE[-1][0]
+    reports = harness.grade_everywhere(DIGITS, _reference(DIGITS), DIGIT_SEEDS)
+    for report in reports:
+        assert report.passed and report.score == 1.0, report.text()
+        assert _credits(report) == [1.0] * len(report.cases)
+        for case in report.cases:
+            assert train_checks.HeldOutAccuracy.accuracy(case.got, _case_of(report, case)) >= top
+
+
+def _case_of(report, result):
+    spec = _check(DIGITS)
+    cases = spec.hidden_cases(np.random.default_rng(report.seed)) if report.hidden else spec.public_cases()
+    return cases[result.index]
+
+
+@pytest.mark.parametrize("name", [m.name for m in _check(DIGITS).bank])
+def test_a_broken_recipe_falls_below_the_scale(name):
+    """No normalisation, or a learning rate 100 times too large: every case fails and earns
+    nothing (the accuracy is far below the bottom of the scale)."""
+    mistake = _check(DIGITS).mistake(name)
+    bottom = digits_task.ACCURACY_SCALE[0][0]
+    for report in harness.grade_everywhere(DIGITS, mistake.function, DIGIT_SEEDS):
+        assert not report.passed and report.score == 0.0, report.text()
+        for case in report.cases:
+            assert train_checks.HeldOutAccuracy.accuracy(case.got, _case_of(report, case)) < bottom
+            assert "below 97 %, the top of the scale" in case.message
+            if train_checks.HeldOutAccuracy.accuracy(case.got, _case_of(report, case)) < 0.3:
+                assert "diverged" in case.message
+
+
+def test_train_digits_stub_scores_zero():
+    harness.assert_stub_scores_zero(DIGITS, DIGIT_SEEDS)
+
+
+def _four_percent_worse(x_train, y_train, rng=None):
+    """The reference recipe (its unregistered twin: a candidate may not call the registered
+    one) with 4 % of its predictions shifted to the next label."""
+    predict = digits_task.train_cnn(x_train, y_train, rng)
+
+    def spoiled(x):
+        labels = np.array(predict(x))
+        k = int(0.04 * len(labels))
+        labels[:k] = (labels[:k] + 1) % 10
+        return labels
+    return spoiled
+
+
+def test_partial_credit_follows_the_scale():
+    """A recipe between the corners of the scale earns the scale's share, not 0 or 1."""
+    worse = _four_percent_worse
+    for report in harness.grade_everywhere(DIGITS, worse, DIGIT_SEEDS[:1]):
+        (result,) = report.cases
+        accuracy = train_checks.HeldOutAccuracy.accuracy(result.got, _case_of(report, result))
+        assert not report.passed
+        assert result.credit is not None and 0.0 < result.credit < 1.0, result.message
+        assert report.score == pytest.approx(digits_task.accuracy_credit(accuracy))
+        assert report.to_dict()["cases"][0]["credit"] == pytest.approx(result.credit, abs=1e-6)
+
+
+def test_held_out_digits_differ_per_student_and_never_enter_the_sandbox():
+    from cvkit.data import digits
+
+    spec = _check(DIGITS)
+    (a, _), (b, _) = digits(flatten=False)
+    known = np.concatenate([a, b]).reshape(len(a) + len(b), -1)
+    drawn = []
+    for student in ("student-a", "student-b"):
+        seed = hidden_seed(DIGITS, student=student, salt="course-salt")
+        (case,) = spec.hidden_cases(np.random.default_rng(seed))
+        (again,) = spec.hidden_cases(np.random.default_rng(seed))
+        x_train, y_train, x_eval, _ = case.args
+        assert np.array_equal(x_eval, again.args[2]) and np.array_equal(case.truth, again.truth)
+        assert case.truth.shape == (len(x_eval),) and not case.kwargs
+        # the labels to predict are nowhere in what the sandbox receives
+        assert not any(isinstance(arg, np.ndarray) and arg.shape == case.truth.shape for arg in case.args[1:2]) \
+            or len(y_train) != len(case.truth)
+        # every image to predict differs from every digit of cvkit.data.digits (whatever the camera)
+        flat = x_eval.reshape(len(x_eval), -1)
+        standard = (flat - flat.mean(axis=1, keepdims=True)) / flat.std(axis=1, keepdims=True)
+        ref = (known - known.mean(axis=1, keepdims=True)) / (known.std(axis=1, keepdims=True))
+        nearest = np.min(((standard[:, None, :] - ref[None, :50, :]) ** 2).sum(-1), axis=1)
+        assert np.all(nearest > 0)
+        drawn.append((x_train, x_eval, case.truth))
+    (t1, e1, y1), (t2, e2, y2) = drawn
+    assert not np.array_equal(e1, e2) and not np.array_equal(y1, y2)
+    assert not np.array_equal(t1, t2)
+
+
+def test_a_predict_of_the_wrong_shape_fails_with_a_message():
+    def wrong(x_train, y_train, rng=None):
+        return lambda x: np.zeros((len(x), 10))
+
+    report = evaluate(DIGITS, wrong)
+    assert not report.passed and report.score == 0.0
+    assert "one label per image" in report.cases[0].message
