@@ -9,7 +9,7 @@ digits the student never sees, drawn per student at grading time
 
 The reference recipe (:func:`train_digits`):
 
-* the network conv 3×3 (8) – batch norm – ReLU – max-pool 2 – conv 3×3 (16) – batch norm –
+* the network conv 3×3 (16) – batch norm – ReLU – max-pool 2 – conv 3×3 (32) – batch norm –
   ReLU – max-pool 2 – flatten – linear (10), every layer called through the registry, so that
   ``with cvkit.use("student"):`` trains it on a student's Chapter 10 layers;
 * inputs standardised with the training set's mean and standard deviation;
@@ -204,9 +204,9 @@ def registry_blocks() -> dict[str, Callable[..., Any]]:
 
 
 def train_cnn(x_train: ArrayLike, y_train: ArrayLike, rng: np.random.Generator | int | None = None, *,
-              normalise: bool = True, lr: float = 0.3, epochs: int = 15, batch_size: int = 32,
+              normalise: bool = True, lr: float = 0.3, epochs: int = 20, batch_size: int = 32,
               weight_decay: float = 5e-4, label_smoothing: float = 0.05, shift: bool = False,
-              warmup_epochs: float = 1.0,
+              warmup_epochs: float = 1.0, channels: tuple[int, int] = (16, 32),
               blocks: dict[str, Callable[..., Any]] | None = None) -> Callable[[ArrayLike], np.ndarray]:
     """Train the chapter's CNN with a recipe; returns ``predict(x) -> labels``.
 
@@ -230,7 +230,6 @@ def train_cnn(x_train: ArrayLike, y_train: ArrayLike, rng: np.random.Generator |
     y = np.asarray(y_train).astype(np.int64)
     mean, std = (float(x.mean()), float(x.std()) + 1e-8) if normalise else (0.0, 1.0)
     x = (x - mean) / std
-    channels = (8, 16)
     p: dict[str, np.ndarray] = {
         "w1": generator.standard_normal((channels[0], 1, 3, 3)) * np.sqrt(2.0 / 9),
         "b1": np.zeros(channels[0]),
