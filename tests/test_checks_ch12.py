@@ -388,8 +388,9 @@ def test_held_out_digits_differ_per_student_and_never_enter_the_sandbox():
         assert np.array_equal(x_eval, again.args[2]) and np.array_equal(case.truth, again.truth)
         assert case.truth.shape == (len(x_eval),) and not case.kwargs
         # the labels to predict are nowhere in what the sandbox receives
-        assert not any(isinstance(arg, np.ndarray) and arg.shape == case.truth.shape for arg in case.args[1:2]) \
-            or len(y_train) != len(case.truth)
+        assert not any(isinstance(arg, np.ndarray) and arg.shape == case.truth.shape and np.array_equal(arg, case.truth)
+                       for arg in case.args)
+        assert len(y_train) == len(x_train) and len(y_train) + len(case.truth) == len(known)
         # every image to predict differs from every digit of cvkit.data.digits (whatever the camera)
         flat = x_eval.reshape(len(x_eval), -1)
         standard = (flat - flat.mean(axis=1, keepdims=True)) / flat.std(axis=1, keepdims=True)
