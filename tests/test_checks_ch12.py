@@ -1,6 +1,10 @@
 """The Chapter 12 checks are worth their points: the reference and correct alternatives pass,
 every mistake of every bank fails (public AND hidden cases) and is named, a stub scores 0,
-and the random functions are graded by properties, not draws."""
+and the random functions are graded by properties, not draws. The measured exercise
+(``train.train_digits``) is graded by the accuracy a trained network reaches on held-out digits:
+the reference recipe clears the top of the published scale, the broken recipes of its bank fall
+below it (a diverged run looks the same whatever made it diverge, so they are not told apart by
+name), and partial credit follows the scale."""
 from __future__ import annotations
 
 import dataclasses
