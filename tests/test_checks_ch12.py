@@ -414,3 +414,31 @@ def test_a_predict_of_the_wrong_shape_fails_with_a_message():
     report = evaluate(DIGITS, wrong)
     assert not report.passed and report.score == 0.0
     assert "one label per image" in report.cases[0].message
+
+
+def test_in_the_sandbox_a_recipe_below_the_top_keeps_its_visible_point_and_earns_its_share():
+    """Trusted grading of the notebook in bubblewrap with a shortened recipe (3 epochs): the
+    hidden test earns the share of its points the scale gives, the visible test is not taken
+    for memorised answers (a measured case that earned credit counts as telling), and the
+    model solution earns everything."""
+    import copy
+
+    import nbformat
+
+    from cvkit.grading.trusted import grade_notebook
+
+    source = nbformat.read(NOTEBOOK, as_version=4)
+    short = copy.deepcopy(source)
+    (answer,) = [c for c in short.cells if c.get("metadata", {}).get("nbgrader", {}).get("grade_id") == "train_digits_answer"]
+    assert "epochs, batch, lr = 20, 32, 0.3" in answer.source
+    answer.source = answer.source.replace("epochs, batch, lr = 20, 32, 0.3", "epochs, batch, lr = 3, 32, 0.3")
+    for book, full in ((source, True), (short, False)):
+        grade = grade_notebook(book, student="student-a", salt="e2e-salt", source_notebook=source)
+        hidden, _ = grade.credit("train_digits_hidden", 4)
+        visible_reports = [report for _, report in grade.reports["train_digits_visible"]]
+        assert not any("memorised" in case.message for report in visible_reports for case in report.cases)
+        assert not any("passes only the public cases (train.train_digits)" in flag for flag in grade.flags)
+        if full:
+            assert hidden == 4.0 and grade.credit("train_digits_visible", 1)[0] == 1.0
+        else:
+            assert 0.0 < hidden

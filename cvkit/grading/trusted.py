@@ -290,7 +290,10 @@ def grade_notebook(notebook: Any, *, student: str, salt: str, source_notebook: A
             for case_result in report.cases:
                 case = plan.cases[case_result.index] if case_result.index < len(plan.cases) else None
                 if case is not None and not _trivial(case, case_result.expected):
-                    telling[call.algorithm_id] = telling.get(call.algorithm_id, False) or case_result.passed
+                    # a measured case that earned part of its points (Check.credit) did real work
+                    # on data the student never saw: that tells too
+                    earned = case_result.passed or bool(case_result.credit)
+                    telling[call.algorithm_id] = telling.get(call.algorithm_id, False) or earned
     _hard_coding_rule(result, telling)
     return result
 
@@ -541,7 +544,8 @@ def _trivial(case, expected) -> bool:
 
 def _hard_coding_rule(result: NotebookGrade, telling: dict[str, bool]) -> None:
     """A function that passes the public cases but none of the hidden cases that tell anything
-    (see :func:`_trivial`) has most likely memorised the public answers: its visible test gets
+    (see :func:`_trivial`; a hidden case of a measured check that earned part of its credit
+    counts as passed here) has most likely memorised the public answers: its visible test gets
     no credit either, nor do the trivial hidden cases it passed, and it is flagged."""
     memorised = {call.algorithm_id for entries in result.reports.values() for call, report in entries
                  if not call.hidden and report.passed and telling.get(call.algorithm_id) is False}
