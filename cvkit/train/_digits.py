@@ -10,8 +10,10 @@ digits the student never sees, drawn per student at grading time
 The reference recipe (:func:`train_digits`):
 
 * the network conv 3×3 (16) – batch norm – ReLU – max-pool 2 – conv 3×3 (32) – batch norm –
-  ReLU – max-pool 2 – flatten – linear (10), every layer called through the registry, so that
-  ``with cvkit.use("student"):`` trains it on a student's Chapter 10 layers;
+  ReLU – max-pool 2 – flatten – linear (10), on compact layers of this module
+  (:data:`FAST_BLOCKS`: graded as a candidate, the reference may call no registered function);
+  ``train_cnn(..., blocks=registry_blocks())`` trains the same network on the registry's layers,
+  which inside ``with cvkit.use("student"):`` are a student's Chapter 10 layers;
 * inputs standardised with the training set's mean and standard deviation;
 * plain mini-batch SGD with weight decay (``train.sgd_weight_decay_step``), a linear warm-up
   (``train.warmup``) then a cosine decay (``train.cosine_decay``), soft targets from
