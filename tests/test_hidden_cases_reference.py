@@ -27,6 +27,14 @@ SALT = "issue-17-sweep"
 STUDENTS = [f"student-{i:03d}" for i in range(N_SEEDS)]
 
 CHECKED = [a.id for a in registry.algorithms() if a.check is not None]
+#: a measured check's hidden case is a whole training run (train.train_digits: about 2.5 s of CPU),
+#: so its reference is swept over the first seeds only; tests/test_checks_ch12.py shows the
+#: reference recipe clears the top of the scale on other students' digits as well
+MEASURED_SEEDS = 6
+
+
+def _students(algorithm_id: str) -> list[str]:
+    return STUDENTS[:MEASURED_SEEDS] if registry.get(algorithm_id).check.credit is not None else STUDENTS
 
 
 def _reference_failures(algorithm_id, cases, where):
@@ -72,8 +80,8 @@ def sweep():
     found = {algorithm_id: [] for algorithm_id in CHECKED}
     context = multiprocessing.get_context("spawn")
     with concurrent.futures.ProcessPoolExecutor(max_workers=os.cpu_count() or 2, mp_context=context) as pool:
-        jobs = [pool.submit(sweep_part, algorithm_id, STUDENTS[i:i + chunk], i == 0)
-                for algorithm_id in CHECKED for i in range(0, N_SEEDS, chunk)]
+        jobs = [pool.submit(sweep_part, algorithm_id, _students(algorithm_id)[i:i + chunk], i == 0)
+                for algorithm_id in CHECKED for i in range(0, len(_students(algorithm_id)), chunk)]
         for job in concurrent.futures.as_completed(jobs):
             algorithm_id, failures = job.result()
             found[algorithm_id] += failures
@@ -84,7 +92,7 @@ def sweep():
 def test_reference_computes_every_hidden_case(algorithm_id, sweep):
     failures = sweep[algorithm_id]
     assert not failures, (
-        f"the reference of {algorithm_id} raises on {len(failures)} case(s) (over {N_SEEDS} seeds); "
+        f"the reference of {algorithm_id} raises on {len(failures)} case(s) (over {len(_students(algorithm_id))} seeds); "
         "grading would drop them:\n" + "\n".join(
             f"  {where}: case {number} ({label}): {error}" for where, number, label, error in failures[:40])
         + ("\n  ..." if len(failures) > 40 else "")
