@@ -17,7 +17,7 @@ BIN = VENV / ("Scripts" if os.name == "nt" else "bin")
 STAMP = VENV / ".cvkit-installed"
 # What each extra brings along (pyproject.toml): ``test`` includes ``course``, which includes
 # ``learn`` and ``data`` (every chapter's data: Chapters 9-12 load scikit-learn's digits).
-_INCLUDES = {"test": {"test", "course", "learn", "data", "distributed", "hub"}, "course": {"course", "data", "learn"},
+_INCLUDES = {"test": {"test", "course", "learn", "data", "distributed", "hub", "lms"}, "course": {"course", "data", "learn"},
              "hub": {"hub", "course", "data", "learn"}}
 
 
