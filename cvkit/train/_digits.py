@@ -98,8 +98,8 @@ def _shift(x: np.ndarray, generator: np.random.Generator) -> np.ndarray:
     """Every image of ``x`` (N, C, H, W) translated by (dy, dx) ∈ {−1, 0, 1}², zero fill."""
     n, c, h, w = x.shape
     padded = np.pad(x, ((0, 0), (0, 0), (1, 1), (1, 1)))
-    dy = generator.integers(0, 3, n)
-    dx = generator.integers(0, 3, n)
+    dy = np.asarray(generator.integers(0, 3, n))
+    dx = np.asarray(generator.integers(0, 3, n))
     rows = (dy[:, None] + np.arange(h))[:, None, :, None]
     cols = (dx[:, None] + np.arange(w))[:, None, None, :]
     return padded[np.arange(n)[:, None, None, None], np.arange(c)[None, :, None, None], rows, cols]
