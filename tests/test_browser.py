@@ -448,8 +448,9 @@ def test_formgrader_lists_the_autograded_samples(browser, course):
             page.locator(".jp-LabShell").wait_for()
             page.evaluate("() => window.jupyterapp.commands.execute('nbgrader:open-formgrader')")
 
-        frame = page.frame_locator("iframe").first
+        frame = page.frame_locator("iframe").first  # the assignment's link in the table (its name is in the
+        # page's collapsed "Current configuration" too, where the due-date notice's settings name it)
         _retry("the formgrader inside JupyterLab", page, "formgrader-in-jupyterlab", open_formgrader,
-               lambda: frame.get_by_text(CHAPTER).first.wait_for(timeout=30_000))
+               lambda: frame.get_by_role("link", name=CHAPTER).first.wait_for(timeout=30_000))
         page.screenshot(path=str(ARTEFACTS / "formgrader-in-jupyterlab.png"))
         context.close()
