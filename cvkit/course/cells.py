@@ -6,8 +6,10 @@ Which cells are tests or answers is nbgrader's own rule (``nbgrader.utils``), th
 """
 from __future__ import annotations
 
+import json
 import re
-from typing import Any, Mapping
+from pathlib import Path
+from typing import Any, Iterator, Mapping
 
 from ..grading.runtime.cells import is_solution
 
@@ -78,3 +80,21 @@ def repaired_notebook(release: Mapping[str, Any], notebook: Mapping[str, Any]) -
         elif _is_answer(cell):
             cells += added(cell_id)
     return dict(release, cells=cells)
+
+
+def cell_outputs(folder: Path) -> Iterator[tuple[str | None, Mapping[str, Any]]]:
+    """(grade id or None, output) of every output of every cell of the notebooks in ``folder``
+    (a hand-in's or an autograded submission's), skipping what cannot be read: the one walk the
+    course's readers of reports (named mistakes, case verdicts, visible-test runs) share."""
+    for path in sorted(folder.glob("*.ipynb")):
+        try:
+            cells = json.loads(path.read_text()).get("cells", [])
+        except (OSError, ValueError, AttributeError):
+            continue
+        for cell in cells if isinstance(cells, list) else []:
+            if not isinstance(cell, dict):
+                continue
+            cell_id = grade_id(cell)
+            for output in cell.get("outputs", []) or []:
+                if isinstance(output, dict):
+                    yield cell_id, output

@@ -20,13 +20,13 @@ idempotent: notes written before are removed first, so turning the option off re
 from __future__ import annotations
 
 import html
-import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 from ..grading.report import MIME_TYPE
+from .cells import cell_outputs
 
 if TYPE_CHECKING:
     from .course import Course
@@ -140,16 +140,10 @@ def named_mistakes(folder: Path) -> set[tuple[str, str]]:
     """The (algorithm, mistake) pairs the trusted reports of one submission's autograded notebooks
     named (their test cells' outputs)."""
     found: set[tuple[str, str]] = set()
-    for path in sorted(folder.glob("*.ipynb")):
-        try:
-            cells = json.loads(path.read_text()).get("cells", [])
-        except (OSError, ValueError, AttributeError):
-            continue
-        for cell in cells if isinstance(cells, list) else []:
-            for output in cell.get("outputs", []) if isinstance(cell, dict) else []:
-                report = output.get("data", {}).get(MIME_TYPE) if isinstance(output, dict) else None
-                if isinstance(report, dict) and report.get("mistake") and report.get("algorithm"):
-                    found.add((str(report["algorithm"]), str(report["mistake"])))
+    for _, output in cell_outputs(folder):
+        report = (output.get("data") or {}).get(MIME_TYPE)
+        if isinstance(report, dict) and report.get("mistake") and report.get("algorithm"):
+            found.add((str(report["algorithm"]), str(report["mistake"])))
     return found
 
 

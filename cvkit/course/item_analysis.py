@@ -15,13 +15,12 @@ import base64
 import csv
 import html
 import io
-import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from .._text import printable
 from ..grading.report import MIME_TYPE
-from .cells import exercise_name, grade_id
+from .cells import cell_outputs, exercise_name
 from .item_stats import (FORMULAS, MIN_CORRELATION, MIN_DISCRIMINATION, AssignmentStats, Rate, Response, analyse,
                          reading)
 
@@ -61,22 +60,14 @@ def case_verdicts(folder: Path) -> dict[str, list[tuple[str, bool]]]:
     """exercise → ``(case label, passed)`` of every counted case of the trusted reports in the
     autograded notebooks of ``folder`` (empty for an unreadable notebook)."""
     found: dict[str, list[tuple[str, bool]]] = {}
-    for path in sorted(folder.glob("*.ipynb")):
-        try:
-            cells = json.loads(path.read_text()).get("cells", [])
-        except (OSError, ValueError, AttributeError):
+    for cell_id, output in cell_outputs(folder):
+        report = (output.get("data") or {}).get(MIME_TYPE)
+        if not cell_id or not isinstance(report, dict):
             continue
-        for cell in cells if isinstance(cells, list) else []:
-            cell_id = grade_id(cell) if isinstance(cell, dict) else None
-            if not cell_id:
-                continue
-            name = exercise_name(cell_id, answers=False)
-            for output in cell.get("outputs", []) or []:
-                report = output.get("data", {}).get(MIME_TYPE) if isinstance(output, dict) else None
-                for case in (report or {}).get("cases", []) if isinstance(report, dict) else []:
-                    if isinstance(case, dict) and "passed" in case:
-                        label = str(case.get("label") or f"case {int(case.get('index', 0)) + 1}")
-                        found.setdefault(name, []).append((label, bool(case["passed"])))
+        for case in report.get("cases", []) or []:
+            if isinstance(case, dict) and "passed" in case:
+                label = str(case.get("label") or f"case {int(case.get('index', 0)) + 1}")
+                found.setdefault(exercise_name(cell_id, answers=False), []).append((label, bool(case["passed"])))
     return found
 
 
@@ -86,21 +77,13 @@ def visible_runs(folder: Path) -> dict[str, int]:
     counted in the student's kernel since it started, saved with the notebook — data the student
     controls, for analytics only, never for a grade)."""
     found: dict[str, int] = {}
-    for path in sorted(folder.glob("*.ipynb")):
-        try:
-            cells = json.loads(path.read_text()).get("cells", [])
-        except (OSError, ValueError, AttributeError):
-            continue
-        for cell in cells if isinstance(cells, list) else []:
-            cell_id = grade_id(cell) if isinstance(cell, dict) else None
-            if not cell_id or not cell_id.endswith("_visible"):
-                continue
-            for output in cell.get("outputs", []) or []:
-                meta = (output.get("metadata") or {}).get(MIME_TYPE) if isinstance(output, dict) else None
-                runs = meta.get("visible_runs") if isinstance(meta, dict) else None
-                if isinstance(runs, int) and not isinstance(runs, bool) and 0 < runs <= 100_000:
-                    name = exercise_name(cell_id, answers=False)
-                    found[name] = max(found.get(name, 0), runs)
+    for cell_id, output in cell_outputs(folder):
+        meta = (output.get("metadata") or {}).get(MIME_TYPE)
+        runs = meta.get("visible_runs") if isinstance(meta, dict) else None
+        if cell_id and cell_id.endswith("_visible") and isinstance(runs, int) and not isinstance(runs, bool) \
+                and 0 < runs <= 100_000:
+            name = exercise_name(cell_id, answers=False)
+            found[name] = max(found.get(name, 0), runs)
     return found
 
 
