@@ -30,6 +30,7 @@ import urllib.request
 from pathlib import Path
 
 import pytest
+from browser_helpers import contrast
 
 from cvkit.course import Course, solution_sources, typical_mistakes
 
@@ -287,22 +288,7 @@ def _expected_mistake() -> str:
 
 def _contrast(page, locator) -> float:
     """WCAG contrast ratio of an element's text colour with the background it sits on."""
-    return page.evaluate("""(element) => {
-        const rgb = (text) => (text.match(/[\\d.]+/g) || []).slice(0, 4).map(Number);
-        const luminance = ([r, g, b]) => {
-            const f = (c) => { c /= 255; return c <= 0.03928 ? c / 12.92 : Math.pow((c + 0.055) / 1.055, 2.4); };
-            return 0.2126 * f(r) + 0.7152 * f(g) + 0.0722 * f(b);
-        };
-        let node = element, background = null;
-        while (node && node.nodeType === 1) {
-            const c = rgb(getComputedStyle(node).backgroundColor);
-            if (c.length === 3 || (c.length === 4 && c[3] > 0.5)) { background = c; break; }
-            node = node.parentElement;
-        }
-        background = background || [255, 255, 255];
-        const a = luminance(rgb(getComputedStyle(element).color)), b = luminance(background);
-        return (Math.max(a, b) + 0.05) / (Math.min(a, b) + 0.05);
-    }""", locator.element_handle())
+    return contrast(page, locator)
 
 
 # ---------------------------------------------------------------------------- tests

@@ -11,6 +11,7 @@ import shutil
 from pathlib import Path
 
 import pytest
+from browser_helpers import contrast
 from test_course_scaling import ASSIGNMENT, STUDENTS, cell_grades, make_course
 from test_course_scaling import project  # noqa: F401  (the tiny chapter's project, a fixture)
 
@@ -102,22 +103,6 @@ def test_an_empty_course_writes_a_page_saying_so(tmp_path):
         ",".join(item_analysis.CSV_COLUMNS)
 
 
-CONTRAST = """(element) => {
-    const rgb = (text) => (text.match(/[\\d.]+/g) || []).slice(0, 4).map(Number);
-    const luminance = ([r, g, b]) => {
-        const f = (c) => { c /= 255; return c <= 0.03928 ? c / 12.92 : Math.pow((c + 0.055) / 1.055, 2.4); };
-        return 0.2126 * f(r) + 0.7152 * f(g) + 0.0722 * f(b);
-    };
-    let node = element, background = null;
-    while (node && node.nodeType === 1) {
-        const c = rgb(getComputedStyle(node).backgroundColor);
-        if (c.length === 3 || (c.length === 4 && c[3] > 0.5)) { background = c; break; }
-        node = node.parentElement;
-    }
-    background = background || [255, 255, 255];
-    const a = luminance(rgb(getComputedStyle(element).color)), b = luminance(background);
-    return (Math.max(a, b) + 0.05) / (Math.min(a, b) + 0.05);
-}"""
 
 
 def test_page_in_a_browser_offline(graded):
@@ -156,7 +141,7 @@ def test_page_in_a_browser_offline(graded):
             assert MISTAKE in page.locator("table").nth(1).inner_text()
             for selector in ("h1", "h2", "p", "td", "th", "figcaption", ".warning", "summary", "dd"):
                 for i in range(min(page.locator(selector).count(), 8)):
-                    ratio = page.evaluate(CONTRAST, page.locator(selector).nth(i).element_handle())
+                    ratio = contrast(page, page.locator(selector).nth(i))
                     assert ratio >= 4.5, (selector, i, ratio)
             assert not remote and not dialogs, (remote, dialogs)
         finally:

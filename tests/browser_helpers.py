@@ -1,0 +1,27 @@
+"""What the browser tests share: the WCAG contrast of a rendered element with its background."""
+from __future__ import annotations
+
+#: the contrast ratio (WCAG 2) of an element's text colour with the first opaque background
+#: around it (white when none), computed in the page
+CONTRAST = """(element) => {
+        const rgb = (text) => (text.match(/[\\d.]+/g) || []).slice(0, 4).map(Number);
+        const luminance = ([r, g, b]) => {
+            const f = (c) => { c /= 255; return c <= 0.03928 ? c / 12.92 : Math.pow((c + 0.055) / 1.055, 2.4); };
+            return 0.2126 * f(r) + 0.7152 * f(g) + 0.0722 * f(b);
+        };
+        let node = element, background = null;
+        while (node && node.nodeType === 1) {
+            const c = rgb(getComputedStyle(node).backgroundColor);
+            if (c.length === 3 || (c.length === 4 && c[3] > 0.5)) { background = c; break; }
+            node = node.parentElement;
+        }
+        background = background || [255, 255, 255];
+        const a = luminance(rgb(getComputedStyle(element).color)), b = luminance(background);
+        return (Math.max(a, b) + 0.05) / (Math.min(a, b) + 0.05);
+    }"""
+
+
+def contrast(page, element) -> float:
+    """WCAG contrast ratio of ``element``'s (a locator or an element handle) text with its background."""
+    handle = element.element_handle() if hasattr(element, "element_handle") else element
+    return page.evaluate(CONTRAST, handle)
