@@ -64,7 +64,7 @@ def sandbox_cost(repeats: int = 10) -> float:
     cost per notebook is twice this figure."""
     import numpy as np
 
-    from cvkit.grading import isolation, sandbox
+    from cvkit.sandbox import isolation, session as sandbox
 
     isolation.require()
     cells = ["def f(x):\n    return x + 1"]

@@ -3,8 +3,8 @@
 A simulated class (``tests/simulated_class.py``) answers Chapter 3's 13 exercises from three
 common sources (the instructor's solution, cvkit's reference, an independent version), each
 student changing names, swapping independent statements and adding comments; three students
-answer on their own. The answers go to :func:`cvkit.grading.similarity.similar_pairs` directly
-(no grading), then :func:`~cvkit.grading.similarity.groups`, ``write_html`` and ``write_csv``.
+answer on their own. The answers go to :func:`cvkit.course.similarity.similar_pairs` directly
+(no grading), then :func:`~cvkit.course.similarity.groups`, ``write_html`` and ``write_csv``.
 
 ``--distinct`` adds one to three useless statements to every copy, so that no two students'
 texts are the same once normalised: every pair is then measured (the costliest case; without
@@ -33,7 +33,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 def run(students: int, distinct: bool, seed: int) -> dict:
     import simulated_class
 
-    from cvkit.grading import similarity
+    from cvkit.course import similarity
 
     exercises = simulated_class.exercises()
     sources = simulated_class.sources(exercises)

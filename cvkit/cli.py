@@ -245,7 +245,7 @@ def _summary(course, jobs) -> list[str]:
         lines.append(f"environment: {cause}: the cells as released of {', '.join(chapters)} failed in {count} "
                      f"submission{'s' * (count != 1)}, not the students' doing: {fix}, then "
                      "cvkit course grade " + " ".join(f"--regrade {c}" for c in chapters))
-    from .grading import isolation
+    from .sandbox import isolation
 
     note = None if isolation.sandbox_disabled() else isolation.limits_fallback()
     if note:
@@ -311,7 +311,7 @@ def _cmd_grade(args) -> int:
             _show(line)
         return 1
     from .course.parallel import ClusterUnavailable
-    from .grading.isolation import SandboxUnavailable
+    from .sandbox.isolation import SandboxUnavailable
 
     regrade = _regrade_option(args.regrade)
     if isinstance(regrade, list):
@@ -497,7 +497,7 @@ def _cmd_demo(args) -> int:
         course.make_samples(a)
     print(f"[3/4] autograding with nbgrader ({args.workers} workers), feedback pages, exports, similarity report",
           flush=True)
-    from .grading.isolation import SandboxUnavailable
+    from .sandbox.isolation import SandboxUnavailable
 
     try:
         results = course.grade(assignments, workers=args.workers, progress=True, sandbox=not args.no_sandbox)

@@ -97,7 +97,7 @@ CVKIT = "cvkit"
 _NAMESPACE = r"[a-z_][a-z0-9_]*"
 _ID_PATTERN = re.compile(rf"^{_NAMESPACE}\.[A-Za-z_][A-Za-z0-9_]*$")
 # cvkit modules that are infrastructure, not algorithm topics
-_NOT_TOPICS = {"registry", "grading", "cli", "course", "data", "catalog", "scaffold", "_validation"}
+_NOT_TOPICS = {"registry", "grading", "sandbox", "cli", "course", "data", "catalog", "scaffold", "_validation"}
 _PACKAGE_DIR = Path(__file__).resolve().parent
 
 _lock = threading.RLock()

@@ -1,6 +1,6 @@
 """Test-session set-up shared by every test module.
 
-Grading runs student code inside bubblewrap (``cvkit.grading.isolation``). On a fresh Debian
+Grading runs student code inside bubblewrap (``cvkit.sandbox.isolation``). On a fresh Debian
 machine the suite installs it with apt-get, as the browser test installs Chromium, and in the
 same way as ``scripts/demo`` and ``scripts/lab`` (``scripts/_system.py``); where that is
 impossible the grading tests fail with the installation hint (they are never skipped: a grader
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from cvkit.grading.startup import skip_unused_schema_grammars
+from cvkit.sandbox.startup import skip_unused_schema_grammars
 
 # the test processes import nbformat while collecting (course helpers, nbgrader's plugins): skip
 # jsonschema's IRI grammars there too, as every grading process does (1.4 s per pytest worker)
@@ -33,7 +33,7 @@ def _system_helpers():
 def grading_sandbox():
     """bubblewrap on this machine (installed once per session when missing)."""
     log = _system_helpers().install_bubblewrap()
-    from cvkit.grading import isolation
+    from cvkit.sandbox import isolation
 
     isolation._probe.clear()
     yield isolation.probe() or None

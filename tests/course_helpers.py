@@ -5,8 +5,8 @@ import ast
 
 from cvkit import registry
 from cvkit.grading import evaluate, hidden_seed
-from cvkit.grading.nbgrader_plugins import is_answer_cell, is_test_cell
-from cvkit.grading.trusted import submission_version
+from cvkit.grading.runtime.cells import is_solution as is_answer_cell, is_test_cell
+from cvkit.course.trusted import submission_version
 
 
 def _source(cell: dict) -> str:
@@ -18,7 +18,7 @@ def predict_scores(notebook: dict, student: str, salt: str, source: dict | None 
 
     Runs the setup cell and the answer cells in this process, then grades every
     ``check(...)`` call of the test cells with the seeds grading uses (salt, student, algorithm and
-    the version of the student's code, :func:`~cvkit.grading.trusted.submission_version`). As nbgrader's
+    the version of the student's code, :func:`~cvkit.course.trusted.submission_version`). As nbgrader's
     autograde does, test cells are taken from the ``source`` notebook when given (the
     submitted copy has its hidden tests stripped). Used by the tests to confirm that the
     course pipeline records exactly the engine's verdicts. Never use it on untrusted

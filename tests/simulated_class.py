@@ -1,4 +1,4 @@
-"""A simulated class's answers to Chapter 3, as :mod:`cvkit.grading.similarity` takes them.
+"""A simulated class's answers to Chapter 3, as :mod:`cvkit.course.similarity` takes them.
 
 Real classes' correct answers come from a few common sources: the textbook (the instructor's
 solution, cvkit's reference), a popular version found elsewhere, and each other. Here every
@@ -9,7 +9,7 @@ statements swapped, comments added. A few students write their own answer (uniqu
 independent correct version of another exercise's algorithm or a hand-written one).
 
 No grading is needed: :func:`answers` gives ``{student: {grade_id: text}}`` and
-:func:`exercises` the exercises, the inputs of :func:`cvkit.grading.similarity.similar_pairs`.
+:func:`exercises` the exercises, the inputs of :func:`cvkit.course.similarity.similar_pairs`.
 Used by ``tests/test_similarity_clusters.py`` and ``benchmarks/bench_similarity.py``.
 """
 from __future__ import annotations
@@ -40,15 +40,15 @@ def source_notebook() -> dict:
 
 
 def exercises() -> dict:
-    """Chapter 3's exercises (:func:`cvkit.grading.similarity.exercises_from`)."""
-    from cvkit.grading import similarity
+    """Chapter 3's exercises (:func:`cvkit.course.similarity.exercises_from`)."""
+    from cvkit.course import similarity
 
     return similarity.exercises_from(source_notebook())
 
 
 def sources(chosen: dict | None = None) -> dict[str, dict[str, str]]:
     """``{grade_id: {source kind: text}}`` for every exercise that has all three sources."""
-    from cvkit.grading import similarity
+    from cvkit.course import similarity
 
     chosen = exercises() if chosen is None else chosen
     solutions = similarity.answer_sources(source_notebook())

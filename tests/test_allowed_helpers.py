@@ -18,9 +18,8 @@ from cvkit import data, registry
 from cvkit.grading import evaluate
 from cvkit.grading.checks import bind_call
 from cvkit.grading.engine import _reference_output
-from cvkit.grading.reference_server import (
-    DATA_LOADERS, DATA_SOURCES, DATA_TRANSFORMS, _function, served_helpers,
-)
+from cvkit.grading.served import DATA_LOADERS, DATA_SOURCES, DATA_TRANSFORMS, served_helpers
+from cvkit.sandbox.reference_server import _function
 from cvkit.grading.runtime.guard import run_guarded
 
 ALGORITHMS = [record.id for record in registry.algorithms() if record.check is not None]

@@ -19,7 +19,7 @@ from cvkit import data, registry
 from cvkit.features import checks as ch
 from cvkit.features.checks import IndexRows, Keypoints, NeighbourSearch, PointSets
 from cvkit.grading import Case, evaluate, instance_call
-from cvkit.grading.trusted import grade_notebook
+from cvkit.course.trusted import grade_notebook
 
 try:
     from . import alternatives_ch05 as alt

@@ -425,7 +425,7 @@ def test_in_the_sandbox_a_recipe_below_the_top_keeps_its_visible_point_and_earns
 
     import nbformat
 
-    from cvkit.grading.trusted import grade_notebook
+    from cvkit.course.trusted import grade_notebook
 
     source = nbformat.read(NOTEBOOK, as_version=4)
     short = copy.deepcopy(source)

@@ -10,7 +10,7 @@ import pytest
 from cvkit.course.class_notes import (DEFAULT_MIN_CLASS, MIN_CLASS_FLOOR, Settings, annotate, mistake_shares, note,
                                       settings)
 from cvkit.grading import evaluate
-from cvkit.grading.safety import sanitize_html
+from cvkit.course.safety import sanitize_html
 
 ONES = "not normalised (all ones)"
 

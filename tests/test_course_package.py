@@ -299,7 +299,7 @@ def test_the_how_to_not_answered_line(installed, capsys):
 def test_answer_cells_cannot_reach_the_package(installed):
     """In the grading sandbox an answer cell may import NumPy, math and a little of the
     standard library: the course package is refused by name, and its files are not there."""
-    from cvkit.grading.sandbox import run_calls
+    from cvkit.sandbox.session import run_calls
 
     import mycourse.gamma_correction as reference_module  # importable on the trusted side
 

@@ -28,8 +28,7 @@ import pytest
 from cvkit.cli import main
 from cvkit.course import Course
 from cvkit.course.plan import LatePolicy, parse_due, read_plan
-from cvkit.grading import nbgrader_plugins
-from cvkit.grading.runtime import cells
+from cvkit.course import nbgrader_plugins
 
 ROOT = Path(__file__).resolve().parent.parent
 ASSIGNMENT = "ch99_tiny"
@@ -283,11 +282,6 @@ def test_git_ignores_everything_the_course_generates(graded):
 
 
 # ---------------------------------------------------------------------- trust and metadata
-def test_nbgrader_plugins_use_the_one_cell_rule():
-    assert nbgrader_plugins.is_test_cell is cells.is_test_cell
-    assert nbgrader_plugins.is_answer_cell is cells.is_solution
-
-
 def test_trusted_checks_refuse_to_grade_without_a_salt():
     nb = nbformat.from_dict(source_notebook())
     with pytest.raises(nbgrader_plugins.MissingSalt, match=r"cvkit course grade.*\.grading_salt"):

@@ -231,7 +231,7 @@ def test_an_unreachable_scheduler_is_named_and_nothing_is_recorded(people, place
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in err, err[-3000:]
     assert "Traceback" not in err, err[-3000:]
     # nothing recorded, as a zero or otherwise: no journal entry, no gradebook submission, no export
-    assert course._journal.entries() == {}
+    assert course.journal.entries() == {}
     assert not (course.root / "exports" / "grades.csv").exists()
     assert not (course.root / "feedback").exists()
     assert course.audit(course.submissions()) == sorted(course.submissions())
@@ -283,7 +283,7 @@ def test_the_cluster_grades_as_the_local_pool(people, place, cluster, local_grad
 
 def _executing_on_a_worker(uid: int) -> int | None:
     """The pid of a Dask worker process (``uid``'s) running a submission's notebook in the
-    sandbox: the parent of a ``bwrap`` that runs ``cvkit.grading.execute``."""
+    sandbox: the parent of a ``bwrap`` that runs ``cvkit.sandbox.notebook_run``."""
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
             continue
@@ -292,7 +292,7 @@ def _executing_on_a_worker(uid: int) -> int | None:
             command = (entry / "cmdline").read_bytes().split(b"\0")
             if status.get("Name", "").strip() != "bwrap" or int(status["Uid"].split()[0]) != uid:
                 continue
-            if b"cvkit.grading.execute" not in command:
+            if b"cvkit.sandbox.notebook_run" not in command:
                 continue
             parent = int(status["PPid"].strip())
             parent_command = (Path("/proc") / str(parent) / "cmdline").read_bytes()

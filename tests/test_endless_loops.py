@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from cvkit import registry
-from cvkit.grading import CheckFailed, check, sandbox
+from cvkit.grading import CheckFailed, check
+from cvkit.sandbox import session as sandbox
 from cvkit.grading.engine import evaluate
 from cvkit.grading.runtime.guard import Outcome, run_guarded, timeout_message
 
@@ -170,7 +171,7 @@ def test_a_hidden_case_that_did_not_return_gets_the_same_advice():
     """What crosses the sandbox's boundary of a hidden case is cut to what is the student's;
     the advice is rebuilt from the evidence (a word of a fixed set and line numbers)."""
     from cvkit.grading.report import CaseResult
-    from cvkit.grading.trusted import hidden_view
+    from cvkit.course.trusted import hidden_view
 
     cells = ["import numpy as np", "def f(a):\n    while True:\n        a = a + 1"]
     outcome = Outcome(error="did not return within 20 s: …", exception="Timeout", timed_out=True, loop="while",

@@ -1,4 +1,4 @@
-"""The execution step of autograding (cvkit.grading.execute): nbgrader's sanitizing rules,
+"""The execution step of autograding (cvkit.sandbox.notebook_run): nbgrader's sanitizing rules,
 then a run that records errors, goes on after them and interrupts a cell past its limit."""
 import copy
 import itertools
@@ -6,7 +6,8 @@ import json
 import subprocess
 import sys
 
-from cvkit.grading.execute import TIMEOUT_ERROR, execute, prepare
+from cvkit.course.notebook import prepare
+from cvkit.sandbox.notebook_run import TIMEOUT_ERROR, execute
 
 
 _IDS = itertools.count()
@@ -80,10 +81,10 @@ def test_command_line_marks_checks_as_decided_elsewhere(tmp_path):
     nb["cells"] = [_cell("import os\nprint(os.environ.get('CVKIT_TRUSTED_GRADING'))")]
     source, target = tmp_path / "in.ipynb", tmp_path / "out.ipynb"
     source.write_text(json.dumps(nb))
-    subprocess.run([sys.executable, "-m", "cvkit.grading.execute", str(source), str(target)], check=True,
+    subprocess.run([sys.executable, "-m", "cvkit.sandbox.notebook_run", str(source), str(target)], check=True,
                    capture_output=True, timeout=120)
     assert "".join(json.loads(target.read_text())["cells"][0]["outputs"][0]["text"]) == "1\n"
-    bad = subprocess.run([sys.executable, "-m", "cvkit.grading.execute", str(source)], capture_output=True, text=True)
+    bad = subprocess.run([sys.executable, "-m", "cvkit.sandbox.notebook_run", str(source)], capture_output=True, text=True)
     assert bad.returncode == 2 and "usage" in bad.stderr
 
 
@@ -92,7 +93,7 @@ def test_matplotlib_reads_a_font_list_made_once_and_kept_read_only(tmp_path, mon
     the student's outputs), and no notebook can change it for the next one."""
     import pytest
 
-    from cvkit.grading import execute as execution
+    from cvkit.sandbox import notebook_run as execution
 
     assert grading_sandbox is None, grading_sandbox
     pytest.importorskip("matplotlib")

@@ -1,4 +1,4 @@
-"""Feedback pages and grade exports are safe to open (cvkit.grading.safety).
+"""Feedback pages and grade exports are safe to open (cvkit.course.safety).
 
 A determined student controls the outputs of their cells (any MIME type, cvkit's report type
 included), their Markdown and raw cells, attachments and metadata. None of it may carry a
@@ -27,7 +27,7 @@ from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook, new_outp
 import cvkit.filters  # noqa: F401  (registers filters.pad)
 from cvkit.grading import evaluate
 from cvkit.grading.report import MIME_TYPE
-from cvkit.grading.safety import (
+from cvkit.course.safety import (
     MATHJAX_URL, SafeFeedbackExporter, SanitizeStudentContent, csv_safe, install_offline_mathjax, mathjax_files,
     safe_svg, sanitize_csv_file, sanitize_html, sanitize_notebook,
 )
@@ -84,7 +84,7 @@ def report():
 
 
 def trusted_bundle(report) -> dict:
-    from cvkit.grading.nbgrader_plugins import _bundle
+    from cvkit.course.nbgrader_plugins import _bundle
 
     return _bundle(report)
 
@@ -391,7 +391,7 @@ def feedback_exporter():
     """The exporter as the course configures GenerateFeedback (without the gradebook)."""
     from nbconvert.preprocessors import CSSHTMLHeaderPreprocessor
 
-    from cvkit.grading.nbgrader_plugins import HideHiddenTests
+    from cvkit.course.nbgrader_plugins import HideHiddenTests
 
     exporter = SafeFeedbackExporter(config=feedback_config())
     for preprocessor in (SanitizeStudentContent, HideHiddenTests, CSSHTMLHeaderPreprocessor):

@@ -254,7 +254,7 @@ def test_reference_errors_never_escape_evaluate(fragile):
 def test_trusted_grading_never_scores_a_dropped_case_and_tells_the_instructor(fragile):
     """Through the sandboxed trusted grader: the hidden case the reference cannot compute is
     not counted (a correct answer keeps full credit) and the instructor gets a flag."""
-    from cvkit.grading.trusted import grade_notebook
+    from cvkit.course.trusted import grade_notebook
 
     def code(source, grade_id, **meta):
         return {"cell_type": "code", "source": source, "outputs": [], "execution_count": None,

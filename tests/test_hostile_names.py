@@ -25,7 +25,7 @@ from cvkit.course import Course
 from cvkit.course.exports import format_table, similarity_summary
 from cvkit.course.journal import Journal
 from cvkit.course.results import ExerciseScore
-from cvkit.grading import isolation
+from cvkit.sandbox import isolation
 
 from test_course_scaling import ASSIGNMENT, _answers, make_course
 from test_course_scaling import project  # noqa: F401  (the tiny chapter's project, a fixture)

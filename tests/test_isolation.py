@@ -1,4 +1,4 @@
-"""The operating-system sandbox itself (cvkit.grading.isolation), one property at a time."""
+"""The operating-system sandbox itself (cvkit.sandbox.isolation), one property at a time."""
 import os
 import subprocess
 import sys
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from cvkit.grading import isolation
+from cvkit.sandbox import isolation
 
 ROOT = Path(__file__).resolve().parent.parent
 PYTHON = os.path.realpath(getattr(sys, "_base_executable", sys.executable))

@@ -54,7 +54,7 @@ def test_the_demo_grades_as_an_ordinary_user(instructor):
 
 def test_the_grading_worker_refuses_to_start_rather_than_grade_zeros(instructor, tmp_path):
     """If the worker cannot run in the sandbox at all, grading stops with what the sandbox said."""
-    script = ("from cvkit.grading import sandbox, isolation\n"
+    script = ("from cvkit.sandbox import session as sandbox, isolation\n"
               "sandbox.worker_interpreter = lambda: ('/nonexistent/python', [], [])\n"
               "try:\n    sandbox.require_worker()\nexcept isolation.SandboxUnavailable as error:\n"
               "    print('REFUSED', error)\n")

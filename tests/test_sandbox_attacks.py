@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from cvkit.course import Course
-from cvkit.grading import isolation, sandbox
+from cvkit.sandbox import isolation, session as sandbox
 
 from test_course_scaling import ASSIGNMENT, ROOT, _answers, _cell, cell_grades, make_course
 from test_course_scaling import project  # noqa: F401  (the tiny chapter's project, a fixture)

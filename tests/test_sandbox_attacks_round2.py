@@ -6,8 +6,8 @@ tiny chapter of three exercises: ``filters.median``, ``noise.add_gaussian`` and
 ``filters.mean_kernel``. Each attack asserts its exact grades (or that it is listed as not
 graded, with the reason), and every honest student keeps full marks. The attacks that
 need no course (a channel flood, the notebook's total time, a lookup table of hidden cases
-learned from an earlier attempt) are graded through :func:`~cvkit.grading.trusted.grade_notebook`
-and :func:`~cvkit.grading.sandbox.run_calls`, the trusted path every submission takes.
+learned from an earlier attempt) are graded through :func:`~cvkit.course.trusted.grade_notebook`
+and :func:`~cvkit.sandbox.session.run_calls`, the trusted path every submission takes.
 """
 import csv
 import json
@@ -23,11 +23,12 @@ import pytest
 
 from cvkit import registry
 from cvkit.course import Course
-from cvkit.grading import evaluate, hidden_seed, isolation, sandbox
-from cvkit.grading.execute import bounded, execute_in_sandbox
+from cvkit.grading import evaluate, hidden_seed
+from cvkit.sandbox import isolation, session as sandbox
+from cvkit.sandbox.notebook_run import bounded, execute_in_sandbox
 from cvkit.grading.runtime.guard import Outcome
-from cvkit.grading import trusted
-from cvkit.grading.trusted import grade_notebook, submission_version
+from cvkit.course import trusted
+from cvkit.course.trusted import grade_notebook, submission_version
 
 from test_course_scaling import ROOT, _cell
 
@@ -516,7 +517,7 @@ def test_the_execution_driver_is_closed_to_the_kernel(bubblewrap):
 
 def test_hidden_view_keeps_only_the_students_own_frames():
     from cvkit.grading.report import CaseResult
-    from cvkit.grading.trusted import hidden_view
+    from cvkit.course.trusted import hidden_view
 
     cells = ["x = 1", "def f(a):\n    secret = a\n    raise ValueError(str(secret))"]
     traceback_text = ('  File "<cell 1>", line 3, in f\nValueError: [0.123456, 0.654321]')

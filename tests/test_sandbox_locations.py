@@ -4,9 +4,9 @@ The sandbox mounts a private tmpfs on ``/tmp`` and ``/dev/shm``; an environment 
 before that tmpfs was hidden by it (``bwrap: execvp /tmp/…/.venv/bin/python: No such file or
 directory``). Each case below makes a kit and an environment the way a user would, at one
 place and of one kind, in a folder whose name has spaces, and grades through that
-environment's own Python in a subprocess: a sandboxed call (:func:`cvkit.grading.sandbox.run_calls`,
+environment's own Python in a subprocess: a sandboxed call (:func:`cvkit.sandbox.session.run_calls`,
 the worker that decides hidden cases: the base installation's Python, NumPy and the runtime)
-and a sandboxed notebook run (:func:`cvkit.grading.execute.execute_in_sandbox`: the
+and a sandboxed notebook run (:func:`cvkit.sandbox.notebook_run.execute_in_sandbox`: the
 environment's Python, its packages and the kit). The notebook also reports what it sees of the
 kit's folder: only the bound folders, never the files beside them.
 
@@ -41,7 +41,7 @@ from pathlib import Path
 
 import pytest
 
-from cvkit.grading import sandbox
+from cvkit.sandbox import session as sandbox
 
 ROOT = Path(__file__).resolve().parent.parent
 #: the distributions a graded run imports (and what they require): the worker needs NumPy, the
@@ -54,7 +54,7 @@ VERSION = f"python{sys.version_info.major}.{sys.version_info.minor}"
 PROBE = r'''
 import json, os, sys
 import cvkit
-from cvkit.grading import execute, isolation, sandbox
+from cvkit.sandbox import notebook_run as execute, isolation, sandbox
 
 kit, clone = sys.argv[1], sys.argv[2]
 result = sandbox.run_calls(["def f(x):\n    return x + 1"], [{"function": "f", "args": (1,), "kwargs": {}}])

@@ -1,4 +1,4 @@
-"""cvkit.grading.similarity: the similarity report (copydetect's winnowing on normalised tokens).
+"""cvkit.course.similarity: the similarity report (copydetect's winnowing on normalised tokens).
 
 Test data: Chapter 3's source notebook (its solutions and stubs), cvkit's references, the
 independent correct versions of ``tests/alternatives_ch03.py``, and a few answers written here
@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 
 from cvkit import filters
-from cvkit.grading import similarity
-from cvkit.grading.similarity import SOLUTION, THRESHOLD, Exercise, SimilarPair, reference_label
+from cvkit.course import similarity
+from cvkit.course.similarity import SOLUTION, THRESHOLD, Exercise, SimilarPair, reference_label
 
 pytest.importorskip("copydetect")
 sys.path.insert(0, str(Path(__file__).resolve().parent))

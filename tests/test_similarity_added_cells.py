@@ -1,4 +1,4 @@
-"""cvkit.grading.similarity: code in cells the student added is compared too.
+"""cvkit.course.similarity: code in cells the student added is compared too.
 
 Added cells run in the grader, so copied code placed in an added cell and called from the answer
 cell used to escape the report (the answer cells alone differ). Now each answer is compared
@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from cvkit.grading import similarity
-from cvkit.grading.similarity import ADDED, ALL_ADDED, SOLUTION, THRESHOLD, Answer
+from cvkit.course import similarity
+from cvkit.course.similarity import ADDED, ALL_ADDED, SOLUTION, THRESHOLD, Answer
 
 pytest.importorskip("copydetect")
 

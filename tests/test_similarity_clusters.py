@@ -1,4 +1,4 @@
-"""cvkit.grading.similarity at class scale: groups of similar answers, not pairs (issue #37, item 5).
+"""cvkit.course.similarity at class scale: groups of similar answers, not pairs (issue #37, item 5).
 
 Test data: a simulated class (``tests/simulated_class.py``): every student answers Chapter 3's
 13 exercises with a variation (names changed, independent statements swapped, comments added)
@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from cvkit.grading import similarity
-from cvkit.grading.similarity import SOLUTION, THRESHOLD, SimilarGroup, SimilarPair, reference_label
+from cvkit.course import similarity
+from cvkit.course.similarity import SOLUTION, THRESHOLD, SimilarGroup, SimilarPair, reference_label
 
 pytest.importorskip("copydetect")
 sys.path.insert(0, str(Path(__file__).resolve().parent))

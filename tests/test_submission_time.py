@@ -63,7 +63,7 @@ def course(project, tmp_path):  # noqa: F811 - the imported fixture
     (folder / "plan.toml").write_text(PLAN)
     with (folder / "nbgrader_config.py").open("a") as handle:
         handle.write(f"c.Exchange.root = {str(tmp_path / 'exchange')!r}\n")
-    course_id = made._config().CourseDirectory.course_id
+    course_id = made.config().CourseDirectory.course_id
     (tmp_path / "exchange" / course_id / "inbound").mkdir(parents=True)
     made.inbound = tmp_path / "exchange" / course_id / "inbound"
     return made

@@ -1,6 +1,6 @@
 """Trusted grading: the attack suite at the notebook level.
 
-Every attack is a real student notebook graded by :func:`cvkit.grading.trusted.grade_notebook`
+Every attack is a real student notebook graded by :func:`cvkit.course.trusted.grade_notebook`
 (the function nbgrader's TrustedChecks preprocessor calls): the student's code runs in an
 isolated worker, outputs come back as data, the verdict is made here. Each attack must be
 graded exactly as it deserves — zero for the cheated exercise, full marks for the honest one
@@ -16,8 +16,9 @@ import numpy as np
 import pytest
 
 from cvkit import registry
-from cvkit.grading import sandbox, wire
-from cvkit.grading.trusted import grade_notebook, hide_hidden_tests, scan
+from cvkit.grading import wire
+from cvkit.sandbox import session as sandbox
+from cvkit.course.trusted import grade_notebook, hide_hidden_tests, scan
 
 SETUP = textwrap.dedent("""\
     %matplotlib inline
@@ -330,7 +331,7 @@ def test_an_allowed_building_block_is_served_and_others_are_refused():
 
 
 def test_building_blocks_are_graded_before_the_exercises_that_use_them():
-    from cvkit.grading.trusted import CheckCall, _building_blocks_first
+    from cvkit.course.trusted import CheckCall, _building_blocks_first
 
     calls = [CheckCall("c", "filters.correlate", "correlate", False, None),
              CheckCall("p", "filters.pad", "pad", False, None),

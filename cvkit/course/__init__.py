@@ -11,14 +11,23 @@ the mistakes the checks recognised and the flags they raised.
 
 One job per module:
 
-- :mod:`.course` — :class:`Course`: the folder and its plan, salt, environment, nbgrader's
-  configuration and API, build, submit; the one object the command line uses;
+- :mod:`.state` — :class:`~.state.CourseState`, at the bottom: the folder and its plan, salt,
+  environment, nbgrader's configuration and API, the submissions as they lie, the journal;
+  every module below works on one;
+- :mod:`.notebook` — the notebook model: a submitted notebook parsed once
+  (:class:`~.notebook.Submitted`: repair, preparation for execution), the cells' readers;
+- :mod:`.course` — :class:`Course`, at the top: the state with the actions gathered (build,
+  submit, grade, feedback, exports); the one object the command line uses;
 - :mod:`.plan` — ``plan.toml``, the one source of truth for cvkit and plain nbgrader: due dates
   (into nbgrader's gradebook), the late-submission policy, which chapters are graded;
 - :mod:`.samples` — sample submissions (solutions, typical mistakes, blank);
-- :mod:`.jobs` and :mod:`.parallel` — the parallel phase: its picklable jobs
-  (:func:`execute_submission`, :func:`grade_submission`, :func:`feedback_submissions`) and
-  their driving on local processes or Dask;
+- :mod:`.jobs`, :mod:`.feedback` and :mod:`.parallel` — the parallel phase: its picklable
+  jobs (:func:`execute_submission`, :func:`grade_submission`, :func:`feedback_submissions`)
+  and their driving on local processes or Dask;
+- :mod:`.trusted` and :mod:`.nbgrader_plugins` — the checks of a notebook's test cells decided
+  outside the student's kernel, in the sandbox, and cvkit's steps in nbgrader's pipelines;
+- :mod:`.safety` — feedback pages with nothing executable from the student;
+- :mod:`.similarity` — answers compared across the class, in groups;
 - :mod:`.writer`, :mod:`.journal` and :mod:`.stamps` — the single writer of the gradebook
   (not-graded submissions, flags for the formgrader; it never runs student code: repairs are
   graded in worker processes) and its bookkeeping (journal with the due date and checks each
@@ -35,13 +44,14 @@ One job per module:
 Local parallel grading uses worker processes started with ``spawn``: a script that calls
 :meth:`Course.grade` needs the usual ``if __name__ == "__main__":`` guard.
 """
-from ..grading.startup import skip_unused_schema_grammars
+from ..sandbox.startup import skip_unused_schema_grammars
 
-skip_unused_schema_grammars()  # 1.4 s of CPU per grading process (see cvkit.grading.startup)
+skip_unused_schema_grammars()  # 1.4 s of CPU per grading process (see cvkit.sandbox.startup)
 
 from .course import PACKAGE_DIR, Course, project_root  # noqa: E402
 from .exports import format_table  # noqa: E402
-from .jobs import ExecutedSubmission, execute_submission, feedback_submissions, grade_submission  # noqa: E402
+from .feedback import feedback_submissions  # noqa: E402
+from .jobs import ExecutedSubmission, execute_submission, grade_submission  # noqa: E402
 from .results import ExerciseScore  # noqa: E402
 from .samples import SAMPLE_STUDENTS, SOLUTION_BEGIN, SOLUTION_END, solution_sources, typical_mistakes  # noqa: E402
 from .writer import JobResult  # noqa: E402

@@ -12,7 +12,7 @@ made the same mistake. A course turns it on in its ``plan.toml``::
 
 Where it hooks in: :func:`annotate_feedback` runs after the feedback pages and the exports are
 written (:func:`cvkit.course.parallel.grade` and :func:`~cvkit.course.parallel.refresh`, one
-line each). It edits the pages already made safe by :mod:`cvkit.grading.safety` in place: after
+line each). It edits the pages already made safe by :mod:`cvkit.course.safety` in place: after
 each trusted report's paragraph ``<p class="cvkit-mistake">`` it inserts one escaped paragraph
 ``<p class="cvkit-class-note">`` (no markup of its own beyond that, no script, no link). It is
 idempotent: notes written before are removed first, so turning the option off removes them.
@@ -26,10 +26,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 from ..grading.report import MIME_TYPE
-from .cells import cell_outputs
+from .notebook import cell_outputs
 
 if TYPE_CHECKING:
-    from .course import Course
+    from .state import CourseState
 
 #: the smallest class a course may ask notes for (below, a share says too much about a few people)
 MIN_CLASS_FLOOR = 10
@@ -147,7 +147,7 @@ def named_mistakes(folder: Path) -> set[tuple[str, str]]:
     return found
 
 
-def annotate_feedback(course: Course, assignments: Iterable[str] | None = None,
+def annotate_feedback(course: CourseState, assignments: Iterable[str] | None = None,
                       chosen: Settings | None = None) -> list[str]:
     """Write (or remove) the class-wide notes on the feedback pages of ``assignments`` (default:
     every assignment with feedback) as the course's ``[class_notes]`` says (or ``chosen``).

@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Iterable, Mapping
 from .._text import name_problem, printable
 
 if TYPE_CHECKING:
-    from .course import Course
+    from .state import CourseState
 
 __all__ = ["Collected", "LMS_PATTERNS", "MAX_FILE_BYTES", "collect_exchange", "collect_files"]
 
@@ -166,7 +166,7 @@ def _owner(name: str, patterns: Iterable[str]) -> tuple[str, str] | None:
 
 
 # ---------------------------------------------------------------------------- placing a hand-in
-def _place(course: Course, student: str, assignment: str, files: Mapping[str, bytes], received_at: _dt.datetime,
+def _place(course: CourseState, student: str, assignment: str, files: Mapping[str, bytes], received_at: _dt.datetime,
            update: bool, result: Collected, secret: str | None = None) -> None:
     from . import received
 
@@ -213,14 +213,14 @@ def _notebook_name(file_id: str, release: list[str]) -> str | None:
     return None
 
 
-def collect_files(course: Course, assignment: str, source: str | os.PathLike[str], *, student: str | None = None,
+def collect_files(course: CourseState, assignment: str, source: str | os.PathLike[str], *, student: str | None = None,
                   pattern: str | None = None, roster: str | os.PathLike[str] | None = None,
                   received_at: _dt.datetime | None = None, update: bool = False) -> Collected:
     """Hand-ins of ``assignment`` from a zip, a folder or one notebook (module docstring).
 
     Parameters
     ----------
-    course : Course
+    course : CourseState
     assignment : str
         A chapter of the plan, already built (its release names the notebooks).
     source : path
@@ -238,7 +238,7 @@ def collect_files(course: Course, assignment: str, source: str | os.PathLike[str
         Replace a student's hand-in collected before with different files.
     """
     from . import received
-    from .course import refused_student_ids
+    from .state import refused_student_ids
 
     if assignment not in course.plan().ids():
         raise ValueError(f"{assignment} is not in {course.plan().name}: add it there first")
@@ -304,7 +304,7 @@ def collect_files(course: Course, assignment: str, source: str | os.PathLike[str
     return result
 
 
-def collect_exchange(course: Course, assignment: str, update: bool = False) -> Collected:
+def collect_exchange(course: CourseState, assignment: str, update: bool = False) -> Collected:
     """nbgrader's own ``collect`` from the course's exchange (a course on a hub)."""
     from .received import _exchange_folder
 

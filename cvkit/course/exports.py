@@ -7,7 +7,7 @@ and imports. Every such text is shown with :func:`cvkit._text.printable`: contro
 as visible escapes (``\\x1b[2J``, ``\\u202e``, ``\\xff``). The terminal table keeps each text on
 its line (a newline too is escaped, so a student cannot forge a line of the table); a CSV cell
 keeps its newlines (quoted by the CSV writer), and is neutralised for spreadsheets
-(:func:`cvkit.grading.safety.csv_safe`). The CSV files are UTF-8.
+(:func:`cvkit.course.safety.csv_safe`). The CSV files are UTF-8.
 """
 from __future__ import annotations
 
@@ -17,10 +17,10 @@ from typing import TYPE_CHECKING, Iterable
 
 from .._text import printable
 from .progress import Phase
-from .results import ExerciseScore, environment, unsandboxed
+from .results import ExerciseScore, environment, scores, unsandboxed
 
 if TYPE_CHECKING:
-    from .course import Course
+    from .state import CourseState
 
 
 def format_table(scores: dict[str, list[ExerciseScore]], students: Iterable[str] | None = None,
@@ -138,7 +138,7 @@ def _findings(scores: dict[str, list[ExerciseScore]], students: list[str]) -> li
     return lines
 
 
-def table(course: Course, assignment: str) -> str:
+def table(course: CourseState, assignment: str) -> str:
     """See :meth:`Course.table`."""
     not_graded = {k.partition("/")[0]: v for k, v in course.not_graded().items() if k.endswith(f"/{assignment}")}
     graded_unsandboxed = sorted(k.partition("/")[0] for k in unsandboxed(course) if k.endswith(f"/{assignment}"))
@@ -146,11 +146,11 @@ def table(course: Course, assignment: str) -> str:
     plan = course.plan()
     extended = {e.student: f"{e.until:%Y-%m-%d %H:%M} UTC" + (f" ({e.reason})" if e.reason else "")
                 for e in plan.extensions if e.assignment == assignment}
-    return format_table(course.scores(assignment), not_graded=not_graded, unsandboxed=graded_unsandboxed,
+    return format_table(scores(course, assignment), not_graded=not_graded, unsandboxed=graded_unsandboxed,
                         environment=lacking, extended=extended)
 
 
-def export(course: Course, progress: bool = False) -> Path:
+def export(course: CourseState, progress: bool = False) -> Path:
     """See :meth:`Course.export`."""
     target = course.root / "exports" / "grades.csv"
     target.parent.mkdir(exist_ok=True)
@@ -165,12 +165,12 @@ def export(course: Course, progress: bool = False) -> Path:
 def _cell(value: object) -> str:
     """A CSV cell of text a student may have written: printable (newlines kept) and never a
     spreadsheet formula."""
-    from ..grading.safety import csv_safe
+    from .safety import csv_safe
 
     return csv_safe(printable(value, newlines=True)) if isinstance(value, str) else csv_safe(value)
 
 
-def _export_grades(course: Course, target: Path) -> None:
+def _export_grades(course: CourseState, target: Path) -> None:
     """nbgrader's grades.csv, with a status column (not graded, graded without the sandbox), and
     a row for each folder refused for its names (:meth:`Course.refused_submissions`: nbgrader
     never sees them), its scores empty."""
@@ -211,7 +211,7 @@ def _export_grades(course: Course, target: Path) -> None:
         csv.writer(handle).writerows(out)
 
 
-def _export_exercises(course: Course, target: Path, assignments: list[str], bar: Phase) -> None:
+def _export_exercises(course: CourseState, target: Path, assignments: list[str], bar: Phase) -> None:
     """cvkit's exercises.csv: one row per student × exercise, and one per submission not graded
     (``bar`` counts the assignments written)."""
     not_graded = course.not_graded()
@@ -221,7 +221,7 @@ def _export_exercises(course: Course, target: Path, assignments: list[str], bar:
                          "status"])
         for assignment in assignments:
             bar.update()
-            for student, exercises in course.scores(assignment).items():
+            for student, exercises in scores(course, assignment).items():
                 for e in exercises:
                     flags_only = e.max_score <= 0 and not e.score and not e.to_mark  # the "(notebook)" row
                     writer.writerow([_cell(x) for x in (
@@ -237,9 +237,9 @@ def _export_exercises(course: Course, target: Path, assignments: list[str], bar:
                                                          f"not graded: {reason}", "not graded", "not graded")])
 
 
-def export_similarity(course: Course, assignments: Iterable[str] | None = None, progress: bool = False) -> Path:
+def export_similarity(course: CourseState, assignments: Iterable[str] | None = None, progress: bool = False) -> Path:
     """See :meth:`Course.similarity`."""
-    from ..grading import similarity
+    from . import similarity
 
     planned = set(course.plan().ids())
     chosen = sorted(set(assignments) if assignments is not None
@@ -256,10 +256,10 @@ def export_similarity(course: Course, assignments: Iterable[str] | None = None, 
     return similarity.write_csv(groups, folder / "similarity.csv")
 
 
-def similar_pairs(course: Course) -> list[dict[str, str]]:
+def similar_pairs(course: CourseState) -> list[dict[str, str]]:
     """The rows of the last similarity report (``exports/similarity.csv``): one per student of
     each group of similar answers, the groups in the page's order, as dicts with the columns of
-    :data:`cvkit.grading.similarity.CSV_COLUMNS` (``assignment``, ``exercise``, ``cluster``,
+    :data:`cvkit.course.similarity.CSV_COLUMNS` (``assignment``, ``exercise``, ``cluster``,
     ``students``, ``student``, ``closest``, ``similarity``, ``textbook``, ``added_code``)."""
     path = course.root / "exports" / "similarity.csv"
     if not path.is_file():
@@ -268,7 +268,7 @@ def similar_pairs(course: Course) -> list[dict[str, str]]:
         return list(csv.DictReader(handle))
 
 
-def similarity_summary(course: Course, top: int = 5) -> list[str]:
+def similarity_summary(course: CourseState, top: int = 5) -> list[str]:
     """A few lines for ``cvkit course grade``'s summary: how many groups of similar answers,
     the ``top`` ones (groups of students first, textbook groups after)."""
     rows = similar_pairs(course)

@@ -50,7 +50,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Sequence
 from .._text import printable
 
 if TYPE_CHECKING:
-    from .course import Course
+    from .state import CourseState
 
 __all__ = ["HubCourse", "HubSettings", "HubSetupError", "SETTINGS_FILE", "check_hub", "course_folder",
            "courses_from_options", "exchange_notes", "init_hub", "load_settings", "proxy_command", "start_problems"]
@@ -616,15 +616,15 @@ WantedBy=multi-user.target
 
 def _course_setup(settings: HubSettings, course: HubCourse, written: list[Path]) -> None:
     """The course folder (cvkit's, private to the instructor) and the course's exchange folders."""
-    from .course import Course
     from .plan import plan_toml, read_plan
+    from .state import CourseState
 
     account = _account(course.instructor, f"the instructor of {course.id}")
     folder = course_folder(course)
     project = Path(settings.project)
     fresh = not folder.exists()
     folder.mkdir(parents=True, exist_ok=True)
-    made = Course(folder, project=project)
+    made = CourseState(folder, project=project)
     plan_file = folder / "plan.toml"
     if plan_file.exists():
         plan = read_plan(plan_file)
@@ -825,7 +825,7 @@ def start_problems(settings: HubSettings) -> list[str]:
 
 
 # ---------------------------------------------------------------------------- the exchange, for grading
-def exchange_notes(course: Course, assignments: Iterable[str]) -> list[str]:
+def exchange_notes(course: CourseState, assignments: Iterable[str]) -> list[str]:
     """What the instructor must know about nbgrader's exchange before feedback goes back, for
     ``assignments`` of a course on a hub (nothing for a course without an exchange):
 
@@ -858,7 +858,7 @@ def exchange_notes(course: Course, assignments: Iterable[str]) -> list[str]:
                          f"{'s' * (len(submitted[student]) != 1)}) but nothing was collected: run nbgrader collect "
                          f"{assignment} in {course.root}, then cvkit course grade")
         for student in sorted((collected - empty) & set(submitted)):
-            files = course._submission_files(student, assignment)
+            files = course.submission_files(student, assignment)
             notebooks = {n: d for n, d in files.items() if n.endswith(".ipynb")}
             when = exchange_time(inbound, student, assignment, notebooks)
             if when is None:

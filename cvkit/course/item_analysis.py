@@ -20,12 +20,13 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from .._text import printable
 from ..grading.report import MIME_TYPE
-from .cells import cell_outputs, exercise_name
+from .notebook import cell_outputs, exercise_name
+from .results import scores
 from .item_stats import (FORMULAS, MIN_CORRELATION, MIN_DISCRIMINATION, AssignmentStats, Rate, Response, analyse,
                          reading)
 
 if TYPE_CHECKING:
-    from .course import Course
+    from .state import CourseState
 
 CSV_NAME = "item_analysis.csv"
 HTML_NAME = "item_analysis.html"
@@ -33,10 +34,10 @@ NOTEBOOK = "(notebook)"  # flags of no exercise in particular (results.scores): 
 
 
 # ------------------------------------------------------------------------------ reading the course
-def responses(course: Course, assignment: str) -> tuple[list[str], dict[str, dict[str, Response]]]:
+def responses(course: CourseState, assignment: str) -> tuple[list[str], dict[str, dict[str, Response]]]:
     """The exercises of ``assignment`` (in the notebooks' order) and, per graded student, a
     :class:`~cvkit.course.item_stats.Response` per exercise."""
-    table = course.scores(assignment)
+    table = scores(course, assignment)
     order: list[str] = []
     found: dict[str, dict[str, Response]] = {}
     for student, exercises in table.items():
@@ -87,7 +88,7 @@ def visible_runs(folder: Path) -> dict[str, int]:
     return found
 
 
-def analyse_course(course: Course, assignments: Iterable[str] | None = None) -> list[AssignmentStats]:
+def analyse_course(course: CourseState, assignments: Iterable[str] | None = None) -> list[AssignmentStats]:
     """The item analysis of every assignment of the plan and of every one with submissions (or of
     ``assignments``): an assignment nobody submitted gets its line, never a made-up figure."""
     if assignments is None:
@@ -105,7 +106,7 @@ def analyse_course(course: Course, assignments: Iterable[str] | None = None) -> 
     return results
 
 
-def export(course: Course, assignments: Iterable[str] | None = None) -> Path:
+def export(course: CourseState, assignments: Iterable[str] | None = None) -> Path:
     """Write ``exports/item_analysis.csv`` and ``exports/item_analysis.html``; return the page."""
     results = analyse_course(course, assignments)
     folder = course.root / "exports"
@@ -229,7 +230,7 @@ def write_csv(results: list[AssignmentStats], path: Path) -> Path:
     """One row per figure (long format, for a spreadsheet's pivot table): ``measure`` names it,
     ``value`` is the figure or share, ``count`` of ``of`` what it counts; an empty value is a
     figure not computed (``note`` says why). Texts printable, never a spreadsheet formula."""
-    from ..grading.safety import csv_safe
+    from .safety import csv_safe
 
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="", encoding="utf-8") as handle:

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .cells import repaired_notebook
+from .notebook import REPAIRED_FLAG, Submitted, as_node, prepare
 
 
 @dataclass
@@ -94,17 +94,13 @@ def environment_problems(executed: dict[str, Any], release: dict[str, Any] | Non
     list of str
         One ``"<exception>: <first line of its message>"`` per cause, in the order met.
     """
-    from ..grading.nbgrader_plugins import is_answer_cell
-
-    def text(cell: dict[str, Any]) -> str:
-        source = cell.get("source", "")
-        return source if isinstance(source, str) else "".join(source)
+    from ..grading.runtime.cells import cell_source as text, is_solution
 
     released = {text(c) for c in (release or {}).get("cells", []) if c.get("cell_type") == "code"}
     folders: list[Path] | None = None
     causes: list[str] = []
     for cell in executed.get("cells", []):
-        if cell.get("cell_type") != "code" or is_answer_cell(cell):
+        if cell.get("cell_type") != "code" or is_solution(cell):
             continue
         as_released = (text(cell) in released) if release is not None \
             else bool(cell.get("metadata", {}).get("nbgrader", {}).get("locked"))
@@ -138,29 +134,34 @@ def execute_submission(project: Any, student: str, assignment: str, files: dict[
 
     Each notebook is first sanitized here as nbgrader does (locked and test cells restored from
     its release notebook in ``releases``, outputs cleared), then executed by
-    ``python -m cvkit.grading.execute`` inside a bubblewrap sandbox
-    (:mod:`cvkit.grading.isolation`) that sees the Python environment read-only, a writable
+    ``python -m cvkit.sandbox.notebook_run`` inside a bubblewrap sandbox
+    (:mod:`cvkit.sandbox.isolation`) that sees the Python environment read-only, a writable
     copy of this one submission and a private ``/tmp`` — no course folder, ``lectures/``,
     gradebook, salt or other submission, no network — under memory, CPU, process and
     file-size limits, and a wall-clock limit enforced from here. Grades are not decided here:
     checks in the kernel are no-ops; the notebook is run for the student's own figures.
     """
-    from ..grading.execute import execute_in_sandbox, prepare
-
-    prepared_files: dict[str, Any] = {name: data for name, data in files.items()
-                                      if not name.endswith(".ipynb") or name in graded_names(files, releases)}
-    releases = releases or {}
-    jobs = []
+    release_notebooks = {name: json.loads(text) for name, text in (releases or {}).items()}
+    submitted = {}
     for name in graded_names(files, releases):
-        try:
-            release = json.loads(releases[name]) if name in releases else None
-            prepared_files[name] = json.dumps(prepare(json.loads(files[name]), release)).encode()
-        except (ValueError, TypeError, AttributeError, KeyError) as error:
-            return ExecutedSubmission(student, assignment, {}, False, f"{name}: not a notebook ({error})")
-        jobs.append(name)
+        found = Submitted.parse(name, files[name], release_notebooks.get(name))
+        if found.problem:
+            return ExecutedSubmission(student, assignment, {}, False, f"{name}: not a notebook ({found.problem})")
+        submitted[name] = found
+    return _execute(files, {name: s.prepared(repair=False) for name, s in submitted.items()}, student, assignment)
+
+
+def _execute(files: dict[str, bytes], prepared: dict[str, dict[str, Any]], student: str,
+             assignment: str) -> ExecutedSubmission:
+    """Execute the ``prepared`` notebooks (name → notebook) in the sandbox, with the
+    submission's other files beside them (never its notebooks that are not graded)."""
+    from ..sandbox.notebook_run import execute_in_sandbox
+
+    box_files: dict[str, Any] = {name: data for name, data in files.items() if not name.endswith(".ipynb")}
+    box_files.update({name: json.dumps(nb).encode() for name, nb in prepared.items()})
     notebooks, log = {}, ""
-    for name in jobs:
-        executed, note = execute_in_sandbox(prepared_files, name)
+    for name in prepared:
+        executed, note = execute_in_sandbox(box_files, name)
         log += f"{name}: {note}\n"
         if executed is None:
             return ExecutedSubmission(student, assignment, {}, False, log)
@@ -168,47 +169,10 @@ def execute_submission(project: Any, student: str, assignment: str, files: dict[
     return ExecutedSubmission(student, assignment, notebooks, bool(notebooks), log)
 
 
-def _unreadable(files: dict[str, bytes], releases: dict[str, str]) -> list[str]:
-    """Why a submission cannot be graded at all: notebooks that are not notebooks, or none of
-    the assignment's notebooks submitted ([] when it can be graded)."""
-    import nbformat
-
-    notebook_names = _notebook_names(files)
-    expected = _notebook_names(releases)
-    problems = []
-    for name in graded_names(files, releases):
-        try:
-            nb = json.loads(files[name])
-            if not isinstance(nb, dict) or not isinstance(nb.get("cells"), list):
-                raise ValueError("no list of cells")
-            data = files[name]
-            nbformat.reads(data.decode("utf-8") if isinstance(data, bytes) else data, as_version=4)
-        except Exception as error:  # noqa: BLE001 - any unreadable file is a reason, never a crash
-            problems.append(f"{name} is not a valid notebook ({type(error).__name__}: {str(error)[:120]})")
-    if not any(name in expected for name in notebook_names):
-        problems.append(f"no notebook of this assignment was submitted (expected {', '.join(expected) or 'none'}, "
-                        f"got {', '.join(notebook_names) or 'none'})")
-    return problems
-
-
-def needs_repair(notebook: Any, release: dict[str, Any] | None) -> bool:
-    """Whether nbgrader would refuse ``notebook``: its cell metadata fails nbgrader's check, or
-    its graded cells (grade id and type, in order) are not the release's — deleted,
-    duplicated or retyped."""
-    import nbformat
-
-    from .cells import graded_layout
-
-    nb = notebook if isinstance(notebook, nbformat.NotebookNode) else nbformat.from_dict(notebook)
-    if not _valid_cell_metadata(nb):
-        return True
-    return release is not None and graded_layout(nb) != graded_layout(release)
-
-
 def grade_submission(project: Any, student: str, assignment: str, files: dict[str, bytes], releases: dict[str, str],
                      sources: dict[str, str], salt: str, memory_mb: int = 3072, repair: bool = False) -> ExecutedSubmission:
     """Execute a submission (:func:`execute_submission`), then decide its checks with the
-    trusted checks (:func:`cvkit.grading.nbgrader_plugins.apply_trusted_checks`, every line of
+    trusted checks (:func:`cvkit.course.nbgrader_plugins.apply_trusted_checks`, every line of
     student code again in the sandbox): the parallel phase of :meth:`Course.grade`, run by a
     local worker process or a Dask worker. ``sources`` are the instructor's source notebooks
     (JSON text by file name); ``salt`` is the course's grading salt, kept in this process
@@ -217,39 +181,47 @@ def grade_submission(project: Any, student: str, assignment: str, files: dict[st
     could not run is graded from its answers as submitted (sanitized as nbgrader does); one
     that is not a notebook at all comes back ``not_graded`` with the reason — never as a zero.
 
-    A notebook nbgrader would refuse (:func:`needs_repair`: graded cells deleted, duplicated
-    or retyped), or every notebook when ``repair``, is graded here from a repaired copy
-    (:func:`~cvkit.course.cells.repaired_notebook`: the release with the student's answers and
-    added cells put back) and flagged: the student's code runs in this worker like any other
-    submission's, never in the process that writes the gradebook. Only the release's notebooks
-    are run and checked; any other is flagged (:func:`extra_notebook_flags`)."""
+    Each submitted notebook is parsed once, here (:meth:`~cvkit.course.notebook.Submitted.parse`),
+    and its executed copy once when it comes back from the sandbox; the verdicts travel to the
+    writer as the notebook's text, which nbgrader reads.
+
+    A notebook nbgrader would refuse (:meth:`~cvkit.course.notebook.Submitted.needs_repair`:
+    graded cells deleted, duplicated or retyped), or every notebook when ``repair``, is graded
+    here from a repaired copy (:func:`~cvkit.course.notebook.repaired_notebook`: the release with
+    the student's answers and added cells put back) and flagged: the student's code runs in
+    this worker like any other submission's, never in the process that writes the gradebook.
+    Only the release's notebooks are run and checked; any other is flagged
+    (:func:`extra_notebook_flags`)."""
     import nbformat
 
-    from ..grading.execute import prepare
-    from ..grading.nbgrader_plugins import apply_trusted_checks
-    from .writer import REPAIRED_FLAG
+    from .nbgrader_plugins import apply_trusted_checks
 
-    problems = _unreadable(files, releases)
+    release_notebooks = {name: json.loads(text) for name, text in releases.items()}
+    submitted = {name: Submitted.parse(name, files[name], release_notebooks.get(name))
+                 for name in graded_names(files, releases)}
+    problems = [s.problem for s in submitted.values() if s.problem]
+    expected = _notebook_names(releases)
+    if not any(name in expected for name in _notebook_names(files)):
+        problems.append(f"no notebook of this assignment was submitted (expected {', '.join(expected) or 'none'}, "
+                        f"got {', '.join(_notebook_names(files)) or 'none'})")
     if problems:
         return ExecutedSubmission(student, assignment, {}, False, "; ".join(problems), not_graded="; ".join(problems))
-    releases_nb = {name: json.loads(text) for name, text in releases.items()}
-    repairs = {name for name in graded_names(files, releases)
-               if repair or needs_repair(json.loads(files[name]), releases_nb.get(name))}
-    submitted = {name: (json.dumps(repaired_notebook(releases_nb[name], json.loads(files[name]))).encode()
-                        if name in repairs and name in releases_nb else files[name]) for name in files}
-    executed = execute_submission(project, student, assignment, submitted, releases)
-    notebooks = dict(executed.notebooks)
-    if not executed.ok:  # graded from the answers as submitted; the run's problem is reported
-        for name in graded_names(files, releases):
-            notebooks[name] = json.dumps(prepare(json.loads(submitted[name]), releases_nb.get(name)))
+    graded = {name: s.to_grade(repair) for name, s in submitted.items()}
+    repairs = sorted(name for name, s in submitted.items() if s.repaired)
+    prepared = {name: prepare(nb, submitted[name].release) for name, nb in graded.items()}
+    executed = _execute(files, prepared, student, assignment)
     verified = {}
     extra = extra_notebook_flags(files, releases)
-    for name, text in notebooks.items():
+    for name in submitted:
         try:
-            nb = nbformat.reads(text, as_version=4)
+            if executed.ok:
+                as_run = json.loads(executed.notebooks[name])
+                environment = environment_problems(as_run, release_notebooks.get(name))
+            else:  # graded from the answers as submitted; the run's problem is reported
+                as_run, environment = prepared[name], []
+            # nbformat.reads without the text: the same node (sources joined, transient data removed)
+            nb = as_node(as_run)
             source = json.loads(sources[name]) if name in sources else None
-            # read before the trusted checks replace the test cells' outputs
-            environment = environment_problems(json.loads(text), releases_nb.get(name)) if executed.ok else []
             apply_trusted_checks(nb, student=student, salt=salt, source_notebook=source, memory_mb=memory_mb)
             if environment:
                 nb.metadata["cvkit"] = dict(nb.metadata.get("cvkit", {}), environment=environment)
@@ -266,18 +238,7 @@ def grade_submission(project: Any, student: str, assignment: str, files: dict[st
             reason = f"{name}: the grader failed on this notebook ({type(error).__name__}: {str(error)[:200]})"
             return ExecutedSubmission(student, assignment, {}, False, executed.log + "\n" + reason, not_graded=reason)
         verified[name] = nbformat.writes(nb)
-    return ExecutedSubmission(student, assignment, verified, True, executed.log, verified=True,
-                              repaired=sorted(repairs))
-
-
-def _valid_cell_metadata(nb: Any) -> bool:
-    from nbgrader.preprocessors import CheckCellMetadata
-
-    try:
-        CheckCellMetadata().preprocess(nb, {})
-    except Exception:  # noqa: BLE001 - any complaint means: let the writer's full pipeline decide
-        return False
-    return True
+    return ExecutedSubmission(student, assignment, verified, True, executed.log, verified=True, repaired=repairs)
 
 
 def payload(course: Any, student: str, assignment: str) -> tuple[Any, ...]:
@@ -287,7 +248,7 @@ def payload(course: Any, student: str, assignment: str) -> tuple[Any, ...]:
     def texts(folder: Path) -> dict[str, str]:
         return {str(p.relative_to(folder)): p.read_text() for p in sorted(folder.rglob("*.ipynb"))}
 
-    return (str(course.project), student, assignment, course._submission_files(student, assignment),
+    return (str(course.project), student, assignment, course.submission_files(student, assignment),
             texts(course.root / "release" / assignment), texts(course.source_dir / assignment), course.salt())
 
 
@@ -313,9 +274,9 @@ def checks_fingerprints(sources: dict[str, dict[str, str]]) -> dict[str, str]:
 
 def sandbox_problem() -> str | None:
     """None when this machine grades in the sandbox (bubblewrap, and the grading worker inside
-    it: :func:`cvkit.grading.sandbox.require_worker`), else why not (checked once per process)."""
-    from ..grading import isolation
-    from ..grading.sandbox import require_worker
+    it: :func:`cvkit.sandbox.session.require_worker`), else why not (checked once per process)."""
+    from ..sandbox import isolation
+    from ..sandbox.session import require_worker
 
     try:
         isolation.require()
@@ -346,10 +307,10 @@ def worker_report(sources: dict[str, dict[str, str]]) -> dict[str, Any]:
 def grade_on_worker(*job: Any) -> ExecutedSubmission:
     """:func:`grade_submission` of ``job`` (a :func:`payload`) on a Dask worker, once this
     worker is known to grade in the sandbox; else it raises
-    :class:`~cvkit.grading.isolation.SandboxUnavailable` and the instructor's process grades
+    :class:`~cvkit.sandbox.isolation.SandboxUnavailable` and the instructor's process grades
     the submission locally — never a class of "ended early" zeros from a worker that joined
     with a broken sandbox."""
-    from ..grading.isolation import SandboxUnavailable
+    from ..sandbox.isolation import SandboxUnavailable
 
     problem = sandbox_problem()
     if problem:
@@ -378,10 +339,3 @@ def grade_in_fresh_process(job: tuple[Any, ...], repair: bool = False) -> Execut
     except Exception as error:  # noqa: BLE001 - a lost worker: listed as not graded, never a zero
         reason = f"the grading worker was lost ({type(error).__name__}: {str(error)[:200]})"
         return ExecutedSubmission(student, assignment, {}, False, reason, not_graded=reason)
-
-
-def feedback_submissions(root: str, db_url: str, project: str, pairs: list[tuple[str, str]]) -> None:
-    """nbgrader feedback for (student, assignment) pairs of a course, in a worker process."""
-    from .course import Course
-
-    Course(Path(root), db_url, Path(project)).feedback(pairs)

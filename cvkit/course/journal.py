@@ -15,7 +15,7 @@ import json
 from pathlib import Path
 from typing import Any, Mapping
 
-from ..grading.isolation import collect_files
+from ..sandbox.isolation import collect_files
 from .received import listed_stamp
 
 #: what a journal entry records besides the files' hash (see :mod:`.stamps`)
@@ -68,7 +68,7 @@ class Journal:
 
     def submission_hash(self, student: str, assignment: str) -> str:
         """Hash of a submission's regular files (and of the notes on the files refused). The
-        names are printable (:func:`~cvkit.grading.isolation.collect_files` refuses the others);
+        names are printable (:func:`~cvkit.sandbox.isolation.collect_files` refuses the others);
         a lone surrogate (a byte that was not UTF-8) would still be hashed, never stop the run."""
         digest = hashlib.sha256()
         files, refused = collect_files(self.root / "submitted" / student / assignment)

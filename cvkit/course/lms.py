@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Iterable
 from .._text import printable
 
 if TYPE_CHECKING:
-    from .course import Course
+    from .state import CourseState
 
 #: the identity columns Canvas's gradebook import requires, in its order
 CANVAS_IDENTITY = ("Student", "ID", "SIS User ID", "SIS Login ID", "Section")
@@ -92,12 +92,12 @@ def points_text(value: float | None) -> str:
     return "0" if text in ("", "-0") else text
 
 
-def grade_sheet(course: Course, assignments: Iterable[str] | None = None) -> GradeSheet:
+def grade_sheet(course: CourseState, assignments: Iterable[str] | None = None) -> GradeSheet:
     """The course's grade sheet, read from nbgrader's gradebook.
 
     Parameters
     ----------
-    course : Course
+    course : CourseState
     assignments : iterable of str, optional
         Only these (default: every assignment of the plan, in its order).
 
@@ -121,7 +121,7 @@ def grade_sheet(course: Course, assignments: Iterable[str] | None = None) -> Gra
     submitted = set(course.submissions(chosen)) | {tuple(k.split("/", 1)) for k in not_graded}
     sheet = GradeSheet(chosen, [], {}, titles={a: (plan.get(a).title or a) for a in chosen})  # type: ignore[union-attr]
     students: set[str] = {s for s, a in submitted if a in chosen}
-    journal = course._journal  # the files each submission was graded from (same package)
+    journal = course.journal  # the files each submission was graded from (same package)
     recorded = journal.graded()
     with gradebook_of(course.db_url) as gb:  # a course never graded has an empty one
         for student in gb.students:
@@ -175,7 +175,7 @@ def grade_sheet(course: Course, assignments: Iterable[str] | None = None) -> Gra
 
 def _student_cell(text: str) -> str:
     """A student id (a folder name) as a cell: printable and never a spreadsheet formula."""
-    from ..grading.safety import csv_safe
+    from .safety import csv_safe
 
     return csv_safe(printable(text))
 

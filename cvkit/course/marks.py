@@ -33,8 +33,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
+from ..grading.runtime.cells import cell_source
+
 if TYPE_CHECKING:
-    from .course import Course
+    from .state import CourseState
 
 __all__ = ["Mark", "log_changes", "remember_pages", "restore", "snapshot", "stale_pages"]
 
@@ -76,8 +78,7 @@ def _answers(notebook: Mapping[str, Any]) -> dict[str, str]:
         if not isinstance(cell, Mapping):
             continue
         nbgrader = (cell.get("metadata") or {}).get("nbgrader") or {}
-        source = cell.get("source", "")
-        source = "".join(source) if isinstance(source, list) else str(source)
+        source = cell_source(cell)
         grade_id = str(nbgrader.get("grade_id") or "")
         if nbgrader.get("solution") or not grade_id:
             written.append(source)
@@ -96,13 +97,13 @@ def _read_notebook(path: Path) -> dict[str, Any]:
         return {}
 
 
-def _gradebook(course: Course) -> Any:
+def _gradebook(course: CourseState) -> Any:
     from nbgrader.api import Gradebook
 
     return Gradebook(course.db_url)
 
 
-def snapshot(course: Course, assignment: str, students: Iterable[str]) -> dict[tuple[str, str, str], Mark]:
+def snapshot(course: CourseState, assignment: str, students: Iterable[str]) -> dict[tuple[str, str, str], Mark]:
     """The marks of ``students``' recorded submissions of ``assignment``, keyed by (student,
     notebook, grade id), each with the digest of the answer it was given to (read from the
     notebook nbgrader last recorded, ``autograded/``)."""
@@ -118,7 +119,7 @@ def snapshot(course: Course, assignment: str, students: Iterable[str]) -> dict[t
     return marks
 
 
-def restore(course: Course, assignment: str, before: Mapping[tuple[str, str, str], Mark],
+def restore(course: CourseState, assignment: str, before: Mapping[tuple[str, str, str], Mark],
             notebooks: Mapping[str, Mapping[str, str]]) -> list[tuple[str, str]]:
     """Put back the marks of ``before`` (:func:`snapshot`) after nbgrader recorded
     ``notebooks`` (student → notebook file name → its JSON text, as recorded) again: exactly,
@@ -163,7 +164,7 @@ def _score(value: float | None) -> str:
     return "no score" if value is None else f"{value:g}"
 
 
-def fingerprints(course: Course, pairs: Iterable[tuple[str, str]]) -> dict[str, str]:
+def fingerprints(course: CourseState, pairs: Iterable[tuple[str, str]]) -> dict[str, str]:
     """``"student/assignment"`` → a digest of every mark of that submission (what its page shows)."""
     by_assignment: dict[str, list[str]] = {}
     for student, assignment in sorted(set(pairs)):
@@ -185,7 +186,7 @@ UNMARKED = _digest([json.dumps([])])
 _State = tuple[float | None, float | None, bool, str | None]  # manual score, extra credit, needs a mark, comment
 
 
-def _marks(course: Course, assignment: str, students: Iterable[str]) -> dict[tuple[str, str, str], _State]:
+def _marks(course: CourseState, assignment: str, students: Iterable[str]) -> dict[tuple[str, str, str], _State]:
     """(student, notebook, grade id) → (manual score, extra credit, needs manual grade, comment)
     of the recorded submissions of ``students``."""
     from nbgrader.api import MissingEntry
@@ -224,7 +225,7 @@ def _save(path: Path, data: Mapping[str, Any]) -> None:
     os.replace(scratch, path)
 
 
-def stale_pages(course: Course, pairs: Iterable[tuple[str, str]]) -> list[tuple[str, str]]:
+def stale_pages(course: CourseState, pairs: Iterable[tuple[str, str]]) -> list[tuple[str, str]]:
     """The submissions of ``pairs`` with a feedback page whose marks changed since it was written."""
     pairs = [(s, a) for s, a in pairs if (course.root / "feedback" / s / a).is_dir()]
     written = _load(course.root / ".cvkit" / PAGES_FILE)
@@ -232,7 +233,7 @@ def stale_pages(course: Course, pairs: Iterable[tuple[str, str]]) -> list[tuple[
     return [(s, a) for s, a in pairs if written.get(f"{s}/{a}", UNMARKED) != now.get(f"{s}/{a}")]
 
 
-def remember_pages(course: Course, pairs: Iterable[tuple[str, str]]) -> None:
+def remember_pages(course: CourseState, pairs: Iterable[tuple[str, str]]) -> None:
     """Record the marks the feedback pages of ``pairs`` now show (their pages were just written)."""
     pairs = list(pairs)
     if not pairs:
@@ -243,7 +244,7 @@ def remember_pages(course: Course, pairs: Iterable[tuple[str, str]]) -> None:
     _save(path, written)
 
 
-def log_changes(course: Course, pairs: Iterable[tuple[str, str]]) -> int:
+def log_changes(course: CourseState, pairs: Iterable[tuple[str, str]]) -> int:
     """Append to ``.cvkit/marks.log`` every mark of ``pairs`` first seen or changed since the last
     call; returns how many. Each line: time (UTC), the account that ran the command, submission,
     cell, the score (or "no score"), extra credit, and whether the comment is new."""

@@ -46,11 +46,11 @@ def configure(c: Any, root: str | os.PathLike[str], source: str | os.PathLike[st
         AssignLatePenalties, CheckCellMetadata, GetGrades, IgnorePattern, LimitOutput, SaveAutoGrades,
     )
 
-    from ..grading.nbgrader_plugins import (
+    from .nbgrader_plugins import (
         HideHiddenTests, PlanExtensions, SafeFeedbackExporter, SandboxedExecute, SanitizeStudentContent,
         TrustedChecks, WaitingForInstructor,
     )
-    from ..grading.safety import mathjax_post_convert_hook
+    from .safety import mathjax_post_convert_hook
     from .plan import configure_nbgrader
 
     root = Path(os.environ.get("CVKIT_COURSE_ROOT") or root).resolve()
@@ -78,7 +78,7 @@ def configure(c: Any, root: str | os.PathLike[str], source: str | os.PathLike[st
     configure_nbgrader(c, root, Path(project) if project else root, source, c.CourseDirectory.db_url,
                        c.CourseDirectory.course_id)
 
-    # Trusted grading (cvkit.grading.nbgrader_plugins): after the student's notebook has run,
+    # Trusted grading (cvkit.course.nbgrader_plugins): after the student's notebook has run,
     # every check() of the test cells is decided again outside the student's kernel, in an
     # isolated worker, and compared with the reference; that verdict is what nbgrader records.
     # The grading salt (made by `cvkit course grade`, readable by its owner only, kept for
@@ -103,7 +103,7 @@ def configure(c: Any, root: str | os.PathLike[str], source: str | os.PathLike[st
         PlanExtensions, AssignLatePenalties, CheckCellMetadata,
     ]
 
-    # Feedback pages (cvkit.grading.safety): nothing the student controls can run in them
+    # Feedback pages (cvkit.course.safety): nothing the student controls can run in them
     # (outputs, Markdown, attachments, metadata are cleaned; only the trusted grader's reports
     # keep their layout), and MathJax comes from a mathjax/ folder next to each page, never from
     # the network. The mark schemes of open tasks stay with the instructor: nbgrader restores

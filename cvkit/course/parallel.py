@@ -19,13 +19,14 @@ import time
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Iterable
 
-from . import class_notes, item_analysis, jobs, marks
-from .jobs import ExecutedSubmission, feedback_submissions, grade_submission
+from . import class_notes, exports, item_analysis, jobs, marks, results
+from .feedback import feedback_submissions, write_feedback
+from .jobs import ExecutedSubmission, grade_in_fresh_process, grade_submission
 from .progress import Phase, progress
-from .writer import JobResult
+from .writer import JobResult, Writer
 
 if TYPE_CHECKING:
-    from .course import Course
+    from .state import CourseState
 
 
 payload = jobs.payload  # the arguments of grade_submission for one submission
@@ -35,8 +36,9 @@ class _Batches:
     """Results of the parallel phase, recorded once a batch is full or nothing else is coming;
     with a local pool, each recorded batch's feedback pages are queued for its workers."""
 
-    def __init__(self, course: Course, size: int, workers: int, bars: dict[str, Phase]) -> None:
+    def __init__(self, course: CourseState, size: int, workers: int, bars: dict[str, Phase]) -> None:
         self.course, self.size, self.workers, self.bars = course, size, workers, bars
+        self.writer = Writer(course)
         self.finished: list[ExecutedSubmission] = []
         self.owners: dict[Any, tuple[str, str]] = {}   # future -> (student, assignment)
         self.results: list[JobResult] = []
@@ -76,7 +78,7 @@ class _Batches:
             return
         written = list(self.finished)
         self.finished.clear()
-        recorded = self.course.record_many(written)
+        recorded = self.writer.record_many(written)
         self.results.extend(recorded)
         pairs = [(r.student, r.assignment) for r in recorded if r.ok]
         self.bars["record"].update(len(written))
@@ -211,26 +213,26 @@ def _on_local_pool(batches: _Batches, payloads: list[tuple[Any, ...]], workers: 
         batches.feedback_done(wait=True)
 
 
-def _regrading(course: Course, jobs: list[tuple[str, str]], regrade: bool | Iterable[str]) -> list[tuple[str, str]]:
+def _regrading(course: CourseState, jobs: list[tuple[str, str]], regrade: bool | Iterable[str]) -> list[tuple[str, str]]:
     """The submissions of ``jobs`` to grade now: new or changed ones, and those ``regrade`` names
     (True: all; else the assignments to regrade)."""
     if isinstance(regrade, (bool, type(None))):
         again: set[str] = {a for _, a in jobs} if regrade else set()
     else:
         again = {regrade} if isinstance(regrade, str) else set(regrade)
-    return [(s, a) for s, a in jobs if a in again or not course.is_graded(s, a)]
+    return [(s, a) for s, a in jobs if a in again or not results.is_graded(course, s, a)]
 
 
-def grade(course: Course, assignments: Iterable[str] | None = None, workers: int = 2, scheduler: str | None = None,
+def grade(course: CourseState, assignments: Iterable[str] | None = None, workers: int = 2, scheduler: str | None = None,
           progress_bar: bool = False, regrade: bool | Iterable[str] = False, batch: int | None = None,
           sandbox: bool = True) -> list[JobResult]:
     """See :meth:`Course.grade`."""
-    from ..grading import isolation
+    from ..sandbox import isolation
 
     if sandbox:
         isolation.require()
         os.environ.pop("CVKIT_NO_SANDBOX", None)
-        from ..grading.sandbox import require_worker
+        from ..sandbox.session import require_worker
 
         require_worker()  # the worker itself starts here: never a class of "ended early" zeros
     else:
@@ -265,18 +267,18 @@ def grade(course: Course, assignments: Iterable[str] | None = None, workers: int
         _on_local_pool(batches, payloads, workers)
     bars["grade"].close()
     bars["record"].close()
-    results = batches.results
-    missing = missing_before = course.audit(jobs)
+    graded_now = batches.results
+    missing = missing_before = results.audit(course, jobs)
     for student, assignment in progress(missing, "regrade (no grade recorded)", progress_bar and bool(missing),
                                         unit="submission"):
         # never lose a grade: one more, plain attempt
-        results = [r for r in results if (r.student, r.assignment) != (student, assignment)]
-        results.append(course.autograde_one(student, assignment))
-    missing = course.audit(jobs)
-    results += [JobResult(s, a, 1, 0, "no grade recorded after autograding") for s, a in missing]
-    results += [JobResult(s, a, 0, 1, f"not graded: {outside[f'{s}/{a}']}", executed=False,
+        graded_now = [r for r in graded_now if (r.student, r.assignment) != (student, assignment)]
+        graded_now.append(batches.writer.record_many([grade_in_fresh_process(payload(course, student, assignment))])[0])
+    missing = results.audit(course, jobs)
+    graded_now += [JobResult(s, a, 1, 0, "no grade recorded after autograding") for s, a in missing]
+    graded_now += [JobResult(s, a, 0, 1, f"not graded: {outside[f'{s}/{a}']}", executed=False,
                           not_graded=outside[f"{s}/{a}"]) for s, a in found if f"{s}/{a}" in outside]
-    retried = [(r.student, r.assignment) for r in results if r.ok and (r.student, r.assignment) in missing_before]
+    retried = [(r.student, r.assignment) for r in graded_now if r.ok and (r.student, r.assignment) in missing_before]
     not_graded = course.not_graded()
     graded = [(s, a) for s, a in jobs if f"{s}/{a}" not in not_graded]
     # pages missing, of a submission graded again, or whose hand marks changed since they were written
@@ -286,50 +288,28 @@ def grade(course: Course, assignments: Iterable[str] | None = None, workers: int
     if pages and not feedback.enabled:
         feedback = Phase("feedback", 0, progress_bar, unit="page")
     feedback.set_total(feedback.done + len(pages))  # the estimate (a page per submission) made exact
-    course.feedback(pages, feedback)
+    write_feedback(course, pages, feedback)
     feedback.close()
     marks.remember_pages(course, [(s, a) for s, a in graded if (course.root / "feedback" / s / a).is_dir()])
     marks.log_changes(course, graded)
-    course.export(progress_bar)
-    course.similarity(progress=progress_bar)
+    exports.export(course, progress_bar)
+    exports.export_similarity(course, None, progress_bar)
     item_analysis.export(course)  # exports/item_analysis.csv and .html
     class_notes.annotate_feedback(course)  # plan.toml [class_notes]: off by default
-    return sorted(results, key=lambda r: (r.assignment, r.student))
+    return sorted(graded_now, key=lambda r: (r.assignment, r.student))
 
 
-def write_feedback(course: Course, submissions: Iterable[tuple[str, str]], bar: Phase | None = None) -> None:
-    """See :meth:`Course.feedback`."""
-    pairs = sorted(set(submissions))
-    if not pairs:
-        return
-    api = course.nbgrader_api()
-    failed = []
-    for student, assignment in pairs:
-        try:
-            outcome = api.generate_feedback(assignment, student_id=student, force=True)
-        except Exception as error:  # noqa: BLE001 - one page must not stop the others
-            outcome = {"success": False, "error": repr(error)}
-        if not outcome.get("success"):
-            failed.append(f"{student}/{assignment}: {outcome.get('error', '')[-500:]}")
-        if bar is not None:
-            bar.update()
-    if failed:
-        log = course.root / ".cvkit" / "feedback_errors.log"
-        log.parent.mkdir(parents=True, exist_ok=True)
-        log.write_text("\n".join(failed))
-
-
-def refresh(course: Course, progress_bar: bool = False) -> list[tuple[str, str]]:
+def refresh(course: CourseState, progress_bar: bool = False) -> list[tuple[str, str]]:
     """See :meth:`Course.refresh`."""
     not_graded = course.not_graded()
-    graded = [(s, a) for s, a in course.submissions() if f"{s}/{a}" not in not_graded and course.is_graded(s, a)]
+    graded = [(s, a) for s, a in course.submissions() if f"{s}/{a}" not in not_graded and results.is_graded(course, s, a)]
     pages = marks.stale_pages(course, graded)
     bar = Phase("feedback", len(pages), progress_bar and bool(pages), unit="page")
-    course.feedback(pages, bar)
+    write_feedback(course, pages, bar)
     bar.close()
     marks.remember_pages(course, [(s, a) for s, a in graded if (course.root / "feedback" / s / a).is_dir()])
     marks.log_changes(course, graded)
-    course.export(progress_bar)
+    exports.export(course, progress_bar)
     item_analysis.export(course)  # the marks changed the scores
     class_notes.annotate_feedback(course)  # the pages written again lost their notes
     return pages

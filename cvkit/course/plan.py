@@ -65,7 +65,7 @@ class PlannedAssignment:
 @dataclass(frozen=True)
 class LatePolicy:
     """The ``[late]`` table of the plan: how nbgrader's ``AssignLatePenalties`` treats a late
-    submission (see :class:`cvkit.grading.nbgrader_plugins.LatePenalty`).
+    submission (see :class:`cvkit.course.nbgrader_plugins.LatePenalty`).
 
     Attributes
     ----------
@@ -530,8 +530,8 @@ def configure_nbgrader(c: Any, root: str | os.PathLike[str], project: str | os.P
     nbgrader's course id becomes the plan's ``[course] id`` when it has one, the gradebook's due
     dates become the plan's (:func:`sync_due_dates`, for the assignments with a folder in
     ``source_dir``), nbgrader's ``AssignLatePenalties`` uses
-    :class:`cvkit.grading.nbgrader_plugins.LatePenalty` with the plan's ``[late]`` policy, and
-    :class:`~cvkit.grading.nbgrader_plugins.PlanExtensions` records the plan's extensions.
+    :class:`cvkit.course.nbgrader_plugins.LatePenalty` with the plan's ``[late]`` policy, and
+    :class:`~cvkit.course.nbgrader_plugins.PlanExtensions` records the plan's extensions.
 
     Parameters
     ----------
@@ -549,7 +549,7 @@ def configure_nbgrader(c: Any, root: str | os.PathLike[str], project: str | os.P
     -------
     Plan
     """
-    from ..grading.nbgrader_plugins import LatePenalty
+    from .nbgrader_plugins import LatePenalty
 
     source = Path(source_dir)
     plan = read_plan(plan_path(root, project), sorted(p.name for p in source.glob("ch*_*") if p.is_dir()))
@@ -561,7 +561,7 @@ def configure_nbgrader(c: Any, root: str | os.PathLike[str], project: str | os.P
     c.LatePenalty.points_per_hour = plan.late.points_per_hour
     c.PlanExtensions.extensions = {f"{e.student}/{e.assignment}": f"{e.until:%Y-%m-%d %H:%M:%S}" for e in plan.extensions}
     # the released notebooks say when they are due and what lateness costs
-    from ..grading.nbgrader_plugins import DueDateNotice, late_policy_sentence
+    from .nbgrader_plugins import DueDateNotice, late_policy_sentence
 
     c.DueDateNotice.due = {a.id: f"{a.due:%Y-%m-%d %H:%M:%S}" for a in plan.assignments if a.due is not None}
     c.DueDateNotice.timezone = plan.timezone

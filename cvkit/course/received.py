@@ -58,10 +58,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
-from ..grading.isolation import collect_files
+from ..sandbox.isolation import collect_files
 
 if TYPE_CHECKING:
-    from .course import Course
+    from .state import CourseState
 
 __all__ = ["LIST_NAME", "STAMP_FILE", "TOLERANCE", "Received", "SubmissionTimesError", "checked_time", "cross_check",
            "exchange_time", "listed_stamp", "nbgrader_timestamp", "read_claim", "read_list", "received_time",
@@ -349,11 +349,11 @@ def checked_time(value: Any, name: str = "received_at") -> _dt.datetime:
 
 
 # ---------------------------------------------------------------------------- nbgrader's exchange
-def _exchange_folder(course: Course) -> Path | None:
+def _exchange_folder(course: CourseState) -> Path | None:
     """``<Exchange.root>/<course id>`` of the course's nbgrader configuration, when it exists."""
     from nbgrader.exchange.default.exchange import Exchange
 
-    config = course._config()
+    config = course.config()
     root = config.Exchange.root if "root" in config.Exchange else Exchange.class_traits()["root"].default_value
     course_id = config.CourseDirectory.course_id if "course_id" in config.CourseDirectory else ""
     course_id = course_id or course.plan().course_id
@@ -436,7 +436,7 @@ def exchange_time(inbound: str | os.PathLike[str], student: str, assignment: str
 
 
 # ---------------------------------------------------------------------------- the received time
-def received_time(course: Course, student: str, assignment: str) -> Received:
+def received_time(course: CourseState, student: str, assignment: str) -> Received:
     """The trusted time ``student``'s submission of ``assignment`` was received (see the module
     docstring for the order of the sources); recorded at first sight.
 
@@ -472,7 +472,7 @@ def received_time(course: Course, student: str, assignment: str) -> Received:
     return records.put(student, assignment, version, Received(collected, "collected"))
 
 
-def release_time(course: Course, assignment: str) -> _dt.datetime | None:
+def release_time(course: CourseState, assignment: str) -> _dt.datetime | None:
     """The earliest release of ``assignment`` seen (naive UTC): modification times of the
     release notebooks (``release/<assignment>``, the exchange's ``outbound/<assignment>``),
     recorded so that a later rebuild does not move it; None when it was never built here."""
@@ -586,7 +586,7 @@ def settle_stamp(root: str | os.PathLike[str], student: str, assignment: str, wh
     return True
 
 
-def cross_check(course: Course, student: str, assignment: str, when: Received | None = None) -> list[str]:
+def cross_check(course: CourseState, student: str, assignment: str, when: Received | None = None) -> list[str]:
     """Flags for the instructor (``"(notebook): submission time: …"``) when the student's
     ``timestamp.txt`` is implausible next to the trusted time ``when`` (default
     :func:`received_time`): unreadable, before the release, later than ``when``, or earlier than an
@@ -620,3 +620,19 @@ def cross_check(course: Course, student: str, assignment: str, when: Received | 
         return [f"(notebook): submission time: {says}, by the due date, but the only record of the hand-in "
                 f"is its collection, after it; {graded}; if it was on time, list its time in {LIST_NAME}"]
     return []
+
+
+def place_submission(course: CourseState, student: str, assignment: str, notebooks: Mapping[str, Any],
+                     received_at: _dt.datetime | None = None) -> Path:
+    """Place a submission (``{filename: notebook json}``) in ``submitted/`` as nbgrader's collect
+    would, and record when it was received (in ``.cvkit/``, out of the student's folder; the
+    ``timestamp.txt`` written here, as nbgrader's, is only a cross-check). See
+    :meth:`cvkit.course.Course.submit`."""
+    moment = checked_time(_dt.datetime.now(_dt.timezone.utc) if received_at is None else received_at)
+    folder = course.root / "submitted" / student / assignment
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, nb in notebooks.items():
+        (folder / name).write_text(json.dumps(nb, indent=1))
+    (folder / STAMP_FILE).write_text(nbgrader_timestamp(moment))
+    record_submitted(course.root, student, assignment, moment.replace(tzinfo=_dt.timezone.utc))
+    return folder

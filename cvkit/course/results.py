@@ -13,11 +13,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable
 
 from ..grading.report import MIME_TYPE, finding
-from .cells import exercise_name, grade_id
+from .notebook import exercise_name, grade_id
 from .samples import student_order
 
 if TYPE_CHECKING:
-    from .course import Course
+    from .state import CourseState
 
 
 @dataclass
@@ -31,7 +31,7 @@ class ExerciseScore:
     to_mark: bool = False  # a written question or open task not yet marked by hand (formgrader)
 
 
-def scores(course: Course, assignment: str) -> dict[str, list[ExerciseScore]]:
+def scores(course: CourseState, assignment: str) -> dict[str, list[ExerciseScore]]:
     """See :meth:`Course.scores`."""
     from nbgrader.api import Gradebook, MissingEntry
 
@@ -76,7 +76,7 @@ def scores(course: Course, assignment: str) -> dict[str, list[ExerciseScore]]:
     return dict(sorted(table.items(), key=lambda item: student_order(item[0])))
 
 
-def _cell_order(course: Course, assignment: str) -> dict[str, int]:
+def _cell_order(course: CourseState, assignment: str) -> dict[str, int]:
     """Grade id → position of its cell in the released notebooks."""
     order: dict[str, int] = {}
     for path in course.release_notebooks(assignment):
@@ -118,7 +118,7 @@ def notebook_flags(path: Path) -> list[str]:
     return flags
 
 
-def environment(course: Course, assignments: Iterable[str]) -> dict[str, dict[str, list[str]]]:
+def environment(course: CourseState, assignments: Iterable[str]) -> dict[str, dict[str, list[str]]]:
     """What the grading environment lacked when the submissions of ``assignments`` ran: cause
     → assignment → the students whose notebook's cells as released it stopped
     (:func:`cvkit.course.jobs.environment_problems`, kept in the autograded notebooks'
@@ -155,7 +155,7 @@ def reported_findings(folder: Path) -> dict[str, list[tuple[str, str]]]:
         a named mistake, else ``("problem", words)`` with what the first diagnosed failing
         case looks like or the first clause of the first failure (never the tolerances).
         Read from the verdicts the trusted checks store as data in the test cells' metadata
-        (:func:`cvkit.grading.nbgrader_plugins.cell_report`); a notebook graded before they did
+        (:func:`cvkit.course.nbgrader_plugins.cell_report`); a notebook graded before they did
         (no ``metadata.cvkit.reports_in_cells``) is read from its reports' JSON outputs.
     """
     found: dict[str, list[tuple[str, str]]] = {}
@@ -195,8 +195,9 @@ def _output_findings(cell: dict[str, Any]) -> list[tuple[str, str]]:
     return [item for item in (finding(r) for r in reports if r and isinstance(r, dict)) if item is not None]
 
 
-def audit(course: Course, jobs: Iterable[tuple[str, str]]) -> list[tuple[str, str]]:
-    """See :meth:`Course.audit`."""
+def audit(course: CourseState, jobs: Iterable[tuple[str, str]]) -> list[tuple[str, str]]:
+    """Submissions of ``jobs`` with no autograded notebook or no grade in the gradebook (those
+    listed as not graded, with their reason, are accounted for)."""
     from nbgrader.api import Gradebook, MissingEntry
 
     missing = []
@@ -216,7 +217,12 @@ def audit(course: Course, jobs: Iterable[tuple[str, str]]) -> list[tuple[str, st
     return missing
 
 
-def unsandboxed(course: Course) -> set[str]:
+def is_graded(course: CourseState, student: str, assignment: str) -> bool:
+    """Graded already, from this very submission (an interrupted run resumes after it)."""
+    return course.journal.is_current(student, assignment) and not audit(course, [(student, assignment)])
+
+
+def unsandboxed(course: CourseState) -> set[str]:
     """``student/assignment`` of submissions graded with ``--no-sandbox``."""
     found = set()
     for folder in sorted((course.root / "autograded").glob("*/*")):
@@ -230,7 +236,7 @@ def unsandboxed(course: Course) -> set[str]:
     return found
 
 
-def late_penalties(course: Course, jobs: Iterable[tuple[str, str]]) -> dict[tuple[str, str], tuple[float, float]]:
+def late_penalties(course: CourseState, jobs: Iterable[tuple[str, str]]) -> dict[tuple[str, str], tuple[float, float]]:
     """(student, assignment) → (points taken, seconds late) for the submissions of ``jobs`` that
     nbgrader's gradebook records as late with a penalty: the grade table shows the points the
     checks gave, and these come off them (as in ``grades.csv`` and the feedback page)."""

@@ -11,10 +11,11 @@ import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .cells import cell_source, grade_id
+from . import received
+from .notebook import cell_source, grade_id
 
 if TYPE_CHECKING:
-    from .course import Course
+    from .state import CourseState
 
 SOLUTION_BEGIN = "### BEGIN SOLUTION"
 SOLUTION_END = "### END SOLUTION"
@@ -24,12 +25,12 @@ SAMPLE_STUDENTS = ("sample_complete", "sample_mistakes", "sample_blank")
 def solution_sources(notebook: dict[str, Any]) -> dict[str, str]:
     """grade_id → source of each solution cell with the solution markers removed; for a written
     answer, the model answer without its rubric (what a student who knows the answer writes)."""
-    from ..grading.nbgrader_plugins import is_answer_cell
+    from ..grading.runtime.cells import is_solution
 
     out = {}
     for cell in notebook.get("cells", []):
         name = grade_id(cell)
-        if not is_answer_cell(cell) or name is None:
+        if not is_solution(cell) or name is None:
             continue
         source = cell_source(cell)
         if cell.get("cell_type") == "markdown":
@@ -60,9 +61,9 @@ def typical_mistakes(folder: Path) -> dict[str, str]:
     return cells
 
 
-def make_samples(course: Course, assignment: str) -> list[str]:
+def make_samples(course: CourseState, assignment: str) -> list[str]:
     """Submit the three samples of ``assignment`` (see :meth:`Course.make_samples`)."""
-    from ..grading.nbgrader_plugins import is_answer_cell
+    from ..grading.runtime.cells import is_solution
 
     source_nbs = {p.name: json.loads(p.read_text()) for p in sorted((course.source_dir / assignment).glob("*.ipynb"))}
     mistakes = typical_mistakes(course.project / "autograders" / "samples" / assignment)
@@ -76,14 +77,14 @@ def make_samples(course: Course, assignment: str) -> list[str]:
                 solutions = solution_sources(source)
                 for cell in nb["cells"]:
                     name = grade_id(cell)
-                    if not is_answer_cell(cell) or name is None:
+                    if not is_solution(cell) or name is None:
                         continue
                     if student == "sample_mistakes" and name in mistakes:
                         cell["source"] = mistakes[name]
                     elif name in solutions:
                         cell["source"] = solutions[name]
             notebooks[release.name] = nb
-        course.submit(student, assignment, notebooks)
+        received.place_submission(course, student, assignment, notebooks)
         made.append(student)
     return made
 

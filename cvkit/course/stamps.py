@@ -74,8 +74,8 @@ def checks_fingerprint(notebooks: Iterable[Path]) -> str:
     """
     import cvkit
 
-    from ..grading.runtime.cells import is_test_cell, nbgrader_metadata
-    from ..grading.trusted import check_calls
+    from ..grading.runtime.cells import cell_source, is_test_cell, nbgrader_metadata
+    from .trusted import check_calls
 
     digest = hashlib.sha256(f"cvkit {getattr(cvkit, '__version__', '?')}\n".encode())
     ids: set[str] = set()
@@ -87,8 +87,7 @@ def checks_fingerprint(notebooks: Iterable[Path]) -> str:
         for cell in cells:
             if not isinstance(cell, dict) or not is_test_cell(cell):
                 continue
-            source = cell.get("source", "")
-            source = source if isinstance(source, str) else "".join(source)
+            source = cell_source(cell)
             digest.update(json.dumps([path.name, nbgrader_metadata(cell).get("points"), source]).encode())
             ids.update(call.algorithm_id for call in check_calls(source, ""))
     modules: set[str] = set()

@@ -14,15 +14,14 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from . import marks, received
-from .cells import repaired_notebook
+from .notebook import REPAIRED_FLAG, repaired_notebook
 
 if TYPE_CHECKING:
     from traitlets.config import Config
 
-    from .course import Course
+    from .state import CourseState
     from .jobs import ExecutedSubmission
 
-REPAIRED_FLAG = "(notebook): graded cells were deleted, duplicated or retyped; graded from a repaired copy"
 
 
 @dataclass
@@ -61,9 +60,9 @@ def _recording_settings(config: Config, verified: bool) -> dict[str, Any]:
 class Writer:
     """Records executed submissions of ``course`` in its gradebook (see the module docstring)."""
 
-    def __init__(self, course: Course) -> None:
+    def __init__(self, course: CourseState) -> None:
         self.course = course
-        self.journal = course._journal
+        self.journal = course.journal
 
     def record_many(self, batch: list[ExecutedSubmission], repair: bool = False) -> list[JobResult]:
         """See :meth:`Course.record_many`."""
@@ -126,7 +125,7 @@ class Writer:
             trusted = received.received_time(course, executed.student, assignment)
             (folder / received.STAMP_FILE).write_text(received.nbgrader_timestamp(trusted.at))
             files = executed.notebooks
-            for name, data in course._submission_files(executed.student, assignment).items():
+            for name, data in course.submission_files(executed.student, assignment).items():
                 if name.partition("/")[0] == received.STAMP_FILE or (name.endswith(".ipynb") and name not in files):
                     continue
                 target = folder / name
@@ -134,7 +133,7 @@ class Writer:
                 target.write_bytes(files[name].encode() if name in files else data)
 
         students = [] if len(group) > 1 else ["--student", group[0].student]
-        config = course._config()  # the course's configuration, loaded once
+        config = course.config()  # the course's configuration, loaded once
         api = course.nbgrader_api(**{
             "CourseDirectory.submitted_directory": str(staging), "SandboxedExecute.enabled": False,
             "ClearOutput.enabled": False, "TrustedChecks.enabled": False,
@@ -161,7 +160,7 @@ class Writer:
         for executed in group:
             log = (executed.log[-1500:] + "\n" + done.stdout + done.stderr)[-4000:]
             self.journal.set_not_graded(executed.student, assignment, None)
-            for note in self.course._refused_files(executed.student, assignment):
+            for note in self.course.refused_files(executed.student, assignment):
                 self.journal.add_flag(executed.student, assignment, f"(notebook): {note}")
             when = received.received_time(self.course, executed.student, assignment)
             for flag in received.cross_check(self.course, executed.student, assignment, when):
@@ -203,7 +202,7 @@ class Writer:
         """Keep a submission that cannot be graded visible as such: its reason in the journal
         of not-graded submissions (table, exports), and for the formgrader an entry in the
         gradebook with its notebooks flagged. No score is recorded for it."""
-        refused = self.course._refused_files(student, assignment)
+        refused = self.course.refused_files(student, assignment)
         if refused:
             reason += " (refused files: " + "; ".join(refused)[:300] + ")"
         self.journal.set_not_graded(student, assignment, reason)

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Iterable
 
 from .. import registry
-from .runtime.cells import is_grade, is_solution, nbgrader_metadata
+from .runtime.cells import cell_source as _source, is_grade, is_solution, nbgrader_metadata
 
 __all__ = ["AnswersUnavailable", "load_answers", "DEFAULT_NOTEBOOK"]
 
@@ -46,11 +46,6 @@ class AnswersUnavailable(RuntimeError):
 
     def _render_traceback_(self) -> list[str]:
         return [f"\x1b[0;31mAnswersUnavailable\x1b[0m: {self}"]
-
-
-def _source(cell: dict) -> str:
-    source = cell.get("source", "")
-    return source if isinstance(source, str) else "".join(source)
 
 
 def _setup_imports(cells: list[dict]) -> str:

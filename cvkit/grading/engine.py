@@ -20,7 +20,7 @@ from .. import registry
 from .checks import Case, Check, Mistake, bind_call
 from .compare import Mismatch, Statistics
 from .diagnose import CONVENTION, diagnose, explain_exception, image_variants
-from .reference_server import DATA_TRANSFORMS
+from .served import DATA_TRANSFORMS
 from .runtime.guard import Outcome, run_guarded, use_reference_functions
 from .report import MIME_TYPE, CaseResult, Report, headline
 from . import probes
@@ -41,7 +41,7 @@ def hidden_seed(algorithm_id: str, student: str | None = None, salt: str | None 
     kept by the course for regrading) with the student id (``CVKIT_STUDENT_ID``) and the
     algorithm id, so it is reproducible for the grader and unknowable to students beforehand;
     and, at grading time, the ``version`` of the student's code
-    (:func:`cvkit.grading.trusted.submission_version`), so that every new version of a
+    (:func:`cvkit.course.trusted.submission_version`), so that every new version of a
     submission meets new cases: answers learned from one attempt are worth nothing on the next.
     """
     salt = salt if salt is not None else os.environ.get(SALT_VARIABLE, "practice")
@@ -54,7 +54,7 @@ def hidden_seed(algorithm_id: str, student: str | None = None, salt: str | None 
 def watched_functions() -> dict:
     """What a candidate may not call unless its check allows it (code object → id): cvkit's
     reference functions, and the data loaders that compute from an image
-    (:data:`~cvkit.grading.reference_server.DATA_TRANSFORMS`: ``data.with_gaussian_noise`` is
+    (:data:`~cvkit.grading.served.DATA_TRANSFORMS`: ``data.with_gaussian_noise`` is
     the answer of ``noise.add_gaussian``), which grading never serves either."""
     from .. import data
 
@@ -399,7 +399,7 @@ def evaluate(
     runner : callable, optional
         ``runner(index, case, attempt) -> Outcome`` producing the candidate's outcome for a
         case (attempt 1 is the seeded re-run) — e.g. outcomes computed in an isolated worker
-        (:mod:`cvkit.grading.trusted`). Default: call ``candidate`` here, under the guard.
+        (:mod:`cvkit.course.trusted`). Default: call ``candidate`` here, under the guard.
     cases : sequence of Case, optional
         Grade on these cases, already drawn by the caller (the trusted path draws a notebook's
         cases once and sends them to the sandbox), instead of drawing them here; ``hidden`` and
@@ -811,7 +811,7 @@ class _NeedsAnswer:
 
 def _with_reference_building_blocks(algorithm_id: str, candidate: Callable, report: Report, hidden: bool,
                                     seed: int | None) -> Report:
-    """One mistake costs points once (as in trusted grading, :mod:`cvkit.grading.trusted`): when
+    """One mistake costs points once (as in trusted grading, :mod:`cvkit.course.trusted`): when
     ``candidate`` fails and calls, by name, the student's own version of a building block its
     check allows (registered with ``@student``) that fails its own visible check, grade it
     again with the reference building block under that name. Returns the better report, with

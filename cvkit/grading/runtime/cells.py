@@ -12,9 +12,11 @@ loads its server extensions), and the library and the grading sandbox do without
 """
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, Mapping, TypeVar
 
-__all__ = ["nbgrader_metadata", "is_grade", "is_solution", "is_test_cell"]
+_Default = TypeVar("_Default", str, None)
+
+__all__ = ["nbgrader_metadata", "is_grade", "is_solution", "is_test_cell", "cell_source", "grade_id"]
 
 
 def nbgrader_metadata(cell: Any) -> dict:
@@ -48,3 +50,21 @@ def is_solution(cell: Any) -> bool:
 def is_test_cell(cell: Any) -> bool:
     """Whether the cell is an autograded test cell: graded, and not an answer."""
     return is_grade(cell) and not is_solution(cell)
+
+
+def cell_source(cell: Any, default: _Default = "") -> str | _Default:  # type: ignore[assignment]
+    """A cell's source as one string (nbformat allows a string or a list of lines): the one
+    join every reader of notebooks uses. A source that is neither (a hand-edited file) gives
+    ``default``."""
+    source = cell.get("source", "") if isinstance(cell, Mapping) else getattr(cell, "source", "")
+    if isinstance(source, str):
+        return source
+    if isinstance(source, list) and all(isinstance(part, str) for part in source):
+        return "".join(source)
+    return default
+
+
+def grade_id(cell: Any) -> str | None:
+    """The nbgrader grade id of a cell (None for a cell nbgrader does not track)."""
+    found = nbgrader_metadata(cell).get("grade_id")
+    return found if isinstance(found, str) and found else None

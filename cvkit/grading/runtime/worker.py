@@ -1,6 +1,6 @@
 """The main program of the grading sandbox: the student's answer cells, then one case at a time.
 
-It runs inside bubblewrap (:mod:`cvkit.grading.isolation`) with NumPy, the standard library
+It runs inside bubblewrap (:mod:`cvkit.sandbox.isolation`) with NumPy, the standard library
 and this package only. The conversation with the trusted side is JSON lines: requests on
 stdin, messages on file descriptor 3 (the student's prints go to stdout/stderr, which the
 trusted side drains and bounds):

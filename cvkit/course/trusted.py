@@ -3,7 +3,7 @@
 :func:`grade_notebook` takes an executed (or not) student notebook, finds the ``check(...)``
 calls of its test cells (taken from the instructor's source notebook when given, as nbgrader's
 autograde does), runs the student's code once in an isolated worker
-(:mod:`cvkit.grading.sandbox`) on all the cases, and builds the reports here, comparing with
+(:mod:`cvkit.sandbox.session`) on all the cases, and builds the reports here, comparing with
 the reference in this trusted process. :func:`scan` flags code that tries to tamper with the
 grader, for the instructor to look at.
 """
@@ -21,13 +21,13 @@ from typing import Any, Sequence
 import numpy as np
 
 from .. import registry
-from .checks import FORBIDDEN_LIBRARIES, Case, Check, call_target
-from .engine import arg_names, evaluate, hidden_seed
-from .reference_server import served_helpers
-from .report import CaseResult, Report
-from .runtime.cells import is_solution, is_test_cell, nbgrader_metadata
-from .runtime.guard import Outcome, timeout_message
-from .sandbox import NOTEBOOK_SECONDS, run_calls
+from ..grading.checks import FORBIDDEN_LIBRARIES, Case, Check, call_target
+from ..grading.engine import arg_names, evaluate, hidden_seed
+from ..grading.served import served_helpers
+from ..grading.report import CaseResult, Report
+from ..grading.runtime.cells import is_solution, is_test_cell, nbgrader_metadata
+from ..grading.runtime.guard import Outcome, timeout_message
+from ..sandbox.session import NOTEBOOK_SECONDS, run_calls
 
 
 @dataclass
@@ -237,7 +237,7 @@ def grade_notebook(notebook: Any, *, student: str, salt: str, source_notebook: A
     visible cases of every exercise run before any hidden case, and what a student sees of a
     hidden case is cut to what is theirs (:func:`hidden_view`). The whole deciding run, the
     cascade included, has ``total_seconds`` (default
-    :data:`~cvkit.grading.sandbox.NOTEBOOK_SECONDS`).
+    :data:`~cvkit.sandbox.session.NOTEBOOK_SECONDS`).
     """
     deadline = time.monotonic() + (NOTEBOOK_SECONDS if total_seconds is None else float(total_seconds))
     tests_from = source_notebook if source_notebook is not None else notebook

@@ -1,7 +1,7 @@
 """The trusted side of a sandboxed run: a student's answer cells and their cases.
 
 :func:`run_calls` starts the worker (:mod:`cvkit.grading.runtime.worker`) inside the
-operating-system sandbox (:mod:`cvkit.grading.isolation`), with the Python standard library,
+operating-system sandbox (:mod:`cvkit.sandbox.isolation`), with the Python standard library,
 NumPy and :mod:`cvkit.grading.runtime` only — no cvkit reference, no SciPy, scikit-image,
 OpenCV, Pillow, scikit-learn or torch. It then drives the conversation:
 
@@ -13,7 +13,7 @@ OpenCV, Pillow, scikit-learn or torch. It then drives the conversation:
   nor hide slow work behind requests;
 - a building block the current case allows (``filters.pad``, or a data loader that is not
   itself the exercise's answer: the case's ``"allowed"`` list, decided by :mod:`.trusted`) is
-  computed on this side by the :class:`~cvkit.grading.reference_server.ReferenceServer` and
+  computed on this side by the :class:`~cvkit.sandbox.reference_server.ReferenceServer` and
   sent back as data, at most :data:`MAX_REQUESTS` times per case; any other id is refused and
   reported as a forbidden call;
 - the whole run has a deadline (``total_seconds``: every cell, case and restart of one
@@ -45,11 +45,12 @@ from pathlib import Path
 
 from .. import registry
 from . import isolation
-from .reference_server import DATA_LOADERS, DATA_SOURCES, ReferenceServer
-from .runtime import wire
-from .runtime.guard import Outcome, timeout_message
+from ..grading.served import DATA_LOADERS, DATA_SOURCES
+from .reference_server import ReferenceServer
+from ..grading.runtime import wire
+from ..grading.runtime.guard import Outcome, timeout_message
 
-RUNTIME_DIR = Path(__file__).resolve().parent / "runtime"
+RUNTIME_DIR = Path(__file__).resolve().parent.parent / "grading" / "runtime"
 INSIDE = "/opt/cvkit"            # where the runtime and NumPy appear inside the sandbox
 STARTUP_SECONDS = 60.0           # bubblewrap, Python and NumPy on a loaded machine
 CELL_SECONDS = float(os.environ.get("CVKIT_ANSWER_CELL_TIMEOUT", "60"))  # one answer cell (they define functions)
@@ -132,7 +133,7 @@ def _runtime_paths(sandboxed: bool) -> tuple[list, str, str | None]:
 def base_python() -> str:
     """The base installation's own interpreter (real path), which the worker runs: a virtual
     environment is not bound into the worker's sandbox, only the installation it was made from
-    (:func:`cvkit.grading.isolation.system_mounts`). ``sys._base_executable`` names it from
+    (:func:`cvkit.sandbox.isolation.system_mounts`). ``sys._base_executable`` names it from
     Python 3.11 on; before (3.10) it is the environment's own ``python``, a file of the
     environment in a ``--copies`` one (as ``scripts/_venv.py`` makes them): then the
     installation's ``bin/pythonX.Y``."""
@@ -168,7 +169,7 @@ _worker_checked: dict = {}
 
 
 def require_worker() -> None:
-    """Raise :class:`~cvkit.grading.isolation.SandboxUnavailable`, with what the sandbox said,
+    """Raise :class:`~cvkit.sandbox.isolation.SandboxUnavailable`, with what the sandbox said,
     unless the grading worker starts and answers a call in the sandbox on this machine (checked
     once per process). Grading refuses to start rather than record every answer as a worker
     that "ended early"."""

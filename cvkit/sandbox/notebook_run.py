@@ -3,15 +3,16 @@
 The parallel phase of ``cvkit course grade`` runs every submitted notebook once, so that the
 feedback shows the student's own figures and printed results. Grades are *not* decided by this
 run (test cells are no-ops in the kernel, ``CVKIT_TRUSTED_GRADING=1``); they are decided
-afterwards by the trusted checks (:mod:`cvkit.grading.trusted`).
+afterwards by the trusted checks (:mod:`cvkit.course.trusted`).
 
 The steps mirror nbgrader's autograde, with nbgrader's own settings:
 
-1. :func:`prepare` (trusted side) — nbgrader's *sanitizing* steps: the source of every locked
-   or test cell is put back from the release notebook (matched by grade id, as nbgrader's
-   ``OverwriteCells`` does), outputs are cleared and the kernel is the release's.
-2. ``python -I -m cvkit.grading.execute IN OUT``, started by :func:`execute_in_sandbox` inside
-   the grading sandbox (:mod:`cvkit.grading.isolation`) — the notebook is executed with :mod:`nbclient` as nbgrader's ``Execute`` preprocessor does:
+1. :func:`cvkit.course.notebook.prepare` (the course's worker, outside the box) — nbgrader's
+   *sanitizing* steps: the source of every locked or test cell is put back from the release
+   notebook (matched by grade id, as nbgrader's ``OverwriteCells`` does), outputs are cleared
+   and the kernel is the release's.
+2. ``python -I -m cvkit.sandbox.notebook_run IN OUT``, started by :func:`execute_in_sandbox` inside
+   the grading sandbox (:mod:`cvkit.sandbox.isolation`) — the notebook is executed with :mod:`nbclient` as nbgrader's ``Execute`` preprocessor does:
    errors are recorded and execution goes on, a cell that exceeds its time limit is
    interrupted and gets a ``CellTimeoutError``.
 
@@ -21,14 +22,13 @@ every grade, in one batched run (:meth:`cvkit.course.Course.record_many`).
 """
 from __future__ import annotations
 
-import copy
 import json
 import os
 import sys
 
 from .startup import skip_unused_schema_grammars
 
-skip_unused_schema_grammars()  # 1.4 s of CPU per notebook's run (see cvkit.grading.startup)
+skip_unused_schema_grammars()  # 1.4 s of CPU per notebook's run (see cvkit.sandbox.startup)
 
 CELL_TIMEOUT_VARIABLE = "CVKIT_CELL_TIMEOUT"
 DEFAULT_CELL_TIMEOUT = 180
@@ -57,7 +57,7 @@ EXECUTED_MAX_BYTES = 64 << 20   # an executed notebook larger than this is not r
 
 def execute_in_sandbox(files: dict, name: str, wall_seconds: float = EXECUTION_WALL_SECONDS) -> tuple[str | None, str]:
     r"""Execute the notebook ``files[name]`` (already :func:`prepare`\ d) in the grading sandbox
-    (:mod:`cvkit.grading.isolation`): a writable copy of ``files`` (this one submission), the
+    (:mod:`cvkit.sandbox.isolation`): a writable copy of ``files`` (this one submission), the
     Python environment and cvkit read-only, a private ``/tmp``, no network, limits on memory,
     CPU, processes and file size, and ``wall_seconds`` for the whole notebook, kept from here.
     Returns the executed notebook's JSON text (``None`` if it could not run to the end) and a
@@ -96,7 +96,7 @@ def execute_in_sandbox(files: dict, name: str, wall_seconds: float = EXECUTION_W
                                   file_mb=64, tmpfs_mb=512)
         output = "executed.cvkit-output.ipynb"
         with tempfile.TemporaryFile() as console:
-            box = isolation.Sandbox([sys.executable, "-I", "-m", "cvkit.grading.execute", name, output],
+            box = isolation.Sandbox([sys.executable, "-I", "-m", "cvkit.sandbox.notebook_run", name, output],
                                     mounts=mounts, limits=limits, env=env, sandboxed=sandboxed,
                                     stdin=subprocess.DEVNULL, stdout=console, stderr=subprocess.STDOUT)
             try:
@@ -132,7 +132,7 @@ def matplotlib_font_list() -> tuple[str, str] | None:
     made once by matplotlib itself, in a sandbox that runs no student code, kept in the
     user's cache folder under a key of the matplotlib version, the Python environment and
     the system's font files, and bound read-only into each execution's ``MPLCONFIGDIR``
-    (:attr:`cvkit.grading.isolation.Mounts.read_only_in_tmp`), so a notebook cannot change
+    (:attr:`cvkit.sandbox.isolation.Mounts.read_only_in_tmp`), so a notebook cannot change
     it for the next one."""
     import hashlib
     import importlib.metadata
@@ -190,46 +190,14 @@ def matplotlib_font_list() -> tuple[str, str] | None:
     return found
 
 
-def _nbgrader_meta(cell: dict) -> dict:
-    return dict(cell.get("metadata", {}).get("nbgrader", {}) or {})
-
-
-def prepare(notebook: dict, release: dict | None) -> dict:
-    """The notebook as nbgrader would execute it: locked and test cells restored from
-    ``release`` (by grade id), every output cleared. ``notebook`` is not modified."""
-    from .nbgrader_plugins import is_answer_cell, is_test_cell
-
-    nb = copy.deepcopy(notebook)
-    originals = {}
-    if release is not None:
-        for cell in release.get("cells", []):
-            meta = _nbgrader_meta(cell)
-            if meta.get("grade_id") and (meta.get("locked") or is_test_cell(cell)):
-                originals[meta["grade_id"]] = cell
-        kernelspec = release.get("metadata", {}).get("kernelspec")
-        if kernelspec:
-            nb.setdefault("metadata", {})["kernelspec"] = copy.deepcopy(kernelspec)
-    for index, cell in enumerate(nb.get("cells", [])):
-        meta = _nbgrader_meta(cell)
-        original = originals.get(meta.get("grade_id"))
-        if original is not None and not is_answer_cell(cell):
-            cell = nb["cells"][index] = dict(cell, source=original["source"], cell_type=original["cell_type"],
-                                             metadata=copy.deepcopy(original.get("metadata", {})))
-        if cell.get("cell_type") == "code":
-            cell["outputs"] = []
-            cell["execution_count"] = None
-        else:
-            cell.pop("outputs", None)
-            cell.pop("execution_count", None)
-    return nb
-
-
 def execute(notebook: dict, folder: str, timeout: int | None = None) -> dict:
-    """Run ``notebook`` (a dict) in a fresh kernel with working directory ``folder``."""
+    """Run ``notebook`` (a dict, or the ``NotebookNode`` nbformat read) in a fresh kernel with
+    working directory ``folder``."""
     import nbformat
     from nbclient import NotebookClient
 
-    nb = nbformat.reads(json.dumps(notebook), as_version=4)  # joins multi-line sources
+    nb = notebook if isinstance(notebook, nbformat.NotebookNode) else \
+        nbformat.reads(json.dumps(notebook), as_version=4)  # joins multi-line sources
     timeout = int(os.environ.get(CELL_TIMEOUT_VARIABLE, DEFAULT_CELL_TIMEOUT)) if timeout is None else timeout
     kernel = (nb.metadata.get("kernelspec") or {}).get("name") or "python3"
     client = NotebookClient(
@@ -313,7 +281,7 @@ def private_memory() -> bool:
 def main(argv: list[str] | None = None) -> int:  # pragma: no cover - runs in the disposable process
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 2:
-        print("usage: python -m cvkit.grading.execute IN.ipynb OUT.ipynb", file=sys.stderr)
+        print("usage: python -m cvkit.sandbox.notebook_run IN.ipynb OUT.ipynb", file=sys.stderr)
         return 2
     source, target = argv
     processes = int(os.environ.get("CVKIT_SANDBOX_NPROC", "0") or 0)
@@ -323,8 +291,10 @@ def main(argv: list[str] | None = None) -> int:  # pragma: no cover - runs in th
         resource.setrlimit(resource.RLIMIT_NPROC, (processes, processes))
     os.environ["CVKIT_TRUSTED_GRADING"] = "1"  # the kernel's check() calls are no-ops
     private_memory()
-    with open(source, encoding="utf-8") as handle:
-        notebook = json.load(handle)
+    import nbformat
+
+    with open(source, encoding="utf-8") as handle:  # the one read of the notebook in the sandbox
+        notebook = nbformat.read(handle, as_version=4)
     executed = bounded(execute(notebook, os.path.dirname(os.path.abspath(source))))
     with open(target, "w", encoding="utf-8") as handle:
         json.dump(executed, handle, indent=1)

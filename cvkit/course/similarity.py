@@ -49,7 +49,7 @@ Tokenizing (Pygments) costs a few milliseconds per answer, a pair well under one
 Added code
 ~~~~~~~~~~
 The grader runs every code cell a student added or changed, not only the answer cells
-(:func:`cvkit.grading.trusted.worker_cells`), so all of that code is compared. A student's
+(:func:`cvkit.course.trusted.worker_cells`), so all of that code is compared. A student's
 **added code** is every code cell of their notebook that is neither an exercise's answer cell
 (the first cell with that ``grade_id``) nor a test cell, and whose text (white space at its ends
 aside) is none of the instructor's non-answer code cells (of the source or the release
@@ -171,6 +171,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 from .._text import name_problem, printable
+from ..grading.runtime.cells import cell_source
 
 __all__ = [
     "NOISE", "THRESHOLD", "MIN_SIZE", "SOLUTION", "CODE_STUB", "MAX_NOTEBOOK_BYTES", "MAX_ANSWER_CHARS", "ADDED",
@@ -308,10 +309,7 @@ def reference_label(name: str) -> str:
 
 # ------------------------------------------------------------------------------- notebooks
 def _source(cell: Mapping) -> str | None:
-    source = cell.get("source", "")
-    if isinstance(source, list) and all(isinstance(part, str) for part in source):
-        return "".join(source)
-    return source if isinstance(source, str) else None
+    return cell_source(cell, None)
 
 
 def _nbgrader(cell: Mapping) -> Mapping:
@@ -1334,7 +1332,7 @@ def write_csv(items: Iterable[SimilarPair | SimilarGroup], path: str | os.PathLi
         :data:`ALL_ADDED` for the :data:`ADDED` pseudo-exercise, or empty.
 
     ``items`` are groups (:func:`groups`), or pairs, which are grouped first. Cells that a
-    spreadsheet would read as a formula are escaped by :func:`cvkit.grading.safety.csv_safe`.
+    spreadsheet would read as a formula are escaped by :func:`cvkit.course.safety.csv_safe`.
     Missing parent folders are created.
     """
     from .safety import csv_safe

@@ -18,7 +18,7 @@ Feedback (nbgrader ``generate_feedback``, configured in ``autograders/nbgrader_c
   ``application/javascript``, widget views and every other type are dropped (with a note
   when nothing else is left). Only the display outputs that carry cvkit's report MIME type in
   a *test cell decided by the trusted grader* (a cell with ``check(...)`` calls, in a notebook
-  that :class:`~cvkit.grading.nbgrader_plugins.TrustedChecks` marked ``metadata.cvkit.trusted``)
+  that :class:`~cvkit.course.nbgrader_plugins.TrustedChecks` marked ``metadata.cvkit.trusted``)
   keep their report HTML: still cleaned, with an allow-list that fits
   :meth:`cvkit.grading.report.Report._repr_html_` (tables, captions, ``<details>``, ``style`` limited
   to a few layout/colour properties, ``<img>`` only with ``data:image/...;base64`` sources and
@@ -80,6 +80,7 @@ from __future__ import annotations
 import copy
 import csv
 import html
+import json
 import os
 import re
 import shutil
@@ -340,7 +341,7 @@ def _safe_attachments(attachments) -> dict:
 
 
 def _report_mime() -> str:
-    from .report import MIME_TYPE
+    from ..grading.report import MIME_TYPE
 
     return MIME_TYPE
 
@@ -348,7 +349,7 @@ def _report_mime() -> str:
 def _trusted_test_cell(cell, notebook_trusted: bool) -> bool:
     """A test cell whose outputs cvkit's trusted grader replaced: a code cell with nbgrader
     ``grade`` and not ``solution`` and ``check(...)`` calls in its (instructor's) source, in a
-    notebook that went through :class:`~cvkit.grading.nbgrader_plugins.TrustedChecks`."""
+    notebook that went through :class:`~cvkit.course.nbgrader_plugins.TrustedChecks`."""
     if not notebook_trusted or cell.get("cell_type") != "code":
         return False
     meta = cell.get("metadata", {}).get("nbgrader", {}) or {}
@@ -781,6 +782,63 @@ def _waiting_marks(page: str, waiting: dict[str, float]) -> str:
                   count=1)
 
 
+#: highlighted code of this process, by (source, language, metadata, formatter options): most
+#: cells of a class's pages are the release's own, highlighted once per worker, not per page
+_HIGHLIGHTED: dict[tuple[str, ...], str] = {}
+_HIGHLIGHT_KEEP = 4096           # entries kept (then the memo starts again)
+_HIGHLIGHT_LARGEST = 20_000      # characters of a source worth keeping
+
+
+class _Highlighted:
+    """A highlight filter (nbconvert's ``Highlight2HTML``) that keeps what it made, for the
+    next page: the same arguments give the same HTML, so the pages are unchanged."""
+
+    def __init__(self, highlight: Any) -> None:
+        self.highlight = highlight
+
+    def __call__(self, source: str, language: str | None = None, metadata: Any = None) -> str:
+        if len(source) > _HIGHLIGHT_LARGEST:
+            return self.highlight(source, language, metadata)
+        key = (source, str(language or self.highlight.pygments_lexer),
+               json.dumps(metadata, sort_keys=True, default=str) if metadata else "",
+               repr(sorted(self.highlight.extra_formatter_options.items())))
+        found = _HIGHLIGHTED.get(key)
+        if found is None:
+            found = self.highlight(source, language, metadata)
+            if len(_HIGHLIGHTED) >= _HIGHLIGHT_KEEP:
+                _HIGHLIGHTED.clear()
+            _HIGHLIGHTED[key] = found
+        return found
+
+
+def _compiled_templates() -> Any:
+    """One jinja2 bytecode cache for the process: nbgrader makes a new exporter, hence a new
+    template environment, for every feedback page, and compiling nbconvert's templates again
+    took about half a second a page. Templates are checked against their source (jinja2 keeps a
+    checksum), so a changed template is compiled again."""
+    from jinja2 import BytecodeCache
+
+    class _InMemory(BytecodeCache):
+        def __init__(self) -> None:
+            self.codes: dict[str, bytes] = {}
+
+        def load_bytecode(self, bucket: Any) -> None:
+            code = self.codes.get(bucket.key)
+            if code is not None:
+                bucket.bytecode_from_string(code)
+
+        def dump_bytecode(self, bucket: Any) -> None:
+            self.codes[bucket.key] = bucket.bytecode_to_string()
+
+    global _COMPILED
+    if _COMPILED is None:
+        _COMPILED = _InMemory()
+    return _COMPILED
+
+
+_COMPILED: Any = None
+
+
 def _exporter_class():
     from jinja2 import DictLoader
     from nbconvert.exporters import HTMLExporter, TemplateExporter
@@ -804,6 +862,10 @@ def _exporter_class():
         def _mathjax_url_default(self):
             return MATHJAX_URL
 
+        @default("optimistic_validation")
+        def _optimistic_validation_default(self):
+            return True
+
         @pass_context
         def markdown2html(self, context, source):
             try:
@@ -821,7 +883,7 @@ def _exporter_class():
             langinfo = nb.metadata.get("language_info", {})
             lexer = langinfo.get("pygments_lexer", langinfo.get("name", None))
             self.register_filter("highlight_code", self.filters.get(
-                "highlight_code", Highlight2HTML(pygments_lexer=lexer, parent=self)))
+                "highlight_code", _Highlighted(Highlight2HTML(pygments_lexer=lexer, parent=self))))
             resources = self._init_resources(resources)
             self.register_filter("filter_data_type", WidgetsDataTypeFilter(
                 notebook_metadata=self._nb_metadata, parent=self, resources=resources))
@@ -830,22 +892,35 @@ def _exporter_class():
             page = _waiting_marks(_named_contents(_with_alt_texts(page), names), resources.get("cvkit_waiting") or {})
             return page, resources
 
+        def _create_environment(self):
+            environment = super()._create_environment()
+            environment.bytecode_cache = _compiled_templates()
+            return environment
+
         def _init_resources(self, resources):
             resources = super()._init_resources(resources)
             resources["should_not_encode_svg"] = False  # SVG only ever as <img>: no script runs there
             return resources
 
         def _preprocess(self, nb, resources):
-            # clean once before the configured preprocessors (a notebook that a student made
-            # invalid would fail nbconvert's validation between preprocessors), and again after
-            # them if the configuration does not include SanitizeStudentContent
-            nb = sanitize_notebook(_without_mark_schemes(copy.deepcopy(nb)))
+            # cleaned once: by SanitizeStudentContent where the configuration has it (nbconvert
+            # validates the notebook after the last step only, optimistic_validation, so a
+            # notebook a student made invalid reaches it), else here, after the steps
+            nb = _without_mark_schemes(copy.deepcopy(nb))
+            if not (self.optimistic_validation and _configured_sanitizer(self)):
+                nb = sanitize_notebook(nb)
             nb, resources = super()._preprocess(nb, resources)
             if not resources.get("cvkit_sanitized"):
                 sanitize_notebook(nb, resources)
             return nb, resources
 
     return _SafeFeedbackExporter
+
+
+def _configured_sanitizer(exporter: Any) -> bool:
+    """Whether ``exporter``'s steps include :class:`SanitizeStudentContent` (by class or name)."""
+    return any(getattr(step, "__name__", type(step).__name__) == "SanitizeStudentContent"
+               or type(step).__name__ == "SanitizeStudentContent" for step in exporter._preprocessors)
 
 
 _LAZY = {"SanitizeStudentContent": _preprocessor_class, "SafeFeedbackExporter": _exporter_class}

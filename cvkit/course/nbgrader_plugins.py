@@ -1,7 +1,7 @@
 """cvkit's plugins for nbgrader (configured in ``autograders/nbgrader_config.py``).
 
 - :class:`TrustedChecks` — an autograde preprocessor placed after execution: it decides every
-  ``check(...)`` of the test cells outside the student's kernel (:mod:`cvkit.grading.trusted`)
+  ``check(...)`` of the test cells outside the student's kernel (:mod:`cvkit.course.trusted`)
   and replaces those cells' outputs by the trusted report and partial credit, which is what
   nbgrader then records. The verdicts also travel as data in each test cell's metadata
   (``metadata.cvkit.report``, :func:`cell_report`) for the grade table and exports; flags from
@@ -11,7 +11,7 @@
 - :class:`HideHiddenTests` — a feedback preprocessor: students see the results of the hidden
   tests, never their source.
 - :class:`SanitizeStudentContent` and :class:`SafeFeedbackExporter` (from
-  :mod:`cvkit.grading.safety`) — feedback pages without anything executable from the student,
+  :mod:`cvkit.course.safety`) — feedback pages without anything executable from the student,
   with MathJax served from the pages' folder.
 """
 from __future__ import annotations
@@ -26,18 +26,10 @@ from nbgrader.plugins import LateSubmissionPlugin
 from nbgrader.preprocessors import NbGraderPreprocessor
 from traitlets import Bool, Dict, Enum, Float, Int, Unicode
 
-from .report import MIME_TYPE, Report
-from .runtime import cells
+from ..grading.report import MIME_TYPE, Report
+from ..grading.runtime.cells import cell_source, is_test_cell
 from .safety import SafeFeedbackExporter, SanitizeStudentContent  # noqa: F401  (re-exported for the config)
 from .trusted import CheckCall, grade_notebook, hide_hidden_tests
-
-
-
-#: nbgrader's test-cell rule (``is_grade`` and not ``is_solution``), without importing nbgrader:
-#: :mod:`cvkit.grading.runtime.cells`, tested equal to :mod:`nbgrader.utils`
-is_test_cell = cells.is_test_cell
-#: an answer cell (nbgrader's ``solution`` cells: code or written answers), :func:`nbgrader.utils.is_solution`
-is_answer_cell = cells.is_solution
 
 
 def _bundle(report: Report) -> dict[str, Any]:
@@ -157,7 +149,7 @@ class PlanExtensions(NbGraderPreprocessor):
 
 
 class SandboxedExecute(NbGraderPreprocessor):
-    """nbgrader's *Execute* step, in the grading sandbox (:func:`cvkit.grading.execute.execute_in_sandbox`).
+    """nbgrader's *Execute* step, in the grading sandbox (:func:`cvkit.sandbox.notebook_run.execute_in_sandbox`).
 
     Replaces nbgrader's ``Execute`` in ``Autograde.autograde_preprocessors`` so that even a
     plain ``nbgrader autograde`` never runs a student's notebook with the grader's rights. The
@@ -172,8 +164,8 @@ class SandboxedExecute(NbGraderPreprocessor):
     def preprocess(self, nb, resources):
         import nbformat
 
-        from .execute import execute_in_sandbox
-        from .isolation import collect_files
+        from ..sandbox.notebook_run import execute_in_sandbox
+        from ..sandbox.isolation import collect_files
 
         name = f"{resources.get('unique_key') or 'notebook'}.ipynb"
         folder = (resources.get("metadata") or {}).get("path")
@@ -244,7 +236,7 @@ class WaitingForInstructor(NbGraderPreprocessor):
     """A step of ``generate_feedback`` (after ``GetGrades``): the grade cells that still wait for a
     hand mark (nbgrader's ``needs_manual_grade``), as ``resources["cvkit_waiting"]`` (grade id →
     points), so that the page says "waiting for your instructor" where nbgrader's template would
-    print a score of 0 the student has not earned (:class:`~cvkit.grading.safety.SafeFeedbackExporter`)."""
+    print a score of 0 the student has not earned (:class:`~cvkit.course.safety.SafeFeedbackExporter`)."""
 
     enabled = Bool(True).tag(config=True)
 
@@ -358,6 +350,4 @@ UNSANDBOXED_BANNER = (
 
 def _is_banner(cell: Any) -> bool:
     """The banner of an earlier grading (or the student's copy of it): replaced by a fresh one."""
-    source = cell.get("source", "")
-    text = source if isinstance(source, str) else "".join(source)
-    return cell.get("cell_type") == "markdown" and text.strip() == UNSANDBOXED_BANNER
+    return cell.get("cell_type") == "markdown" and cell_source(cell).strip() == UNSANDBOXED_BANNER

@@ -1,0 +1,214 @@
+"""The course's notebook model: nbgrader notebooks as JSON dicts, and what the course does to them.
+
+Every reader of a notebook in the course goes through here or through the cell rules of
+:mod:`cvkit.grading.runtime.cells` (which cells are answers or tests — nbgrader's own rule, for
+dicts and nbformat nodes alike —, a cell's source, its grade id):
+
+- :class:`Submitted`: one submitted notebook, parsed once where it is collected, with its
+  release; it knows whether nbgrader would refuse it (:meth:`Submitted.needs_repair`), its
+  repaired copy and the copy prepared for execution, and travels in that form through the
+  worker (:func:`cvkit.course.jobs.grade_submission`);
+- :func:`prepare` (what nbgrader's sanitizing steps make of a notebook before execution),
+  :func:`repaired_notebook`, :func:`graded_layout`;
+- the readers of graded notebooks: :func:`exercise_name`, :func:`cell_outputs`.
+"""
+from __future__ import annotations
+
+import copy
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterator, Mapping
+
+from ..grading.runtime.cells import cell_source, grade_id, is_solution, is_test_cell, nbgrader_metadata
+
+#: the flag of a notebook graded from its repaired copy (:meth:`Submitted.to_grade`)
+REPAIRED_FLAG = "(notebook): graded cells were deleted, duplicated or retyped; graded from a repaired copy"
+
+#: the suffixes of an exercise's cells: ``gaussian_answer``, ``gaussian_visible``, ...
+_CELL_SUFFIX = re.compile(r"_(answer|visible|hidden|test)$")
+_GRADE_SUFFIX = re.compile(r"_(visible|hidden|test)$")
+
+
+def exercise_name(cell_id: str, *, answers: bool = True) -> str:
+    """The exercise a cell belongs to: its grade id without ``_answer``/``_visible``/``_hidden``/
+    ``_test`` (``answers=False``: an ``_answer`` suffix is kept, as for graded cells, whose
+    names never end so)."""
+    return (_CELL_SUFFIX if answers else _GRADE_SUFFIX).sub("", cell_id)
+
+
+def _is_answer(cell: Mapping[str, Any]) -> bool:
+    return bool(is_solution(cell))
+
+
+def graded_layout(notebook: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """(grade id, cell type) of every cell nbgrader tracks, in order: what a submission must
+    keep of its release for nbgrader to record it."""
+    return [(str(grade_id(cell)), str(cell.get("cell_type"))) for cell in notebook.get("cells", [])
+            if grade_id(cell)]
+
+
+def repaired_notebook(release: Mapping[str, Any], notebook: Mapping[str, Any]) -> dict[str, Any]:
+    """The ``release`` notebook with the student's answers of ``notebook`` put back in: for a
+    submission whose graded cells were deleted, duplicated or retyped so badly that nbgrader
+    refuses it. Answer cells are matched by grade id (their source kept, their type the
+    release's); code cells the student added come along after the answer cell they followed."""
+    answers: dict[str, str] = {}
+    added_after: dict[str | None, list[str]] = {}
+    known = {cell_source(c).strip() for c in release["cells"]}
+    last = None
+    for cell in notebook.get("cells", []):
+        cell_id = grade_id(cell)
+        if _is_answer(cell) and cell_id and cell_id not in answers:
+            answers[cell_id] = cell_source(cell)
+            last = cell_id
+        elif (not cell.get("metadata", {}).get("nbgrader", {}) and cell.get("cell_type") == "code"
+              and cell_source(cell).strip() not in known):
+            added_after.setdefault(last, []).append(cell_source(cell))
+
+    def added(anchor: str | None) -> list[dict[str, Any]]:
+        return [{"cell_type": "code", "source": source, "metadata": {}, "outputs": [], "execution_count": None}
+                for source in added_after.get(anchor, [])]
+
+    cells = []
+    for cell in release["cells"]:
+        cell_id = grade_id(cell)
+        if _is_answer(cell) and cell_id in answers:
+            cell = dict(cell, source=answers[str(cell_id)])
+        cells.append(cell)
+        if cell_id == "setup":
+            cells += added(None)
+        elif _is_answer(cell):
+            cells += added(cell_id)
+    return dict(release, cells=cells)
+
+
+def cell_outputs(folder: Path) -> Iterator[tuple[str | None, Mapping[str, Any]]]:
+    """(grade id or None, output) of every output of every cell of the notebooks in ``folder``
+    (a hand-in's or an autograded submission's), skipping what cannot be read: the one walk the
+    course's readers of reports (named mistakes, case verdicts, visible-test runs) share."""
+    for path in sorted(folder.glob("*.ipynb")):
+        try:
+            cells = json.loads(path.read_text()).get("cells", [])
+        except (OSError, ValueError, AttributeError):
+            continue
+        for cell in cells if isinstance(cells, list) else []:
+            if not isinstance(cell, dict):
+                continue
+            cell_id = grade_id(cell)
+            for output in cell.get("outputs", []) or []:
+                if isinstance(output, dict):
+                    yield cell_id, output
+
+
+def prepare(notebook: Mapping[str, Any], release: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The notebook as nbgrader would execute it: locked and test cells restored from
+    ``release`` (by grade id, as nbgrader's ``OverwriteCells`` does), the release's kernel,
+    every output cleared. ``notebook`` is not modified."""
+    nb = copy.deepcopy(dict(notebook))
+    originals = {}
+    if release is not None:
+        for cell in release.get("cells", []):
+            meta = nbgrader_metadata(cell)
+            if meta.get("grade_id") and (meta.get("locked") or is_test_cell(cell)):
+                originals[meta["grade_id"]] = cell
+        kernelspec = release.get("metadata", {}).get("kernelspec")
+        if kernelspec:
+            nb.setdefault("metadata", {})["kernelspec"] = copy.deepcopy(kernelspec)
+    for index, cell in enumerate(nb.get("cells", [])):
+        original = originals.get(nbgrader_metadata(cell).get("grade_id"))
+        if original is not None and not is_solution(cell):
+            cell = nb["cells"][index] = dict(cell, source=original["source"], cell_type=original["cell_type"],
+                                             metadata=copy.deepcopy(original.get("metadata", {})))
+        if cell.get("cell_type") == "code":
+            cell["outputs"] = []
+            cell["execution_count"] = None
+        else:
+            cell.pop("outputs", None)
+            cell.pop("execution_count", None)
+    return nb
+
+
+def valid_cell_metadata(notebook: Mapping[str, Any]) -> bool:
+    """Whether nbgrader's ``CheckCellMetadata`` accepts the notebook's cells."""
+    import nbformat
+    from nbgrader.preprocessors import CheckCellMetadata
+
+    nb = notebook if isinstance(notebook, nbformat.NotebookNode) else nbformat.from_dict(notebook)
+    try:
+        CheckCellMetadata().preprocess(nb, {})
+    except Exception:  # noqa: BLE001 - any complaint means: let the writer's full pipeline decide
+        return False
+    return True
+
+
+def as_node(notebook: Mapping[str, Any]) -> Any:
+    """The ``nbformat.NotebookNode`` (format 4) that ``nbformat.reads(text, as_version=4)`` gives for
+    the text ``notebook`` was parsed from — sources joined, transient data removed, older formats
+    converted — and the same exception for what it refuses, without parsing the text again.
+    ``notebook`` is not modified (nbformat builds new nodes)."""
+    import nbformat
+    from nbformat import NBFormatError, versions
+    from nbformat.reader import ValidationError, get_version
+
+    major, minor = get_version(notebook)
+    if major not in versions:
+        raise NBFormatError("Unsupported nbformat version %s" % major)
+    try:
+        nb = versions[major].to_notebook_json(notebook, minor=minor)
+    except AttributeError as e:
+        raise ValidationError(f"The notebook is invalid and is missing an expected key: {e}") from None
+    return nbformat.convert(nb, 4)
+
+
+@dataclass
+class Submitted:
+    """One submitted notebook on its way to a grade: parsed once from the submitted file's
+    text, with its release (``None`` when the assignment has none to compare with).
+
+    ``problem`` says why the file is not a notebook at all (then ``notebook`` is ``None``)."""
+
+    name: str
+    notebook: dict[str, Any] | None
+    release: dict[str, Any] | None
+    problem: str = ""
+    repaired: bool = field(default=False)
+
+    @classmethod
+    def parse(cls, name: str, data: bytes | str, release: Mapping[str, Any] | None) -> Submitted:
+        """The one parse of a submitted notebook: JSON, a list of cells, and nbformat's schema
+        (what nbgrader will read); a file that fails is kept with its ``problem``."""
+        import nbformat
+
+        try:
+            text = data.decode("utf-8") if isinstance(data, bytes) else data
+            notebook = json.loads(text)
+            if not isinstance(notebook, dict) or not isinstance(notebook.get("cells"), list):
+                raise ValueError("no list of cells")
+            # what nbformat.reads(text, as_version=4) would refuse, without reading the text again
+            as_node(notebook)  # what nbformat.reads(text, as_version=4) refuses
+        except Exception as error:  # noqa: BLE001 - any unreadable file is a reason, never a crash
+            return cls(name, None, dict(release) if release else None,
+                       f"{name} is not a valid notebook ({type(error).__name__}: {str(error)[:120]})")
+        return cls(name, notebook, dict(release) if release else None)
+
+    def needs_repair(self) -> bool:
+        """Whether nbgrader would refuse the notebook: its cell metadata fails nbgrader's check,
+        or its graded cells (grade id and type, in order) are not the release's — deleted,
+        duplicated or retyped."""
+        assert self.notebook is not None
+        if not valid_cell_metadata(self.notebook):
+            return True
+        return self.release is not None and graded_layout(self.notebook) != graded_layout(self.release)
+
+    def to_grade(self, repair: bool) -> dict[str, Any]:
+        """The notebook that is graded: the student's, or (``repair``, or when nbgrader would
+        refuse it) the release with the student's answers put back (:func:`repaired_notebook`)."""
+        assert self.notebook is not None
+        self.repaired = repair or self.needs_repair()
+        return repaired_notebook(self.release, self.notebook) if self.repaired and self.release else self.notebook
+
+    def prepared(self, repair: bool) -> dict[str, Any]:
+        """The notebook to execute: :meth:`to_grade`, sanitized as nbgrader does (:func:`prepare`)."""
+        return prepare(self.to_grade(repair), self.release)
