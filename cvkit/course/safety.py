@@ -268,8 +268,18 @@ def _html_block(fragment: str) -> str:
 
 
 def _markdown_block(source: str, attachments=None) -> str:
-    """Markdown source as a cleaned HTML block (a block made here before is only cleaned again)."""
+    """Markdown source as a cleaned HTML block (a block made here before is only cleaned again).
+    A cell without attachments is made once per process (most of a class's Markdown cells are
+    the release's own): the same source gives the same block."""
+    if not attachments and len(source) <= 20_000:
+        return _plain_markdown_block(source)
     cleaned = sanitize_html(source) if source.startswith(_BLOCK) else sanitize_markdown(source, attachments)
+    return _html_block(cleaned) if cleaned.strip() else ""
+
+
+@lru_cache(maxsize=4096)
+def _plain_markdown_block(source: str) -> str:
+    cleaned = sanitize_html(source) if source.startswith(_BLOCK) else sanitize_markdown(source, None)
     return _html_block(cleaned) if cleaned.strip() else ""
 
 
