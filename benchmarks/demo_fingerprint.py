@@ -10,7 +10,11 @@ random names nbgrader gives its ids, the absolute course folder):
 - the gradebook: every submission's grades (automatic and manual score, extra credit, whether
   a hand mark is due), comments, the notebooks' ``flagged`` and the late penalty;
 - every file of ``exports/`` (CSV, HTML), and every feedback page and autograded notebook, as
-  a SHA-256 of its text once times and the folder are replaced by placeholders.
+  a SHA-256 of its text once times and the folder are replaced by placeholders. What differs
+  between two runs of the same code is left out too: cell ids made at build time, the measured
+  ``elapsed`` of a case, timings a notebook prints, and how a kernel happened to split its
+  printed output into messages (consecutive stream outputs are joined; a page is compared by
+  its text, tags removed, and its images).
 """
 from __future__ import annotations
 
@@ -23,7 +27,11 @@ from pathlib import Path
 _TIMES = [
     re.compile(r"\d{4}-\d{2}-\d{2}[ T]\d{2}:\d{2}:\d{2}(?:\.\d+)?(?:[+-]\d{2}:?\d{2}|Z| ?UTC)?"),
     re.compile(r"\b\d+(?:\.\d+)? ?(?:s|seconds|ms)\b"),  # durations of a run
+    re.compile(r'"elapsed": [0-9.e-]+'),  # a case's measured time, in the report's data
+    re.compile(r"cvkit-due-[0-9a-f]+"),  # the due-date notice's cell id, made at build time
 ]
+_TAG = re.compile(r"<[^>]*>")
+_IMAGE = re.compile(r'src="data:image/[^"]+"')
 
 
 def _normal(text: str, root: str) -> str:
@@ -41,8 +49,29 @@ def _digest(path: Path, root: str) -> str:
         for cell in nb.get("cells", []):
             cell.get("metadata", {}).pop("execution", None)
             cell.pop("id", None)
+            cell["outputs"] = _joined_streams(cell.get("outputs", []))
         text = json.dumps(nb, sort_keys=True)
+    elif path.suffix == ".html":  # the text a reader sees, and the pictures
+        images = sorted(hashlib.sha256(m.encode()).hexdigest() for m in _IMAGE.findall(text))
+        text = " ".join(_TAG.sub(" ", _IMAGE.sub("", text)).split()) + "\n" + "\n".join(images)
     return hashlib.sha256(_normal(text, root).encode()).hexdigest()[:16]
+
+
+def _joined_streams(outputs: list) -> list:
+    """Consecutive stream outputs of one stream as one (a kernel splits printed text into
+    messages as its timing goes)."""
+    joined: list = []
+    for output in outputs:
+        if (output.get("output_type") == "stream" and joined and joined[-1].get("output_type") == "stream"
+                and joined[-1].get("name") == output.get("name")):
+            text = output.get("text", "")
+            joined[-1] = dict(joined[-1], text="".join(joined[-1]["text"]) + ("".join(text) if isinstance(text, list) else text))
+            continue
+        if output.get("output_type") == "stream":
+            text = output.get("text", "")
+            output = dict(output, text="".join(text) if isinstance(text, list) else text)
+        joined.append(output)
+    return joined
 
 
 def gradebook(db_url: str) -> dict:

@@ -71,6 +71,7 @@ LONGEST_FILES = {
     "tests/test_course_package.py": 35,
     "tests/test_hand_marks.py": 35,
     "tests/test_checks_ch03.py": 30,
+    "tests/test_parse_count.py": 35,  # builds and grades one chapter in-process (25-36 s loaded, 2026-12-06)
 }
 
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .notebook import REPAIRED_FLAG, Submitted, as_node, prepare
+from .notebook import REPAIRED_FLAG, Submitted, as_node, metadata_flags, prepare
 
 
 @dataclass
@@ -28,6 +28,7 @@ class ExecutedSubmission:
     verified: bool = False
     not_graded: str = ""  # why this submission cannot be graded at all (never shown as a zero)
     repaired: list = field(default_factory=list)  # notebooks graded from a repaired copy
+    flagged: dict = field(default_factory=dict)   # verified: notebook name -> it carries flags for the instructor
 
 
 def _notebook_names(files: dict[str, Any]) -> list[str]:
@@ -210,7 +211,7 @@ def grade_submission(project: Any, student: str, assignment: str, files: dict[st
     repairs = sorted(name for name, s in submitted.items() if s.repaired)
     prepared = {name: prepare(nb, submitted[name].release) for name, nb in graded.items()}
     executed = _execute(files, prepared, student, assignment)
-    verified = {}
+    verified, flagged = {}, {}
     extra = extra_notebook_flags(files, releases)
     for name in submitted:
         try:
@@ -238,7 +239,9 @@ def grade_submission(project: Any, student: str, assignment: str, files: dict[st
             reason = f"{name}: the grader failed on this notebook ({type(error).__name__}: {str(error)[:200]})"
             return ExecutedSubmission(student, assignment, {}, False, executed.log + "\n" + reason, not_graded=reason)
         verified[name] = nbformat.writes(nb)
-    return ExecutedSubmission(student, assignment, verified, True, executed.log, verified=True, repaired=repairs)
+        flagged[name] = bool(metadata_flags(nb.metadata.get("cvkit", {})))
+    return ExecutedSubmission(student, assignment, verified, True, executed.log, verified=True, repaired=repairs,
+                              flagged=flagged)
 
 
 def payload(course: Any, student: str, assignment: str) -> tuple[Any, ...]:

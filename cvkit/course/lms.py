@@ -92,6 +92,18 @@ def points_text(value: float | None) -> str:
     return "0" if text in ("", "-0") else text
 
 
+def _grade_cells(sheet: GradeSheet, student: str, blank: list[tuple[str, str, str]]) -> list[str]:
+    """The student's row of points, one cell per assignment of ``sheet``; a blank cell's reason
+    goes to ``blank`` (student, assignment, why)."""
+    cells = []
+    for assignment in sheet.assignments:
+        grade = sheet.grade(student, assignment)
+        cells.append(points_text(grade.points))
+        if grade.points is None:
+            blank.append((student, assignment, grade.reason))
+    return cells
+
+
 def grade_sheet(course: CourseState, assignments: Iterable[str] | None = None) -> GradeSheet:
     """The course's grade sheet, read from nbgrader's gradebook.
 
@@ -313,13 +325,7 @@ def canvas_export(sheet: GradeSheet, target: Path, roster: Path | None = None,
     for student in sheet.students:
         if student not in identities:
             continue
-        cells = []
-        for a in sheet.assignments:
-            grade = sheet.grade(student, a)
-            cells.append(points_text(grade.points))
-            if grade.points is None:
-                blank.append((student, a, grade.reason))
-        rows.append(identities[student] + cells)
+        rows.append(identities[student] + _grade_cells(sheet, student, blank))
     rows += extra
     new = [a for a in sheet.assignments if headers[a] == a]
     if new:
@@ -388,13 +394,7 @@ def moodle_export(sheet: GradeSheet, target: Path, field_name: str, roster: Path
                          "import at a user it cannot find)")
             blank.append((student, "", f"in the course, no {field_name} in {source}: not in the file"))
             continue
-        cells = []
-        for a in sheet.assignments:
-            grade = sheet.grade(student, a)
-            cells.append(points_text(grade.points))
-            if grade.points is None:
-                blank.append((student, a, grade.reason))
-        rows.append([identifier] + cells)
+        rows.append([identifier] + _grade_cells(sheet, student, blank))
     tops = ", ".join(f"{a} {points_text(sheet.points_possible.get(a)) or '?'}" for a in sheet.assignments)
     if tops:
         lines.append(f"grade items' maximum points (set them in Moodle; a new item gets 100): {tops}")

@@ -102,6 +102,17 @@ def cell_outputs(folder: Path) -> Iterator[tuple[str | None, Mapping[str, Any]]]
                     yield cell_id, output
 
 
+def metadata_flags(meta: Mapping[str, Any]) -> list[str]:
+    """The flags for the instructor in a graded notebook's ``metadata.cvkit``: the static scan's
+    and the worker's, grading without the sandbox, a worker's problem."""
+    flags = [str(f) for f in meta.get("flags", [])]
+    if meta.get("sandboxed") is False:
+        flags.append("(notebook): GRADED WITHOUT THE SANDBOX (--no-sandbox)")
+    if meta.get("worker_problem"):
+        flags.append(f"(notebook): {meta['worker_problem']}")
+    return flags
+
+
 def prepare(notebook: Mapping[str, Any], release: Mapping[str, Any] | None) -> dict[str, Any]:
     """The notebook as nbgrader would execute it: locked and test cells restored from
     ``release`` (by grade id, as nbgrader's ``OverwriteCells`` does), the release's kernel,

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable
 
 from ..grading.report import MIME_TYPE, finding
-from .notebook import exercise_name, grade_id
+from .notebook import exercise_name, grade_id, metadata_flags
 from .samples import student_order
 
 if TYPE_CHECKING:
@@ -110,12 +110,7 @@ def notebook_flags(path: Path) -> list[str]:
         meta = json.loads(path.read_text()).get("metadata", {}).get("cvkit", {})
     except (OSError, ValueError, AttributeError):
         return []
-    flags = [str(f) for f in meta.get("flags", [])]
-    if meta.get("sandboxed") is False:
-        flags.append("(notebook): GRADED WITHOUT THE SANDBOX (--no-sandbox)")
-    if meta.get("worker_problem"):
-        flags.append(f"(notebook): {meta['worker_problem']}")
-    return flags
+    return metadata_flags(meta)
 
 
 def environment(course: CourseState, assignments: Iterable[str]) -> dict[str, dict[str, list[str]]]:

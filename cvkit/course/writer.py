@@ -172,22 +172,30 @@ class Writer:
                 self.journal.add_flag(executed.student, assignment, REPAIRED_FLAG)
             results.append(JobResult(executed.student, assignment, done.returncode, 1, log, executed=executed.ok))
         pairs = [(executed.student, assignment) for executed in group]
-        self.flag_in_gradebook(pairs)
+        self.flag_in_gradebook(pairs, {(e.student, assignment): e.flagged for e in group if e.verified and e.flagged})
         self.journal.mark_graded(pairs, self.course.grading_stamps([assignment]))
         return results
 
-    def flag_in_gradebook(self, pairs: list[tuple[str, str]]) -> None:
+    def flag_in_gradebook(self, pairs: list[tuple[str, str]],
+                          known: dict[tuple[str, str], dict[str, bool]] | None = None) -> None:
         """Mark the notebooks that carry cvkit flags (:func:`~.results.notebook_flags`) as flagged
         in nbgrader's gradebook (``SubmittedNotebook.flagged``: the formgrader's "Flagged?"
         column). cvkit only ever sets the flag, never clears it: the instructor clears it in the
-        formgrader once they have looked."""
+        formgrader once they have looked. ``known``: which notebooks of a submission carry flags, as
+        the worker said (the autograded notebooks are read for the others)."""
         from nbgrader.api import Gradebook, MissingEntry
 
         from .results import notebook_flags
 
-        flagged = [(student, assignment, path.stem) for student, assignment in pairs
-                   for path in sorted((self.course.root / "autograded" / student / assignment).glob("*.ipynb"))
-                   if notebook_flags(path)]
+        flagged = []
+        for student, assignment in pairs:
+            said = (known or {}).get((student, assignment))
+            if said is not None:
+                flagged += [(student, assignment, name[:-len(".ipynb")]) for name, yes in sorted(said.items()) if yes]
+                continue
+            flagged += [(student, assignment, path.stem) for path in
+                        sorted((self.course.root / "autograded" / student / assignment).glob("*.ipynb"))
+                        if notebook_flags(path)]
         if not flagged:
             return
         with Gradebook(self.course.db_url) as gradebook:
