@@ -1594,33 +1594,35 @@ def _hd_inverted(src, dst, normalize=True):
     return _homography_dlt(dst, src, normalize=normalize)
 
 
-@mistake("normalisation not undone (H̃ returned)",
-         "The SVD gives the homography between the *normalised* sets: return T′⁻¹·H̃·T")
-def _hd_not_denormalized(src, dst, normalize=True):
+def _hd_normalized_solve(src, dst, normalize, undo, one_normalization=False):
+    """The DLT solved between the Hartley-normalised sets (``dst`` normalised with the ``src``'s
+    T when ``one_normalization``), H̃ mapped back by ``undo(H̃, Ts, Td)``; the plain DLT
+    when not ``normalize``."""
     s, d, Ts, Td = _dlt_parts(src, dst)
     if not normalize:
         return _homography_dlt(src, dst, normalize=False)
+    if one_normalization:
+        Td = Ts
     h = _null_vector(_dlt_matrix(_apply(Ts, s), _apply(Td, d)))[1]
-    return _scaled(h.reshape(3, 3))
+    return _scaled(undo(h.reshape(3, 3), Ts, Td))
+
+
+@mistake("normalisation not undone (H̃ returned)",
+         "The SVD gives the homography between the *normalised* sets: return T′⁻¹·H̃·T")
+def _hd_not_denormalized(src, dst, normalize=True):
+    return _hd_normalized_solve(src, dst, normalize, lambda H, Ts, Td: H)
 
 
 @mistake("normalisation undone the wrong way (T′·H̃·T⁻¹)", "dst_n = T′·dst and src_n = T·src, so H = T′⁻¹·H̃·T")
 def _hd_denormalized_backwards(src, dst, normalize=True):
-    s, d, Ts, Td = _dlt_parts(src, dst)
-    if not normalize:
-        return _homography_dlt(src, dst, normalize=False)
-    h = _null_vector(_dlt_matrix(_apply(Ts, s), _apply(Td, d)))[1]
-    return _scaled(Td @ h.reshape(3, 3) @ np.linalg.inv(Ts))
+    return _hd_normalized_solve(src, dst, normalize, lambda H, Ts, Td: Td @ H @ np.linalg.inv(Ts))
 
 
 @mistake("one normalisation used for both point sets",
          "Normalise src and dst separately (each with its own centroid and scale)")
 def _hd_one_normalization(src, dst, normalize=True):
-    s, d, Ts, _ = _dlt_parts(src, dst)
-    if not normalize:
-        return _homography_dlt(src, dst, normalize=False)
-    h = _null_vector(_dlt_matrix(_apply(Ts, s), _apply(Ts, d)))[1]
-    return _scaled(np.linalg.inv(Ts) @ h.reshape(3, 3) @ Ts)
+    return _hd_normalized_solve(src, dst, normalize, lambda H, Ts, Td: np.linalg.inv(Td) @ H @ Ts,
+                                one_normalization=True)
 
 
 def _hd_svd_variant(src, dst, normalize, pick):
