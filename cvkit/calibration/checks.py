@@ -588,6 +588,17 @@ def _fc_bigger_board(image, cols, rows):
     return None
 
 
+#: the boards the hidden cases of both corner detectors (find_chessboard_corners,
+#: corner_candidates) start with: label, cols, rows, how the board is rendered
+_BOARDS = (
+    ("grey 5 × 4 board", 5, 4, {"spin": 0.5}),
+    ("6 × 4 board, strong tilt", 6, 4, {"size": (110, 150), "tilt": 0.6}),
+    ("4 × 3 board upside down", 4, 3, {"flip": True}),
+    ("RGB float image", 5, 4, {"color": True}),
+    ("uint8 image, rotated board", 4, 3, {"dtype": "uint8", "spin": 0.6}),
+)
+
+
 def _fc_case(rng, label, cols, rows, ask=None, **board):
     """A rendered board; the truth (the corners the renderer drew) when the size asked is the
     board's, so that answers are judged against the true corners."""
@@ -610,11 +621,7 @@ def _fc_hidden(rng):
     partial = _board_image(rng, 5, 4)
     partial = partial[:, : partial.shape[1] // 2].copy()
     return [
-        _fc_case(rng, "grey 5 × 4 board", 5, 4, spin=0.5),
-        _fc_case(rng, "6 × 4 board, strong tilt", 6, 4, size=(110, 150), tilt=0.6),
-        _fc_case(rng, "4 × 3 board upside down", 4, 3, flip=True),
-        _fc_case(rng, "RGB float image", 5, 4, color=True),
-        _fc_case(rng, "uint8 image, rotated board", 4, 3, dtype="uint8", spin=0.6),
+        *(_fc_case(rng, label, cols, rows, **board) for label, cols, rows, board in _BOARDS),
         _fc_case(rng, "square 4 × 4 board", 4, 4, spin=0.3),
         _fc_case(rng, "3 × 5 board in a tall image", 3, 5, size=(120, 110)),
         _fc_case(rng, "values in [-200, 800], more noise", 5, 4, dtype="scaled", noise=0.015),
@@ -974,11 +981,7 @@ def _cc_public():
 def _cc_hidden(rng):
     nothing = np.full((40, 50), 0.5) + rng.normal(0, 0.01, (40, 50))
     return [
-        _cc_case(rng, "grey 5 × 4 board", 5, 4, spin=0.5),
-        _cc_case(rng, "6 × 4 board, strong tilt", 6, 4, size=(110, 150), tilt=0.6),
-        _cc_case(rng, "4 × 3 board upside down", 4, 3, flip=True),
-        _cc_case(rng, "RGB float image", 5, 4, color=True),
-        _cc_case(rng, "uint8 image, rotated board", 4, 3, dtype="uint8", spin=0.6),
+        *(_cc_case(rng, label, cols, rows, **board) for label, cols, rows, board in _BOARDS),
         _cc_case(rng, "square 4 × 4 board, sigma = 1.2", 4, 4, kwargs={"sigma": 1.2}, spin=0.3),
         _cc_case(rng, "values in [-200, 800], more noise", 5, 4, dtype="scaled", noise=0.015),
         _cc_case(rng, "strong barrel distortion", 5, 4, k=(-0.3, 0.05)),
