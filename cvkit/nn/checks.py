@@ -1089,39 +1089,42 @@ def _pool_scatter(cache, weights, dout, add=True):
     return dx
 
 
+def _pool_routed(dout, cache, rule, split=False, add=True):
+    """``dout`` sent to the elements :func:`_pool_winners` picks by ``rule``, shared equally over
+    the window when ``split``, added (or, not ``add``, written) into ``dx``."""
+    _, w = _pool_winners(cache, rule)
+    weights = w.astype(float) / (cache["size"] ** 2) if split else w.astype(float)
+    return _pool_scatter(cache, weights, dout, add=add)
+
+
 @mistake("gradient sent to every element of the window",
          "Only the maximum influenced the output: route dout to the arg-max of each window, 0 elsewhere")
 def _pool_b_everywhere(dout, cache):
-    _, w = _pool_winners(cache, "every")
-    return _pool_scatter(cache, w.astype(float), dout)
+    return _pool_routed(dout, cache, "every")
 
 
 @mistake("gradient split evenly over the window (average pooling's)",
          "That is average pooling's gradient; max pooling routes the whole dout to the maximum")
 def _pool_b_average(dout, cache):
-    _, w = _pool_winners(cache, "every")
-    return _pool_scatter(cache, w.astype(float) / (cache["size"] ** 2), dout)
+    return _pool_routed(dout, cache, "every", split=True)
 
 
 @mistake("every tied maximum gets the gradient",
          "On ties only the first maximum in row-major order (np.argmax's rule) gets dout")
 def _pool_b_all_ties(dout, cache):
-    _, w = _pool_winners(cache, "all_ties")
-    return _pool_scatter(cache, w.astype(float), dout)
+    return _pool_routed(dout, cache, "all_ties")
 
 
 @mistake("last maximum instead of the first on ties",
          "np.argmax over the flattened window picks the first maximum in row-major order")
 def _pool_b_last(dout, cache):
-    _, w = _pool_winners(cache, "last")
-    return _pool_scatter(cache, w.astype(float), dout)
+    return _pool_routed(dout, cache, "last")
 
 
 @mistake("overlapping windows overwrite instead of adding",
          "When one element is the maximum of several windows, their gradients add up (+=)")
 def _pool_b_overwrite(dout, cache):
-    _, w = _pool_winners(cache, "first")
-    return _pool_scatter(cache, w.astype(float), dout, add=False)
+    return _pool_routed(dout, cache, "first", add=False)
 
 
 def _pool_fixed_dout(shape, i):
