@@ -21,9 +21,11 @@ from cvkit.learn import checks
 try:
     from . import alternatives_ch09 as alt
     from . import checks_harness as harness
+    from . import measured_harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_ch09 as alt
     import checks_harness as harness
+    import measured_harness
 
 SEEDS = (101, 202, 303)
 LEARN = [
@@ -35,6 +37,8 @@ TRIVIAL = {"learn.linear_scores"}
 _check = harness.check_of
 _reference = harness.reference_of
 MISTAKES = harness.mistakes_of(LEARN)
+#: the measured exercise (§9.8.5): graded by the accuracy it reaches, not value by value
+MEASURED = ["learn.train_digit_classifier"]
 
 
 # --------------------------------------------------------------------------------------------
@@ -42,8 +46,8 @@ MISTAKES = harness.mistakes_of(LEARN)
 # --------------------------------------------------------------------------------------------
 def test_every_learn_id_is_registered_with_its_check():
     ids = sorted(a.id for a in registry.algorithms() if a.module == "learn")
-    assert ids == sorted(LEARN)
-    for aid in LEARN:
+    assert ids == sorted(LEARN + MEASURED)
+    for aid in LEARN + MEASURED:
         name = aid.split(".")[1]
         assert registry.get(aid).check is getattr(checks, name)
         assert registry.get(aid).reference is getattr(cvkit.learn, name)
@@ -297,3 +301,80 @@ def test_labels_must_be_integers():
     report = evaluate("learn.knn_predict", knn_predict)
     assert not report.passed
     assert any("dtype" in c.message for c in report.cases if not c.passed)
+
+
+# --------------------------------------------------------------------------------------------
+# the measured exercise: learn.train_digit_classifier, graded by its accuracy on held-out digits
+# --------------------------------------------------------------------------------------------
+CLASSIFIER = "learn.train_digit_classifier"
+CLASSIFIER_SEEDS = (101, 202)
+_accuracy = checks.DigitAccuracy.accuracy
+
+
+def test_the_classifier_scale_is_the_published_one():
+    from cvkit.learn import _digits
+
+    assert tuple(checks.ACCURACY) == _digits.ACCURACY_SCALE == ((0.85, 0.0), (0.90, 0.5), (0.93, 1.0))
+    assert checks.ACCURACY.credit(0.875) == pytest.approx(0.25) and checks.ACCURACY.credit(0.5) == 0.0
+    measured_harness.assert_notebook_publishes("ch09_classification", CLASSIFIER,
+                                               "train_digit_classifier(x_train, y_train, rng)", checks.ACCURACY,
+                                               "accuracy on the held-out digits", _digits.BUDGET_SECONDS)
+
+
+def test_the_reference_classifier_clears_the_top_of_the_scale():
+    measured_harness.assert_reference_clears_the_top(CLASSIFIER, CLASSIFIER_SEEDS, _accuracy, checks.ACCURACY)
+
+
+def test_another_model_of_the_chapter_clears_it_too():
+    """k nearest neighbours, written with loops, without normalisation: a correct alternative."""
+    for report, values in measured_harness.measured(CLASSIFIER, alt.train_digit_classifier, CLASSIFIER_SEEDS[:1],
+                                                    _accuracy):
+        assert report.passed and report.score == 1.0, report.text()
+        assert min(values) >= checks.ACCURACY.top
+
+
+@pytest.mark.parametrize("name", [m.name for m in harness.check_of(CLASSIFIER).bank])
+def test_each_classifier_mistake_earns_less_than_full_credit(name):
+    mistake = harness.check_of(CLASSIFIER).mistake(name)
+    measured_harness.assert_below_full_credit(CLASSIFIER, mistake.function, CLASSIFIER_SEEDS, _accuracy,
+                                              checks.ACCURACY, "accuracy")
+
+
+def test_the_mistakes_messages_point_at_the_cause():
+    report = evaluate(CLASSIFIER, checks._classifier_labels_off_by_one, hidden=True, seed=101)
+    assert "labels run from 1 to 10" in report.cases[0].message
+    report = evaluate(CLASSIFIER, checks._classifier_per_pixel_zero_std, hidden=True, seed=101)
+    assert "Most predictions are one class" in report.cases[0].message and report.score == 0.0
+
+
+def test_train_digit_classifier_stub_scores_zero():
+    harness.assert_stub_scores_zero(CLASSIFIER, CLASSIFIER_SEEDS)
+
+
+def _seven_percent_worse(x_train, y_train, rng=None):
+    """The reference recipe (its unregistered pieces) with 7 % of its predictions moved to the
+    next label: between the corners of the scale."""
+    predict = checks._linear_classifier(x_train, y_train, rng)
+
+    def spoiled(x):
+        labels = np.array(predict(x))
+        k = int(0.07 * len(labels))
+        labels[:k] = (labels[:k] + 1) % 10
+        return labels
+    return spoiled
+
+
+def test_classifier_partial_credit_follows_the_scale():
+    measured_harness.assert_partial_credit_follows_the_scale(CLASSIFIER, _seven_percent_worse, 101, _accuracy,
+                                                             checks.ACCURACY)
+
+
+def test_held_out_digits_differ_per_student_and_their_labels_stay_outside():
+    def same(a, b):
+        return all(np.array_equal(x, y) for x, y in zip(a.args[:3], b.args[:3])) and np.array_equal(a.truth, b.truth)
+
+    measured_harness.assert_hidden_data_differ_and_truth_stays_outside(CLASSIFIER, same)
+    (case,) = harness.hidden_cases(CLASSIFIER, 5)
+    x_train, y_train, x_eval, _ = case.args
+    assert x_train.shape[1:] == x_eval.shape[1:] == (64,) and len(x_train) + len(x_eval) == 1797
+    assert x_train.max() > 50            # the camera's grey levels, not [0, 1]

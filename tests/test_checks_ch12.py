@@ -287,7 +287,8 @@ def _credits(report):
 
 
 def test_the_scale_is_piecewise_linear_between_its_published_corners():
-    credit = digits_task.accuracy_credit
+    credit = train_checks.ACCURACY.credit
+    assert tuple(train_checks.ACCURACY) == digits_task.ACCURACY_SCALE
     for accuracy, share in digits_task.ACCURACY_SCALE:
         assert credit(accuracy) == pytest.approx(share)
     (a0, s0), (a1, s1) = digits_task.ACCURACY_SCALE[:2]
@@ -373,7 +374,7 @@ def test_partial_credit_follows_the_scale():
         accuracy = train_checks.HeldOutAccuracy.accuracy(result.got, _case_of(report, result))
         assert not report.passed
         assert result.credit is not None and 0.0 < result.credit < 1.0, result.message
-        assert report.score == pytest.approx(digits_task.accuracy_credit(accuracy))
+        assert report.score == pytest.approx(train_checks.ACCURACY.credit(accuracy))
         assert report.to_dict()["cases"][0]["credit"] == pytest.approx(result.credit, abs=1e-6)
 
 

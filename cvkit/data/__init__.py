@@ -18,7 +18,7 @@ from __future__ import annotations
 # Written out (not gathered at import time) so that type checkers see every name; a test
 # (tests/test_bounds_a.py) keeps this list equal to the submodules' ``__all__``.
 from ._chessboard import ChessboardViews, render_chessboard, random_board_poses, chessboard_views
-from ._digits import digits
+from ._digits import digits, held_out_digits
 from ._files import read_idx, mnist, read_cifar_batch, cifar10, CIFAR10_CLASSES
 from ._images import (
     camera, astronaut, coins, moon, text, brick, coffee, chelsea, image, resize_half, noisy_stack,
@@ -32,6 +32,7 @@ from ._textures import textures, TEXTURE_CLASSES
 __all__ = [
     "ChessboardViews", "render_chessboard", "random_board_poses", "chessboard_views",
     "digits",
+    "held_out_digits",
     "read_idx", "mnist", "read_cifar_batch", "cifar10", "CIFAR10_CLASSES",
     "camera", "astronaut", "coins", "moon", "text", "brick", "coffee", "chelsea", "image", "resize_half",
     "noisy_stack", "with_gaussian_noise", "with_impulse_noise", "step_edge", "psnr",

@@ -2,7 +2,9 @@
 
 A linear softmax classifier written from its parts (scores, softmax, cross-entropy, gradients
 checked numerically, mini-batch SGD, top-k accuracy), k-nearest neighbours on raw pixels,
-and a bag of visual words (k-means codebook, word histograms) over dense local descriptors.
+and a bag of visual words (k-means codebook, word histograms) over dense local descriptors;
+and the chapter's measured exercise: ``train_digit_classifier``, graded by the accuracy it
+reaches on held-out digits.
 
 Conventions: samples are the rows of ``X`` ``(N, D)`` (flattened images or descriptors);
 labels are integer arrays ``0..C−1``; ``W`` is ``(C, D)`` so that the scores are
@@ -27,6 +29,7 @@ from ._linear import (
 from ._neighbours import knn_predict
 from ._clustering import kmeans, bovw_histogram
 from ._descriptors import dense_descriptors
+from ._digits import train_digit_classifier
 
 __all__ = [
     "linear_scores",
@@ -40,4 +43,5 @@ __all__ = [
     "kmeans",
     "bovw_histogram",
     "dense_descriptors",
+    "train_digit_classifier",
 ]

@@ -39,6 +39,7 @@ candidate with it.
 from __future__ import annotations
 
 from collections import Counter
+from typing import Any
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -1365,4 +1366,116 @@ bovw_histogram = Check(
     hidden=_bovw_hidden,
     compare=close(rtol=1e-9, atol=1e-12),
     mistakes=[_bovw_never_normalised, _bovw_always_normalised, _bovw_farthest, _bovw_l1, _bovw_max_normalised],
+)
+
+
+# --------------------------------------------------------------------------------------------
+# §9.8.5 the measured exercise: a classifier trained on the digits, graded by its accuracy
+# --------------------------------------------------------------------------------------------
+from ..data import digits as _digits_data  # noqa: E402
+from ..data import held_out_digits  # noqa: E402
+from ..grading.measured import MeasuredCase, Scale  # noqa: E402
+from ..grading.runtime.adapters import train_then_predict  # noqa: E402
+from ._digits import ACCURACY_SCALE, BUDGET_SECONDS, fit_softmax  # noqa: E402
+
+#: the published scale the grader applies (its corners: :data:`cvkit.learn._digits.ACCURACY_SCALE`)
+ACCURACY = Scale(ACCURACY_SCALE)
+
+
+def _flat(images: np.ndarray) -> np.ndarray:
+    return np.asarray(images, dtype=np.float64).reshape(len(images), -1)
+
+
+def _classifier_public() -> list[Case]:
+    (x_train, y_train), (x_eval, y_eval) = _digits_data()
+    return [MeasuredCase((255.0 * x_train, y_train, 255.0 * x_eval, 0), {},
+                         f"cvkit.data.digits' split in 8-bit grey levels, flattened: {len(y_train)} to train, "
+                         f"{len(y_eval)} to predict", truth=y_eval)]
+
+
+def _classifier_hidden(rng: np.random.Generator) -> list[Case]:
+    x_train, y_train, x_eval, y_eval = held_out_digits(_seed(rng))
+    return [MeasuredCase((_flat(x_train), y_train, _flat(x_eval), _seed(rng)), {},
+                         f"your own split of the digits, flattened, in the grey levels of an unknown camera: "
+                         f"{len(y_train)} to train, {len(y_eval)} perturbed digits to predict", truth=y_eval)]
+
+
+class DigitAccuracy(Comparator):
+    """Passes when the predicted labels reach the top of :data:`ACCURACY` on the case's
+    ``truth``; below it the case earns the scale's share (:func:`_classifier_credit`). The
+    ``expected`` output (the reference's predictions) only serves for comparison in the
+    message."""
+
+    @staticmethod
+    def accuracy(got: Any, case: Any) -> float:
+        truth = np.asarray(getattr(case, "truth", np.zeros(0)))
+        labels = np.asarray(got)
+        return float(np.mean(labels == truth)) if labels.shape == truth.shape and truth.size else 0.0
+
+    def __call__(self, got: Any, expected: Any, case: Any = None) -> Mismatch | None:
+        achieved = self.accuracy(got, case)
+        if achieved >= ACCURACY.top:
+            return None
+        truth = np.asarray(getattr(case, "truth", np.zeros(0)))
+        words = ACCURACY.shortfall(achieved, "accuracy", f" on {truth.size} digits")
+        reference = self.accuracy(expected, case)
+        if reference:
+            words += f" The reference classifier reached {100 * reference:.2f} % on the same digits."
+        labels = np.asarray(got)
+        if labels.size and labels.min() >= 1 and labels.max() == 10:
+            words += " Your labels run from 1 to 10: the digits are labelled 0..9, predict the column of the best score."
+        elif labels.size and np.bincount(labels.astype(np.int64).clip(0)).max() > 0.5 * labels.size:
+            words += (" Most predictions are one class: look at what your classifier sees at prediction time "
+                      "(the same normalisation as in training, no division by a standard deviation of 0) and at "
+                      "the regularisation (a λ that shrinks every weight to nothing).")
+        return Mismatch(words)
+
+
+def _classifier_credit(got: Any, case: Any) -> float:
+    return ACCURACY.credit(DigitAccuracy.accuracy(got, case))
+
+
+def _linear_classifier(x_train, y_train, rng, *, per_pixel=False, reg=1e-3, label_offset=0):
+    """The reference's recipe with one of its steps done wrong (the mistakes below)."""
+    X = _flat(x_train)
+    if per_pixel:                                 # one mean and deviation per pixel, no guard
+        mean, std = X.mean(axis=0), X.std(axis=0) + 1e-12
+    else:
+        mean, std = X.mean(), X.std() + 1e-12
+    W, b = fit_softmax((X - mean) / std, np.asarray(y_train).astype(np.int64), 10, np.random.default_rng(rng),
+                       reg=reg)
+    return lambda x: np.argmax(((_flat(x) - mean) / std) @ W.T + b, axis=1) + label_offset
+
+
+@mistake("pixels that never vary divided by a standard deviation of 0",
+         "Standardise with one mean and one standard deviation for the whole image (or leave pixels whose "
+         "training deviation is 0 undivided): a corner pixel that is always black in training gets a deviation "
+         "of 0, and the slightest noise there at prediction time becomes enormous")
+def _classifier_per_pixel_zero_std(x_train, y_train, rng=None):
+    return _linear_classifier(x_train, y_train, rng, per_pixel=True)
+
+
+@mistake("labels off by one (1..10)",
+         "The class of a row is the index of its best score, 0..9: no + 1")
+def _classifier_labels_off_by_one(x_train, y_train, rng=None):
+    return _linear_classifier(x_train, y_train, rng, label_offset=1)
+
+
+@mistake("regularisation a thousand times too strong (λ = 1)",
+         "With λ = 1 the penalty λΣW² outweighs the data and the weights shrink towards 0: choose λ on a "
+         "validation split (10⁻⁴ to 10⁻² here)")
+def _classifier_strong_regularisation(x_train, y_train, rng=None):
+    return _linear_classifier(x_train, y_train, rng, reg=1.0)
+
+
+train_digit_classifier = Check(
+    public=_classifier_public,
+    hidden=_classifier_hidden,
+    compare=DigitAccuracy(),
+    mistakes=[_classifier_per_pixel_zero_std, _classifier_labels_off_by_one, _classifier_strong_regularisation],
+    call=train_then_predict,
+    arg_names=("x_train", "y_train", "x_eval", "seed"),
+    output_names=("labels",),
+    time_limit=BUDGET_SECONDS,
+    credit=_classifier_credit,
 )

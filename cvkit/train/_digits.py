@@ -4,8 +4,8 @@ The student's ``train_digits(x_train, y_train, rng)`` assembles a small convolut
 from the layers of Chapter 10 and trains it with the recipe pieces of Chapter 12; it returns a
 function that predicts labels. The grade is the accuracy that function reaches on held-out
 digits the student never sees, drawn per student at grading time
-(:func:`held_out_split`), put through the published scale (:data:`ACCURACY_SCALE`,
-:func:`accuracy_credit`). The time a call may take is :data:`BUDGET_SECONDS`.
+(:func:`held_out_split`), put through the published scale (:data:`ACCURACY_SCALE`). The time a
+call may take is :data:`BUDGET_SECONDS`.
 
 The reference recipe (:func:`train_digits`):
 
@@ -30,60 +30,21 @@ from numpy.typing import ArrayLike
 
 from .._threads import single_thread
 from .._validation import as_rng
+from ..data import held_out_digits
 from ..registry import algorithm, implementation
 
-__all__ = ["train_digits", "ACCURACY_SCALE", "BUDGET_SECONDS", "accuracy_credit", "held_out_split",
+__all__ = ["train_digits", "ACCURACY_SCALE", "BUDGET_SECONDS", "held_out_split",
            "public_split", "train_cnn", "registry_blocks", "FAST_BLOCKS"]
 
 #: the published scale: (accuracy, fraction of the points) corners, linear in between, flat outside
+#: (``cvkit.train.checks.ACCURACY`` is the :class:`~cvkit.grading.measured.Scale` the grader applies)
 ACCURACY_SCALE: tuple[tuple[float, float], ...] = ((0.90, 0.0), (0.95, 0.5), (0.97, 1.0))
 #: seconds one call of ``train_digits`` may take on the grader (its case time limit)
 BUDGET_SECONDS = 30.0
 
-
-def accuracy_credit(accuracy: float) -> float:
-    """The fraction of the points an accuracy earns on :data:`ACCURACY_SCALE` (0..1)."""
-    xs, ys = zip(*ACCURACY_SCALE)
-    return float(np.interp(float(accuracy), xs, ys))
-
-
-def _perturb(images: np.ndarray, generator: np.random.Generator) -> np.ndarray:
-    """Each image's contrast scaled by a random gain in [0.85, 1] and a little Gaussian noise
-    (σ = 0.03) added: the same digits, but never the exact pixels a student has seen."""
-    gain = generator.uniform(0.85, 1.0, (len(images), 1, 1))
-    return np.clip(images * gain + generator.normal(0.0, 0.03, images.shape), 0.0, 1.0)
-
-
-def _camera(generator: np.random.Generator) -> tuple[float, float]:
-    """(gain, offset) of a per-student "camera": digits arrive as offset + gain·image."""
-    return float(generator.uniform(60.0, 255.0)), float(generator.uniform(0.0, 40.0))
-
-
-def held_out_split(seed: int | np.random.Generator, train_fraction: float = 0.7
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """A per-seed split of all 1797 digits: ``(x_train, y_train, x_eval, y_eval)``.
-
-    Each class is split at random (``train_fraction`` to train); the evaluation images are then
-    perturbed (:func:`_perturb`), so that they differ from every image of ``cvkit.data.digits``.
-    Both sets come in the grey levels of one random camera, ``offset + gain·image`` with the gain
-    in [60, 255] and the offset in [0, 40] (a recipe must normalise its inputs). Images are
-    ``(N, 8, 8)`` float64, labels int64.
-    """
-    from ..data import digits
-
-    generator = as_rng(seed)
-    (a, ya), (b, yb) = digits(flatten=False)
-    images, labels = np.concatenate([a, b]), np.concatenate([ya, yb])
-    train = np.zeros(labels.size, dtype=bool)
-    for label in np.unique(labels):
-        members = np.flatnonzero(labels == label)
-        train[generator.choice(members, size=int(round(train_fraction * members.size)), replace=False)] = True
-    order_train = generator.permutation(np.flatnonzero(train))
-    order_eval = generator.permutation(np.flatnonzero(~train))
-    x_eval = _perturb(images[order_eval], generator)
-    gain, offset = _camera(generator)
-    return (offset + gain * images[order_train], labels[order_train].astype(np.int64),
-            offset + gain * x_eval, labels[order_eval].astype(np.int64))
+#: a per-seed split of all 1797 digits, perturbed, in one random camera's grey levels
+#: (:func:`cvkit.data.held_out_digits`)
+held_out_split = held_out_digits
 
 
 def public_split() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

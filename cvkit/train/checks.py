@@ -1801,16 +1801,12 @@ ema_update = Check(
 # §12.5.4 the measured exercise: a CNN trained on the digits, graded by its held-out accuracy
 # --------------------------------------------------------------------------------------------
 from ..grading.runtime.adapters import train_then_predict  # noqa: E402
-from ._digits import ACCURACY_SCALE, BUDGET_SECONDS, accuracy_credit, held_out_split, public_split  # noqa: E402
+from ..grading.measured import MeasuredCase, Scale  # noqa: E402
+from ._digits import ACCURACY_SCALE, BUDGET_SECONDS, held_out_split, public_split  # noqa: E402
 from ._digits import train_cnn as _train_cnn  # noqa: E402
 
-
-@dataclass
-class MeasuredCase(Case):
-    """A case whose answer is measured: ``truth`` holds the labels of the evaluation images.
-    Only ``args`` and ``kwargs`` enter the sandbox; ``truth`` stays with the grader."""
-
-    truth: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+#: the published scale the grader applies (its corners: :data:`cvkit.train._digits.ACCURACY_SCALE`)
+ACCURACY = Scale(ACCURACY_SCALE)
 
 
 def _digits_public() -> list[Case]:
@@ -1828,17 +1824,13 @@ def _digits_hidden(rng: np.random.Generator) -> list[Case]:
                          f"train, {len(y_eval)} perturbed digits to predict", truth=y_eval)]
 
 
-def _scale_text() -> str:
-    return ", ".join(f"{100 * a:g} % → {p:g}" for a, p in ACCURACY_SCALE)
-
-
 class HeldOutAccuracy(Comparator):
-    """Passes when the predicted labels reach the top of :data:`ACCURACY_SCALE` on the case's
-    ``truth``; the case's credit (:func:`accuracy_credit`) follows the scale below it. The
+    """Passes when the predicted labels reach the top of :data:`ACCURACY` on the case's
+    ``truth``; the case's credit follows the scale below it. The
     ``expected`` output (the reference recipe's predictions) only serves for comparison in
     the message: the answer is judged by what it achieves, not by its agreement."""
 
-    top = ACCURACY_SCALE[-1][0]
+    top = ACCURACY.top
 
     @staticmethod
     def accuracy(got: Any, case: Any) -> float:
@@ -1856,8 +1848,7 @@ class HeldOutAccuracy(Comparator):
         labels = np.asarray(got)
         if labels.shape != truth.shape:
             return Mismatch(f"predict returned shape {labels.shape}; expected one label per image, {truth.shape}")
-        words = (f"accuracy {100 * achieved:.2f} % on {truth.size} digits, below {100 * self.top:g} %, the top of "
-                 f"the scale; it earns {accuracy_credit(achieved):.2f} of the points (scale: {_scale_text()}).")
+        words = ACCURACY.shortfall(achieved, "accuracy", f" on {truth.size} digits")
         reference = self.accuracy(expected, case)
         if reference:
             words += f" The reference recipe reached {100 * reference:.2f} % on the same digits."
@@ -1868,7 +1859,7 @@ class HeldOutAccuracy(Comparator):
 
 
 def _digits_credit(got: Any, case: Any) -> float:
-    return accuracy_credit(HeldOutAccuracy.accuracy(got, case))
+    return ACCURACY.credit(HeldOutAccuracy.accuracy(got, case))
 
 
 @mistake("no normalisation (raw grey levels, no batch norm)",
