@@ -23,9 +23,11 @@ from cvkit.grading import evaluate
 try:
     from . import alternatives_ch04 as alt
     from . import checks_harness as harness
+    from . import measured_harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_ch04 as alt
     import checks_harness as harness
+    import measured_harness
 
 SEEDS = (101, 202, 303)
 BORDERS = {"zero", "replicate", "reflect", "reflect101"}
@@ -36,6 +38,8 @@ CH04 = [
 ]
 WITH_BORDER = ["edges.gradient", "edges.prewitt", "edges.sobel", "edges.laplacian", "edges.log", "edges.dog"]
 EVERY_ID = tuple(a.id for a in registry.algorithms())
+#: the measured exercise (§4.10): graded by the F1 score it reaches against true outlines
+OUTLINES = "edges.detect_outlines"
 _check = harness.check_of
 MISTAKES = harness.mistakes_of(CH04)
 
@@ -44,7 +48,7 @@ MISTAKES = harness.mistakes_of(CH04)
 # the shape of every check
 # --------------------------------------------------------------------------------------------
 def test_every_edges_algorithm_has_a_check():
-    assert sorted(a.id for a in registry.algorithms() if a.module == "edges") == sorted(CH04)
+    assert sorted(a.id for a in registry.algorithms() if a.module == "edges") == sorted(CH04 + [OUTLINES])
 
 
 @pytest.mark.parametrize("algorithm_id", CH04)
@@ -269,3 +273,89 @@ def test_canny_returning_0_1_integers_is_told_to_return_bool():
     report = evaluate("edges.canny", canny)
     assert report.score == 0.0
     assert "bool" in report.cases[0].message
+
+
+# --------------------------------------------------------------------------------------------
+# the measured exercise: edges.detect_outlines, graded by F1 against the true outlines
+# --------------------------------------------------------------------------------------------
+from cvkit.edges import checks as edges_checks  # noqa: E402
+
+OUTLINE_SEEDS = (101, 202)
+_f1 = edges_checks.OutlineF1.f1
+
+
+def test_the_outline_scale_is_the_published_one():
+    from cvkit.edges import _outlines
+
+    assert tuple(edges_checks.OUTLINE_F1) == _outlines.F1_SCALE == ((0.60, 0.0), (0.75, 0.5), (0.85, 1.0))
+    assert edges_checks.OUTLINE_RADIUS == 1
+    measured_harness.assert_notebook_publishes("ch04_edges", OUTLINES, "detect_outlines(image)",
+                                               edges_checks.OUTLINE_F1,
+                                               "F1 against the true outlines (1 px tolerance)", _outlines.BUDGET_SECONDS)
+
+
+def test_the_reference_outline_detector_clears_the_top_of_the_scale():
+    measured_harness.assert_reference_clears_the_top(OUTLINES, OUTLINE_SEEDS, _f1, edges_checks.OUTLINE_F1)
+
+
+def test_a_canny_tuned_another_way_clears_it_too():
+    for report, values in measured_harness.measured(OUTLINES, alt.detect_outlines, OUTLINE_SEEDS, _f1):
+        assert report.passed and report.score == 1.0, report.text()
+        assert min(values) >= edges_checks.OUTLINE_F1.top
+
+
+@pytest.mark.parametrize("name", [m.name for m in harness.check_of(OUTLINES).bank])
+def test_each_outline_mistake_earns_less_than_full_credit(name):
+    mistake = harness.check_of(OUTLINES).mistake(name)
+    measured_harness.assert_below_full_credit(OUTLINES, mistake.function, OUTLINE_SEEDS, _f1,
+                                              edges_checks.OUTLINE_F1, "F1")
+
+
+def test_the_outline_messages_point_at_the_cause():
+    words = {
+        "Canny's default relative thresholds on a noisy picture": "noise edges",
+        "no non-maximum suppression": "non-maximum suppression",
+    }
+    for name, advice in words.items():
+        report = evaluate(OUTLINES, harness.check_of(OUTLINES).mistake(name).function, hidden=True, seed=101)
+        assert all(advice in case.message for case in report.cases), report.text()
+
+
+def test_detect_outlines_stub_scores_zero():
+    harness.assert_stub_scores_zero(OUTLINES, OUTLINE_SEEDS)
+
+
+def _every_other_outline_pixel_missed(image):
+    """The reference's map with its outline pixels dropped in a checkerboard of 3×3 blocks
+    and noise edges added: between the corners of the scale."""
+    found = cvkit.edges._outlines.outline_canny(image, 2.0, *edges_checks._noise_thresholds(image, 2.0))
+    rows, cols = np.indices(found.shape)
+    thinned = found & ((rows // 3 + cols // 3) % 2 == 0)
+    return thinned | ((rows % 11 == 0) & (cols % 13 == 0))
+
+
+def test_outline_partial_credit_follows_the_scale():
+    measured_harness.assert_partial_credit_follows_the_scale(OUTLINES, _every_other_outline_pixel_missed, 101, _f1,
+                                                             edges_checks.OUTLINE_F1)
+
+
+def test_outline_pictures_differ_per_student_and_their_truth_stays_outside():
+    def same(a, b):
+        return np.array_equal(a.args[0], b.args[0]) and np.array_equal(a.truth, b.truth)
+
+    measured_harness.assert_hidden_data_differ_and_truth_stays_outside(OUTLINES, same)
+    for case in harness.hidden_cases(OUTLINES, 5):
+        (image,) = case.args
+        assert image.shape == case.truth.shape == (112, 112) and case.truth.dtype == bool
+        assert 200 < case.truth.sum() < 1200
+
+
+def test_the_truth_is_where_the_shapes_end():
+    """The true outline pixels are where the picture's smoothed gradient is strong: a shape's
+    contrast, several times the gradient of the noise and the shading away from the outlines."""
+    rng = np.random.default_rng(3)
+    image, truth = edges_checks.outline_scene(rng)
+    smooth = scipy.ndimage.gaussian_filter(image, 2.0)
+    gx, gy = scipy.ndimage.sobel(smooth, axis=1), scipy.ndimage.sobel(smooth, axis=0)
+    strength = np.hypot(gx, gy)
+    assert np.median(strength[truth]) > 4 * np.median(strength[~scipy.ndimage.binary_dilation(truth, iterations=3)])

@@ -531,7 +531,7 @@ def test_algorithms_are_registered_with_sections_and_checks():
     expected = {
         "gradient": "4.5", "magnitude": "4.5", "direction": "4.3", "prewitt": "4.7", "sobel": "4.7",
         "non_max_suppression": "4.8", "hysteresis": "4.10", "canny": "4.10", "laplacian": "4.12",
-        "log_kernel": "4.12", "log": "4.12", "zero_crossings": "4.11", "dog": "4.12",
+        "log_kernel": "4.12", "log": "4.12", "zero_crossings": "4.11", "dog": "4.12", "detect_outlines": "4.10",
     }
     assert set(edges.__all__) == set(expected)
     for name, section in expected.items():

@@ -1340,3 +1340,154 @@ canny = Check(
     allowed=("filters.pad", "filters.gaussian_kernel", "filters.gaussian", "filters.correlate",
              "edges.sobel", "edges.magnitude", "edges.non_max_suppression", "edges.hysteresis"),
 )
+
+
+# --------------------------------------------------------------------------------------------
+# §4.10 the measured exercise: an edge detector for noisy pictures, graded by its F1 score
+# --------------------------------------------------------------------------------------------
+from typing import Any  # noqa: E402
+
+from ..data import polygon_image  # noqa: E402
+from ..grading.measured import MeasuredCase, Scale  # noqa: E402
+from ._outlines import BUDGET_SECONDS as _OUTLINE_BUDGET  # noqa: E402
+from ._outlines import F1_SCALE, largest_magnitude, noise_level, outline_canny, sobel_noise  # noqa: E402
+
+#: the published scale the grader applies (its corners: :data:`cvkit.edges._outlines.F1_SCALE`)
+OUTLINE_F1 = Scale(F1_SCALE, percent=False)
+#: the pixel tolerance of the F1 score (Chebyshev distance, as :func:`edge_f1`)
+OUTLINE_RADIUS = 1
+
+
+def outline_scene(rng: np.random.Generator, size: int = 112) -> tuple[np.ndarray, np.ndarray]:
+    """A noisy picture of four flat shapes and their true outlines: ``(image, truth)``.
+
+    A background level in [0.3, 0.5] shaded by a ramp of 0.1–0.25 in a random direction; in each
+    quarter one shape (two disks, a rotated square and a triangle, in a random order, sizes and
+    positions drawn) of contrast ±[0.12, 0.3]; white Gaussian noise of σ ∈ [0.07, 0.1]. The
+    truth marks the pixels of each shape (more than half covered) that have a 4-neighbour
+    outside it."""
+    shape = (size, size)
+    half = size // 2
+    y, x = np.mgrid[0:size, 0:size] / (size - 1)
+    light = rng.uniform(0, 2 * np.pi)
+    clean = rng.uniform(0.3, 0.5) + rng.uniform(0.1, 0.25) * (np.cos(light) * x + np.sin(light) * y)
+    truth = np.zeros(shape, dtype=bool)
+    for kind, (r0, c0) in zip(rng.permutation(["disk", "square", "triangle", "disk"]),
+                              [(0, 0), (0, half), (half, 0), (half, half)]):
+        cx, cy = c0 + half / 2 + rng.uniform(-3, 3), r0 + half / 2 + rng.uniform(-3, 3)
+        if kind == "disk":
+            cover = disk_image(shape, centre=(cx, cy), radius=rng.uniform(12, 20))
+        elif kind == "square":
+            cover = square_image(shape, centre=(cx, cy), side=rng.uniform(22, 32), angle=rng.uniform(0, np.pi / 2))
+        else:
+            r, t0 = rng.uniform(14, 21), rng.uniform(0, 2 * np.pi)
+            t = t0 + np.arange(3) * 2 * np.pi / 3
+            cover = polygon_image(shape, np.stack([cx + r * np.cos(t), cy + r * np.sin(t)], axis=1))
+        clean = clean + rng.choice([-1.0, 1.0]) * rng.uniform(0.12, 0.3) * cover
+        inside = cover > 0.5
+        p = np.pad(inside, 1, mode="edge")
+        truth |= inside & ~(p[:-2, 1:-1] & p[2:, 1:-1] & p[1:-1, :-2] & p[1:-1, 2:])
+    return clean + rng.normal(0.0, rng.uniform(0.07, 0.1), shape), truth
+
+
+def _outlines_public() -> list[Case]:
+    image, truth = outline_scene(np.random.default_rng(2026))
+    return [MeasuredCase((image,), {}, "four shapes on a shaded background, noise σ ≈ 0.09", truth=truth)]
+
+
+def _outlines_hidden(rng: np.random.Generator) -> list[Case]:
+    cases: list[Case] = []
+    for k in (1, 2):
+        image, truth = outline_scene(rng)
+        cases.append(MeasuredCase((image,), {}, f"your picture {k}: four shapes, your noise and contrasts", truth=truth))
+    return cases
+
+
+class OutlineF1(Comparator):
+    """Passes when the edge map's F1 score against the case's true outlines (within
+    :data:`OUTLINE_RADIUS` pixel) reaches the top of :data:`OUTLINE_F1`; below it the case earns
+    the scale's share. The reference's map (``expected``) only serves for comparison."""
+
+    @staticmethod
+    def scores(got: Any, case: Any) -> tuple[float, float, float]:
+        """``(F1, precision, recall)`` of ``got`` against the case's truth; zeros when ``got``
+        is not a bool map of the picture's shape."""
+        truth = np.asarray(getattr(case, "truth", np.zeros((0, 0), dtype=bool)))
+        edges_found = np.asarray(got)
+        if edges_found.dtype.kind != "b" or edges_found.shape != truth.shape or truth.ndim != 2:
+            return 0.0, 0.0, 0.0
+        return edge_f1(edges_found, truth, OUTLINE_RADIUS)
+
+    @classmethod
+    def f1(cls, got: Any, case: Any) -> float:
+        return cls.scores(got, case)[0]
+
+    def __call__(self, got: Any, expected: Any, case: Any = None) -> Mismatch | None:
+        f1, precision, recall = self.scores(got, case)
+        if f1 >= OUTLINE_F1.top:
+            return None
+        truth = np.asarray(getattr(case, "truth", np.zeros((0, 0), dtype=bool)))
+        arr, problem = as_numeric(got)
+        if problem:
+            return Mismatch(problem)
+        if arr.dtype.kind != "b":
+            return Mismatch(f"expected a bool edge map, got dtype {arr.dtype} (return a comparison, or use .astype(bool))")
+        if arr.shape != truth.shape:
+            return Mismatch(shape_mismatch(arr.shape, truth.shape))
+        words = [OUTLINE_F1.shortfall(f1, "F1", f" (precision {precision:.3f}, recall {recall:.3f}, tolerance "
+                                                f"{OUTLINE_RADIUS} px)")]
+        reference = self.f1(expected, case)
+        if reference:
+            words.append(f"The reference detector reached F1 = {reference:.3f} on the same picture.")
+        near = int((arr & _dilate(truth, OUTLINE_RADIUS)).sum())
+        if near > 1.8 * max(1, int(truth.sum())):      # about two found pixels or more per outline pixel
+            words.append("Your outlines are thicker than one pixel: thin them with non-maximum suppression.")
+        elif precision < 0.5:
+            words.append("Most of your edge pixels are not on an outline: noise edges. Smooth more (a larger σ) or raise "
+                         "the thresholds; thresholds set from the noise level work whatever the strongest edge is.")
+        elif recall < 0.8:
+            words.append("Part of the outlines is missing: a faint shape fell below your thresholds (lower them, or "
+                         "set them from the noise rather than from the largest gradient, after smoothing).")
+        return Mismatch(" ".join(words))
+
+
+def _outline_credit(got: Any, case: Any) -> float:
+    return OUTLINE_F1.credit(OutlineF1.f1(got, case))
+
+
+def _noise_thresholds(image: np.ndarray, sigma: float) -> tuple[float, float]:
+    unit = sobel_noise(sigma) * max(noise_level(image), 1e-12)
+    return 3.0 * unit, 6.0 * unit
+
+
+@mistake("Canny's default relative thresholds on a noisy picture",
+         "Thresholds of 0.1 / 0.2 times the largest gradient keep hundreds of noise edges here: raise them, or better "
+         "set them from the noise level (a few times the spread the noise alone gives the smoothed gradient)")
+def _outlines_default_thresholds(image):
+    top = largest_magnitude(image, 1.4)
+    return outline_canny(image, 1.4, 0.1 * top, 0.2 * top)
+
+
+@mistake("no non-maximum suppression",
+         "Thin the smoothed gradient magnitude with non-maximum suppression before the hysteresis: without it every "
+         "outline is a band several pixels wide")
+def _outlines_without_nms(image):
+    return outline_canny(image, 2.0, *_noise_thresholds(image, 2.0), thin=False)
+
+
+@mistake("no Gaussian smoothing",
+         "Smooth before differentiating: on raw noisy pixels the gradient of the noise rivals that of the faint shapes, "
+         "whatever the thresholds")
+def _outlines_without_smoothing(image):
+    return outline_canny(image, 0.0, *_noise_thresholds(image, 0.0))
+
+
+detect_outlines = Check(
+    public=_outlines_public,
+    hidden=_outlines_hidden,
+    compare=OutlineF1(),
+    mistakes=[_outlines_default_thresholds, _outlines_without_nms, _outlines_without_smoothing],
+    output_names=("edges",),
+    time_limit=_OUTLINE_BUDGET,
+    credit=_outline_credit,
+)
