@@ -21,9 +21,11 @@ from cvkit.grading import evaluate
 try:
     from . import alternatives_ch06 as alt
     from . import checks_harness as harness
+    from . import measured_harness
 except ImportError:  # tests/ is not a package: pytest puts it on sys.path
     import alternatives_ch06 as alt
     import checks_harness as harness
+    import measured_harness
 
 SEEDS = (101, 202, 303)
 CH06 = [
@@ -31,12 +33,14 @@ CH06 = [
     "detection.hough_lines", "detection.hough_peaks", "detection.ght_build", "detection.ght_detect",
 ]
 EVERY_ID = tuple(a.id for a in registry.algorithms())
+#: the measured exercise (§6.0.5): graded by the F1 of the lines it finds
+LINES = "detection.find_lines"
 _check = harness.check_of
 MISTAKES = harness.mistakes_of(CH06)
 
 
 def test_every_detection_algorithm_has_a_check():
-    assert sorted(a.id for a in registry.algorithms() if a.module == "detection") == sorted(CH06)
+    assert sorted(a.id for a in registry.algorithms() if a.module == "detection") == sorted(CH06 + [LINES])
 
 
 @pytest.mark.parametrize("algorithm_id", CH06)
@@ -192,3 +196,88 @@ def test_votes_and_best_comparator():
     other[0, 1, 0, 0] = 5.0
     assert "differ" in compare((other, (0, 0, 1.0, 0.5)), expected).message
     assert "shape" in compare((acc[0], (3, 2, 1.0, 0.5)), expected).message
+
+
+# --------------------------------------------------------------------------------------------
+# the measured exercise: detection.find_lines, graded by the F1 of the lines found
+# --------------------------------------------------------------------------------------------
+from cvkit.detection import _lines  # noqa: E402
+from cvkit.detection import checks as detection_checks  # noqa: E402
+
+LINE_SEEDS = (101, 202)
+_line_f1 = detection_checks.LineDetection.f1
+
+
+def test_the_line_scale_is_the_published_one():
+    assert tuple(detection_checks.LINES_F1) == _lines.F1_SCALE == ((0.50, 0.0), (0.70, 0.5), (0.85, 1.0))
+    measured_harness.assert_notebook_publishes("ch06_detection", LINES, "find_lines(edges)", detection_checks.LINES_F1,
+                                               "F1 of the lines found", _lines.BUDGET_SECONDS)
+
+
+def test_the_reference_line_finder_clears_the_top_of_the_scale():
+    measured_harness.assert_reference_clears_the_top(LINES, LINE_SEEDS, _line_f1, detection_checks.LINES_F1)
+
+
+def test_another_hough_pipeline_clears_it_too():
+    for report, values in measured_harness.measured(LINES, alt.find_lines, LINE_SEEDS, _line_f1):
+        assert report.passed and report.score == 1.0, report.text()
+        assert min(values) >= detection_checks.LINES_F1.top
+
+
+@pytest.mark.parametrize("name", [m.name for m in harness.check_of(LINES).bank])
+def test_each_line_mistake_earns_less_than_full_credit(name):
+    mistake = harness.check_of(LINES).mistake(name)
+    measured_harness.assert_below_full_credit(LINES, mistake.function, LINE_SEEDS, _line_f1,
+                                              detection_checks.LINES_F1, "F1")
+
+
+def test_the_line_messages_point_at_the_cause():
+    words = {"θ only over [0, π/2)": "[−π/2, π/2)", "no suppression around a peak": "suppress the bins around"}
+    for name, advice in words.items():
+        report = evaluate(LINES, harness.check_of(LINES).mistake(name).function, hidden=True, seed=101)
+        assert all(advice in case.message for case in report.cases), report.text()
+
+
+def test_find_lines_stub_scores_zero():
+    harness.assert_stub_scores_zero(LINES, LINE_SEEDS)
+
+
+def _one_line_short_and_one_invented(edges):
+    """The reference's lines, the first one dropped and a line that is not there added: F1
+    between the corners of the scale for three to five true lines."""
+    found = _lines.strongest_peaks(*_lines.line_votes(edges), threshold=45)   # the reference's unregistered twin
+    return np.vstack([found[1:], [[3.0, 0.01]]])
+
+
+def test_line_partial_credit_follows_the_scale():
+    measured_harness.assert_partial_credit_follows_the_scale(LINES, _one_line_short_and_one_invented, 101, _line_f1,
+                                                             detection_checks.LINES_F1)
+
+
+def test_the_matching_of_lines():
+    """Tolerances are inclusive; (ρ, θ) and (−ρ, θ ± π) are one line; a true line is matched once."""
+    case = detection_checks.MeasuredCase((), {}, truth=np.array([[10.0, -1.5], [40.0, 0.3]]))
+    tol_theta = detection_checks.THETA_TOLERANCE
+    assert detection_checks.LineDetection.counts([[42.0, 0.3 + 0.99 * tol_theta]], case) == (1, 1, 2)
+    assert detection_checks.LineDetection.counts([[42.5, 0.3]], case) == (0, 1, 2)
+    assert detection_checks.LineDetection.counts([[-10.0, -1.5 + np.pi]], case) == (1, 1, 2)
+    assert detection_checks.LineDetection.counts([[40.0, 0.3], [40.5, 0.31]], case) == (1, 2, 2)
+    assert detection_checks.LineDetection.f1([[40.0, 0.3], [10.0, -1.5]], case) == 1.0
+    assert detection_checks.LineDetection.f1(np.zeros((0, 2)), case) == 0.0
+    report = evaluate(LINES, lambda edges: np.zeros((3, 3)))
+    assert not report.passed and "(K, 2)" in report.cases[0].message
+
+
+def test_line_scenes_differ_per_student_and_their_truth_stays_outside():
+    def same(a, b):
+        return np.array_equal(a.args[0], b.args[0]) and np.array_equal(a.truth, b.truth)
+
+    measured_harness.assert_hidden_data_differ_and_truth_stays_outside(LINES, same)
+    for seed in range(6):
+        for case in harness.hidden_cases(LINES, seed):
+            (edges,) = case.args
+            assert edges.shape == (128, 128) and edges.dtype == bool and 3 <= len(case.truth) <= 5
+            assert (case.truth[:, 1] < 0).any() and (case.truth[:, 1] >= 0).any()
+            for rho, theta in case.truth:             # each true line keeps at least 60 of its pixels
+                ys, xs = np.nonzero(edges)
+                assert np.sum(np.abs(xs * np.cos(theta) + ys * np.sin(theta) - rho) <= 0.75) >= 60

@@ -29,6 +29,7 @@ from ._template import match_template, best_match
 from ._shape import shape_model, shape_match
 from ._hough import hough_lines, hough_peaks
 from ._ght import ght_build, ght_detect
+from ._lines import find_lines
 
 __all__ = [
     "match_template",
@@ -39,4 +40,5 @@ __all__ = [
     "hough_peaks",
     "ght_build",
     "ght_detect",
+    "find_lines",
 ]

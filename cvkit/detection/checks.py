@@ -32,7 +32,7 @@ import numpy as np
 from ..data import disk_image, part_scene, part_template, polygon_image, square_image
 from ..edges import canny as _canny
 from ..edges import sobel as _sobel
-from ..grading import Case, Check, Comparator, Mismatch, Mistake, close
+from ..grading import Case, Check, Comparator, Mismatch, Mistake, close, mistake
 from ..grading.casekit import variant
 from ..grading.casekit import size as _size
 from ..grading.casekit import uniform as _u
@@ -1253,4 +1253,196 @@ ght_detect = Check(
     ],
     allowed=("filters.pad", "filters.gaussian_kernel", "filters.gaussian", "filters.correlate", "edges.sobel",
              "edges.magnitude", "edges.non_max_suppression", "edges.hysteresis", "edges.canny"),
+)
+
+
+# --------------------------------------------------------------------------------------------
+# §6.0.5 the measured exercise: the lines of a cluttered edge map, graded by the F1 of detection
+# --------------------------------------------------------------------------------------------
+from typing import Any  # noqa: E402
+
+from ..grading.measured import MeasuredCase, Scale  # noqa: E402
+from ._lines import BUDGET_SECONDS as _LINES_BUDGET  # noqa: E402
+from ._lines import F1_SCALE, RHO_TOLERANCE, THETA_TOLERANCE, line_votes, strongest_peaks  # noqa: E402
+
+#: the published scale the grader applies (its corners: :data:`cvkit.detection._lines.F1_SCALE`)
+LINES_F1 = Scale(F1_SCALE, percent=False)
+
+
+def _chord(rho: float, theta: float, h: int, w: int) -> np.ndarray:
+    """The pixels (x, y) of the line ρ = x cos θ + y sin θ inside an h × w image, one per half
+    pixel of its length, rounded (an 8-connected chain one pixel wide)."""
+    c, s = math.cos(theta), math.sin(theta)
+    x0, y0 = rho * c, rho * s                                # the foot of the normal
+    t = np.arange(-2.0 * (h + w), 2.0 * (h + w), 0.5)
+    pts = np.round(np.stack([x0 - t * s, y0 + t * c], axis=1)).astype(np.int64)
+    inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
+    return np.unique(pts[inside], axis=0)
+
+
+def _distinct_line(a: tuple[float, float], b: tuple[float, float], rho_gap: float, theta_gap: float) -> bool:
+    """Whether two (ρ, θ) lines are at least ``theta_gap`` apart in angle or ``rho_gap`` in ρ
+    (θ and θ ± π with −ρ are the same line)."""
+    return bool(line_distance(np.array([a]), np.array([b]), rho_gap, theta_gap)[0, 0] > 1.0)
+
+
+def line_distance(got: np.ndarray, truth: np.ndarray, rho_tol: float = RHO_TOLERANCE,
+                  theta_tol: float = THETA_TOLERANCE) -> np.ndarray:
+    """``(len(got), len(truth))`` distances between lines ``(ρ, θ)`` in units of the tolerances:
+    max(|Δρ| / rho_tol, |Δθ| / theta_tol), the better of comparing (ρ, θ) with (ρ', θ') and
+    with (−ρ', θ' ± π) (the same line); a match is a distance ≤ 1."""
+    g, t = np.asarray(got, dtype=np.float64).reshape(-1, 2), np.asarray(truth, dtype=np.float64).reshape(-1, 2)
+    d_theta = g[:, None, 1] - t[None, :, 1]
+    wrapped = np.abs(d_theta - np.pi * np.round(d_theta / np.pi))
+    flipped = (np.round(d_theta / np.pi) % 2) != 0
+    d_rho = np.abs(np.where(flipped, g[:, None, 0] + t[None, :, 0], g[:, None, 0] - t[None, :, 0]))
+    return np.maximum(d_rho / rho_tol, wrapped / theta_tol)
+
+
+def line_scene(rng: np.random.Generator, size: int = 128) -> tuple[np.ndarray, np.ndarray]:
+    """A cluttered edge map and its true lines: ``(edges (size, size) bool, lines (N, 2) (ρ, θ))``.
+
+    Three to five lines, θ alternately in [0, π/2) and [−π/2, 0), each at least 10° or 12 px
+    from the others in (θ, ρ) and crossing at least 80 pixels of the picture, with one to three gaps of 5–15 pixels (occlusions), keeping
+    60 pixels or more; six to ten stray segments of 6–14 pixels in random directions; and noise
+    pixels on 1–2 % of the picture."""
+    h = w = size
+    lines: list[tuple[float, float]] = []
+    mask = np.zeros((h, w), dtype=bool)
+    wanted = int(rng.integers(3, 6))
+    while len(lines) < wanted:
+        # normals turn both ways in alternation: at least a third of the lines have θ < 0
+        theta = float(rng.uniform(0.0, np.pi / 2)) * (-1.0 if len(lines) % 2 else 1.0)
+        x, y = rng.uniform(0.2 * w, 0.8 * w), rng.uniform(0.2 * h, 0.8 * h)   # a point the line passes
+        rho = x * math.cos(theta) + y * math.sin(theta)
+        pixels = _chord(rho, theta, h, w)
+        if len(pixels) < 160 or not all(_distinct_line((rho, theta), other, 12.0, math.radians(10.0))
+                                          for other in lines):
+            continue                                     # chords of 2 samples per pixel: ≥ 80 px long
+        keep = np.ones(len(pixels), dtype=bool)
+        for _ in range(int(rng.integers(1, 4))):
+            start, length = int(rng.integers(0, len(pixels))), int(rng.integers(10, 31))
+            keep[start:start + length] = False
+        kept = pixels[keep]
+        if len(np.unique(kept, axis=0)) < 60:
+            continue
+        mask[kept[:, 1], kept[:, 0]] = True
+        lines.append((rho, theta))
+    for _ in range(int(rng.integers(6, 11))):
+        x, y, a = rng.uniform(0, w), rng.uniform(0, h), rng.uniform(0, np.pi)
+        t = np.arange(0.0, float(rng.integers(6, 15)), 0.5)
+        pts = np.round(np.stack([x + t * math.cos(a), y + t * math.sin(a)], axis=1)).astype(np.int64)
+        pts = pts[(pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)]
+        mask[pts[:, 1], pts[:, 0]] = True
+    mask |= rng.random((h, w)) < rng.uniform(0.01, 0.02)
+    return mask, np.array(lines, dtype=np.float64)
+
+
+def _lines_public() -> list[Case]:
+    edges, truth = line_scene(np.random.default_rng(2026))
+    return [MeasuredCase((edges,), {}, f"{len(truth)} broken lines among stray segments and noise pixels", truth=truth)]
+
+
+def _lines_hidden(rng: np.random.Generator) -> list[Case]:
+    cases: list[Case] = []
+    for k in (1, 2):
+        edges, truth = line_scene(rng)
+        cases.append(MeasuredCase((edges,), {}, f"your scene {k}: its own lines, gaps and clutter", truth=truth))
+    return cases
+
+
+class LineDetection(Comparator):
+    """Passes when the lines returned reach the top of :data:`LINES_F1` in F1 against the case's
+    true lines (one-to-one matches within :data:`~cvkit.detection._lines.RHO_TOLERANCE` pixels
+    and :data:`~cvkit.detection._lines.THETA_TOLERANCE`); below it the case earns the scale's
+    share. The reference's lines (``expected``) only serve for comparison."""
+
+    @staticmethod
+    def counts(got: Any, case: Any) -> tuple[int, int, int]:
+        """``(matched, returned, true)``: greedy one-to-one matching, closest pairs first;
+        ``returned`` is −1 when ``got`` is not a (K, 2) array of finite numbers."""
+        truth = np.asarray(getattr(case, "truth", np.zeros((0, 2))), dtype=np.float64).reshape(-1, 2)
+        try:
+            found = np.asarray(got, dtype=np.float64)
+        except (TypeError, ValueError):
+            return 0, -1, len(truth)
+        if found.size == 0:
+            return 0, 0, len(truth)
+        if found.ndim != 2 or found.shape[1] != 2 or not np.all(np.isfinite(found)):
+            return 0, -1, len(truth)
+        distance = line_distance(found, truth)
+        matched, used_g, used_t = 0, set(), set()
+        for flat in np.argsort(distance, axis=None, kind="stable"):
+            i, j = divmod(int(flat), len(truth))
+            if distance[i, j] > 1.0:
+                break
+            if i not in used_g and j not in used_t:
+                used_g.add(i)
+                used_t.add(j)
+                matched += 1
+        return matched, len(found), len(truth)
+
+    @classmethod
+    def f1(cls, got: Any, case: Any) -> float:
+        matched, returned, true = cls.counts(got, case)
+        return 2.0 * matched / (returned + true) if returned > 0 and true else 0.0
+
+    def __call__(self, got: Any, expected: Any, case: Any = None) -> Mismatch | None:
+        f1 = self.f1(got, case)
+        if f1 >= LINES_F1.top:
+            return None
+        matched, returned, true = self.counts(got, case)
+        if returned < 0:
+            return Mismatch(f"expected a (K, 2) float array of (ρ, θ) rows, got {np.shape(got)}: "
+                            "one row per line, ρ in pixels and θ in radians")
+        words = [LINES_F1.shortfall(f1, "F1", f" ({matched} of your {returned} lines match one of the {true} true "
+                                              f"lines within {RHO_TOLERANCE:g} px and "
+                                              f"{math.degrees(THETA_TOLERANCE):g}°)")]
+        reference = self.f1(expected, case)
+        if reference:
+            words.append(f"The reference found lines with F1 = {reference:.3f} in the same scene.")
+        if returned > max(2 * true, true + 3):
+            words.append("You return many more lines than there are: raise the vote threshold, and suppress the "
+                         "bins around each peak you take (a line's votes spread over neighbouring bins).")
+        elif matched < true and returned <= true:
+            words.append("Lines are missing: do your θ samples cover the whole half-turn [−π/2, π/2)? Is x the "
+                         "column and y the row? Is your vote threshold below the length of a broken line?")
+        return Mismatch(" ".join(words))
+
+
+def _lines_credit(got: Any, case: Any) -> float:
+    return LINES_F1.credit(LineDetection.f1(got, case))
+
+
+@mistake("θ only over [0, π/2)",
+         "The normal of a line can point anywhere in a half-turn: vote for θ in [−π/2, π/2), or lines whose "
+         "normal points up and right are never found")
+def _lines_quarter_turn(edges):
+    votes, thetas, rhos = line_votes(np.asarray(edges, dtype=bool), theta_start=0.0)
+    return strongest_peaks(votes, thetas, rhos, threshold=45)
+
+
+@mistake("no suppression around a peak",
+         "Take the strongest bin, then zero the bins around it before the next one: a broken line's votes spread "
+         "over neighbouring bins that are not lines of their own")
+def _lines_without_suppression(edges):
+    votes, thetas, rhos = line_votes(np.asarray(edges, dtype=bool))
+    return strongest_peaks(votes, thetas, rhos, threshold=45, radius=0)
+
+
+@mistake("x and y swapped (x taken from the rows)",
+         "x is the column and y the row: ρ = col·cos θ + row·sin θ")
+def _lines_xy_swapped(edges):
+    votes, thetas, rhos = line_votes(np.asarray(edges, dtype=bool), swap_xy=True)
+    return strongest_peaks(votes, thetas, rhos, threshold=45)
+
+
+find_lines = Check(
+    public=_lines_public,
+    hidden=_lines_hidden,
+    compare=LineDetection(),
+    mistakes=[_lines_quarter_turn, _lines_without_suppression, _lines_xy_swapped],
+    output_names=("lines",),
+    time_limit=_LINES_BUDGET,
+    credit=_lines_credit,
 )
