@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cvkit.grading import hidden_seed
+from cvkit.grading import evaluate, hidden_seed
 from cvkit.grading.measured import MeasuredCase
 
 try:
@@ -64,12 +64,40 @@ def assert_notebook_publishes(chapter, algorithm_id, function, scale, measured_w
     assert f"**{budget:g} seconds**" in statements[0]
 
 
-def assert_reference_clears_the_top(algorithm_id, seeds, measure, scale):
-    """The reference passes every case with full credit, at or above the top of the scale."""
-    for report, values in measured(algorithm_id, harness.reference_of(algorithm_id), seeds, measure):
+def assert_clears_the_top(algorithm_id, seeds, measure, scale, candidate=None):
+    """``candidate`` (default: the reference) passes every case with full credit, at or above
+    the top of the scale."""
+    candidate = harness.reference_of(algorithm_id) if candidate is None else candidate
+    for report, values in measured(algorithm_id, candidate, seeds, measure):
         assert report.passed and report.score == 1.0, report.text()
         assert [case.credit for case in report.cases] == [1.0] * len(report.cases)
         assert min(values) >= scale.top, values
+
+
+def assert_reports_advise(algorithm_id, advice, seed=101):
+    """``advice``: mistake name → words that every hidden case's report of that mistake holds."""
+    for name, words in advice.items():
+        report = evaluate(algorithm_id, harness.check_of(algorithm_id).mistake(name).function, hidden=True, seed=seed)
+        assert all(words in case.message for case in report.cases), report.text()
+
+
+def same_input_and_truth(a, b):
+    """Whether two cases of one input argument hold the same input and the same truth."""
+    return np.array_equal(a.args[0], b.args[0]) and np.array_equal(a.truth, b.truth)
+
+
+def shifting_labels(train, share):
+    """A candidate that trains like ``train`` and moves the first ``share`` of its predicted
+    labels to the next class (between the corners of an accuracy scale)."""
+    def candidate(x_train, y_train, rng=None):
+        predict = train(x_train, y_train, rng)
+
+        def spoiled(x):
+            labels = np.array(predict(x))
+            labels[:int(share * len(labels))] += 1
+            return labels % 10
+        return spoiled
+    return candidate
 
 
 def assert_below_full_credit(algorithm_id, candidate, seeds, measure, scale, words):
@@ -82,6 +110,17 @@ def assert_below_full_credit(algorithm_id, candidate, seeds, measure, scale, wor
         for case, value in zip(report.cases, values):
             assert value < scale.top and np.isclose(case.credit, scale.credit(value)) and case.credit < 1.0, (value, case.message)
             assert f"{words} " in case.message and f"below {scale.show(scale.top)}, the top of the scale" in case.message
+
+
+def assert_measures_what_it_should(algorithm_id, seeds, measure, scale, words, alternatives=()):
+    """The whole bar of a measured check: the reference and each correct alternative clear the
+    top of the scale, each mistake of the bank earns less than full credit (``words``: the
+    measurement's name in the reports), and a stub earns nothing."""
+    for candidate in (None, *alternatives):
+        assert_clears_the_top(algorithm_id, seeds, measure, scale, candidate)
+    for wrong in harness.check_of(algorithm_id).bank:
+        assert_below_full_credit(algorithm_id, wrong.function, seeds, measure, scale, words)
+    harness.assert_stub_scores_zero(algorithm_id, seeds)
 
 
 def assert_partial_credit_follows_the_scale(algorithm_id, candidate, seed, measure, scale):

@@ -294,35 +294,13 @@ def test_the_outline_scale_is_the_published_one():
                                                "F1 against the true outlines (1 px tolerance)", _outlines.BUDGET_SECONDS)
 
 
-def test_the_reference_outline_detector_clears_the_top_of_the_scale():
-    measured_harness.assert_reference_clears_the_top(OUTLINES, OUTLINE_SEEDS, _f1, edges_checks.OUTLINE_F1)
-
-
-def test_a_canny_tuned_another_way_clears_it_too():
-    for report, values in measured_harness.measured(OUTLINES, alt.detect_outlines, OUTLINE_SEEDS, _f1):
-        assert report.passed and report.score == 1.0, report.text()
-        assert min(values) >= edges_checks.OUTLINE_F1.top
-
-
-@pytest.mark.parametrize("name", [m.name for m in harness.check_of(OUTLINES).bank])
-def test_each_outline_mistake_earns_less_than_full_credit(name):
-    mistake = harness.check_of(OUTLINES).mistake(name)
-    measured_harness.assert_below_full_credit(OUTLINES, mistake.function, OUTLINE_SEEDS, _f1,
-                                              edges_checks.OUTLINE_F1, "F1")
-
-
-def test_the_outline_messages_point_at_the_cause():
-    words = {
-        "Canny's default relative thresholds on a noisy picture": "noise edges",
-        "no non-maximum suppression": "non-maximum suppression",
-    }
-    for name, advice in words.items():
-        report = evaluate(OUTLINES, harness.check_of(OUTLINES).mistake(name).function, hidden=True, seed=101)
-        assert all(advice in case.message for case in report.cases), report.text()
-
-
-def test_detect_outlines_stub_scores_zero():
-    harness.assert_stub_scores_zero(OUTLINES, OUTLINE_SEEDS)
+def test_the_outline_check_measures_what_it_should():
+    """The reference and a Canny tuned another way (relative thresholds) clear the top; default
+    thresholds, no non-maximum suppression and no smoothing stay below it; a stub earns 0."""
+    measured_harness.assert_measures_what_it_should(OUTLINES, OUTLINE_SEEDS, _f1, edges_checks.OUTLINE_F1, "F1",
+                                                    alternatives=[alt.detect_outlines])
+    measured_harness.assert_reports_advise(OUTLINES, {"Canny's default relative thresholds on a noisy picture": "noise edges",
+                                                      "no non-maximum suppression": "non-maximum suppression"})
 
 
 def _every_other_outline_pixel_missed(image):
@@ -340,10 +318,7 @@ def test_outline_partial_credit_follows_the_scale():
 
 
 def test_outline_pictures_differ_per_student_and_their_truth_stays_outside():
-    def same(a, b):
-        return np.array_equal(a.args[0], b.args[0]) and np.array_equal(a.truth, b.truth)
-
-    measured_harness.assert_hidden_data_differ_and_truth_stays_outside(OUTLINES, same)
+    measured_harness.assert_hidden_data_differ_and_truth_stays_outside(OUTLINES, measured_harness.same_input_and_truth)
     for case in harness.hidden_cases(OUTLINES, 5):
         (image,) = case.args
         assert image.shape == case.truth.shape == (112, 112) and case.truth.dtype == bool

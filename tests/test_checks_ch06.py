@@ -214,32 +214,13 @@ def test_the_line_scale_is_the_published_one():
                                                "F1 of the lines found", _lines.BUDGET_SECONDS)
 
 
-def test_the_reference_line_finder_clears_the_top_of_the_scale():
-    measured_harness.assert_reference_clears_the_top(LINES, LINE_SEEDS, _line_f1, detection_checks.LINES_F1)
-
-
-def test_another_hough_pipeline_clears_it_too():
-    for report, values in measured_harness.measured(LINES, alt.find_lines, LINE_SEEDS, _line_f1):
-        assert report.passed and report.score == 1.0, report.text()
-        assert min(values) >= detection_checks.LINES_F1.top
-
-
-@pytest.mark.parametrize("name", [m.name for m in harness.check_of(LINES).bank])
-def test_each_line_mistake_earns_less_than_full_credit(name):
-    mistake = harness.check_of(LINES).mistake(name)
-    measured_harness.assert_below_full_credit(LINES, mistake.function, LINE_SEEDS, _line_f1,
-                                              detection_checks.LINES_F1, "F1")
-
-
-def test_the_line_messages_point_at_the_cause():
-    words = {"θ only over [0, π/2)": "[−π/2, π/2)", "no suppression around a peak": "suppress the bins around"}
-    for name, advice in words.items():
-        report = evaluate(LINES, harness.check_of(LINES).mistake(name).function, hidden=True, seed=101)
-        assert all(advice in case.message for case in report.cases), report.text()
-
-
-def test_find_lines_stub_scores_zero():
-    harness.assert_stub_scores_zero(LINES, LINE_SEEDS)
+def test_the_line_check_measures_what_it_should():
+    """The reference and another pipeline (θ over [0, π), a relative threshold) clear the top;
+    a quarter-turn of θ, no suppression and x/y swapped stay below it; a stub earns 0."""
+    measured_harness.assert_measures_what_it_should(LINES, LINE_SEEDS, _line_f1, detection_checks.LINES_F1, "F1",
+                                                    alternatives=[alt.find_lines])
+    measured_harness.assert_reports_advise(LINES, {"θ only over [0, π/2)": "[−π/2, π/2)",
+                                                   "no suppression around a peak": "suppress the bins around"})
 
 
 def _one_line_short_and_one_invented(edges):
@@ -269,10 +250,7 @@ def test_the_matching_of_lines():
 
 
 def test_line_scenes_differ_per_student_and_their_truth_stays_outside():
-    def same(a, b):
-        return np.array_equal(a.args[0], b.args[0]) and np.array_equal(a.truth, b.truth)
-
-    measured_harness.assert_hidden_data_differ_and_truth_stays_outside(LINES, same)
+    measured_harness.assert_hidden_data_differ_and_truth_stays_outside(LINES, measured_harness.same_input_and_truth)
     for seed in range(6):
         for case in harness.hidden_cases(LINES, seed):
             (edges,) = case.args

@@ -13,8 +13,10 @@ The reference (:func:`find_lines`): the accumulator of ``detection.hough_lines``
 taken greedily, strongest first, each suppressing the bins within 8° and 8 px of it
 (:func:`strongest_peaks`). A line needs about 45 pixels on it to count, which no stray segment
 (at most 14 pixels) and no alignment of noise pixels reaches; every true line keeps 60 pixels
-or more in the scenes. On 40 seeds (students, two scenes each) its F1 is 1 on every scene
-(the top of the scale is 0.85); one call takes about 20 ms.
+or more in the scenes. On the hidden scenes of 40 students (80 scenes) its F1 is 1 on every
+one (the top of the scale is 0.85); one call takes about 20 ms. The mistakes of the check's bank
+stay below the top on all 80 (θ over [0, π/2) only: F1 ≤ 0.8; no suppression: ≤ 0.5; x and y
+swapped: ≤ 0.4).
 """
 from __future__ import annotations
 

@@ -1344,11 +1344,9 @@ def _lines_public() -> list[Case]:
 
 
 def _lines_hidden(rng: np.random.Generator) -> list[Case]:
-    cases: list[Case] = []
-    for k in (1, 2):
-        edges, truth = line_scene(rng)
-        cases.append(MeasuredCase((edges,), {}, f"your scene {k}: its own lines, gaps and clutter", truth=truth))
-    return cases
+    scenes = [line_scene(rng) for _ in range(2)]
+    return [MeasuredCase((edges,), {}, f"your scene {k}: its own lines, gaps and clutter", truth=truth)
+            for k, (edges, truth) in enumerate(scenes, start=1)]
 
 
 class LineDetection(Comparator):
@@ -1437,12 +1435,6 @@ def _lines_xy_swapped(edges):
     return strongest_peaks(votes, thetas, rhos, threshold=45)
 
 
-find_lines = Check(
-    public=_lines_public,
-    hidden=_lines_hidden,
-    compare=LineDetection(),
-    mistakes=[_lines_quarter_turn, _lines_without_suppression, _lines_xy_swapped],
-    output_names=("lines",),
-    time_limit=_LINES_BUDGET,
-    credit=_lines_credit,
-)
+find_lines = Check(_lines_public, _lines_hidden, LineDetection(),
+                   mistakes=[_lines_quarter_turn, _lines_without_suppression, _lines_xy_swapped],
+                   time_limit=_LINES_BUDGET, output_names=("lines",), credit=_lines_credit)

@@ -12,7 +12,11 @@ median absolute difference of horizontally adjacent pixels divided by 0.6745·�
 few pixels on an outline); one Sobel component of that noise, smoothed by a Gaussian of σ = 2,
 has a standard deviation of ``u = 0.36·s`` (:func:`sobel_noise`), and the thresholds are
 ``low = 3u`` and ``high = 6u`` (the ratio 2 of Canny's advice). Thresholds relative to the
-largest gradient would follow the strongest shape of the picture and lose the faintest.
+largest gradient would follow the strongest shape of the picture and lose the faintest. On the
+hidden pictures of 40 students (80 pictures) its F1 ranges from 0.954 to 1 (median 0.995), above
+the top of the scale (0.85); one call takes a few milliseconds. The mistakes of the check's bank
+stay below the top on all 80 (default thresholds: F1 ≤ 0.63; no non-maximum suppression:
+≤ 0.75; no smoothing: ≤ 0.77).
 
 The pipeline runs on compact private pieces of this package (:func:`outline_canny`), not on
 the registered functions: graded as a candidate, the reference may call no registered function.

@@ -1363,7 +1363,7 @@ def outline_scene(rng: np.random.Generator, size: int = 112) -> tuple[np.ndarray
 
     A background level in [0.3, 0.5] shaded by a ramp of 0.1–0.25 in a random direction; in each
     quarter one shape (two disks, a rotated square and a triangle, in a random order, sizes and
-    positions drawn) of contrast ±[0.12, 0.3]; white Gaussian noise of σ ∈ [0.07, 0.1]. The
+    positions drawn) of contrast ±[0.12, 0.3], one of the four at most ±0.16; white Gaussian noise of σ ∈ [0.07, 0.1]. The
     truth marks the pixels of each shape (more than half covered) that have a 4-neighbour
     outside it."""
     shape = (size, size)
@@ -1372,8 +1372,9 @@ def outline_scene(rng: np.random.Generator, size: int = 112) -> tuple[np.ndarray
     light = rng.uniform(0, 2 * np.pi)
     clean = rng.uniform(0.3, 0.5) + rng.uniform(0.1, 0.25) * (np.cos(light) * x + np.sin(light) * y)
     truth = np.zeros(shape, dtype=bool)
-    for kind, (r0, c0) in zip(rng.permutation(["disk", "square", "triangle", "disk"]),
-                              [(0, 0), (0, half), (half, 0), (half, half)]):
+    faint = int(rng.integers(0, 4))                              # one shape of the four is faint
+    for k, (kind, (r0, c0)) in enumerate(zip(rng.permutation(["disk", "square", "triangle", "disk"]),
+                                             [(0, 0), (0, half), (half, 0), (half, half)])):
         cx, cy = c0 + half / 2 + rng.uniform(-3, 3), r0 + half / 2 + rng.uniform(-3, 3)
         if kind == "disk":
             cover = disk_image(shape, centre=(cx, cy), radius=rng.uniform(12, 20))
@@ -1383,7 +1384,8 @@ def outline_scene(rng: np.random.Generator, size: int = 112) -> tuple[np.ndarray
             r, t0 = rng.uniform(14, 21), rng.uniform(0, 2 * np.pi)
             t = t0 + np.arange(3) * 2 * np.pi / 3
             cover = polygon_image(shape, np.stack([cx + r * np.cos(t), cy + r * np.sin(t)], axis=1))
-        clean = clean + rng.choice([-1.0, 1.0]) * rng.uniform(0.12, 0.3) * cover
+        contrast = rng.uniform(0.12, 0.16) if k == faint else rng.uniform(0.12, 0.3)
+        clean = clean + rng.choice([-1.0, 1.0]) * contrast * cover
         inside = cover > 0.5
         p = np.pad(inside, 1, mode="edge")
         truth |= inside & ~(p[:-2, 1:-1] & p[2:, 1:-1] & p[1:-1, :-2] & p[1:-1, 2:])
@@ -1396,11 +1398,9 @@ def _outlines_public() -> list[Case]:
 
 
 def _outlines_hidden(rng: np.random.Generator) -> list[Case]:
-    cases: list[Case] = []
-    for k in (1, 2):
-        image, truth = outline_scene(rng)
-        cases.append(MeasuredCase((image,), {}, f"your picture {k}: four shapes, your noise and contrasts", truth=truth))
-    return cases
+    pictures = [outline_scene(rng) for _ in range(2)]
+    return [MeasuredCase((image,), {}, f"your picture {k}: four shapes, your noise and contrasts", truth=truth)
+            for k, (image, truth) in enumerate(pictures, start=1)]
 
 
 class OutlineF1(Comparator):
@@ -1427,13 +1427,10 @@ class OutlineF1(Comparator):
         if f1 >= OUTLINE_F1.top:
             return None
         truth = np.asarray(getattr(case, "truth", np.zeros((0, 0), dtype=bool)))
-        arr, problem = as_numeric(got)
-        if problem:
-            return Mismatch(problem)
-        if arr.dtype.kind != "b":
-            return Mismatch(f"expected a bool edge map, got dtype {arr.dtype} (return a comparison, or use .astype(bool))")
-        if arr.shape != truth.shape:
-            return Mismatch(shape_mismatch(arr.shape, truth.shape))
+        malformed = EdgeF1(radius=OUTLINE_RADIUS, min_f1=0.0)(got, truth)    # not a bool map of the picture's shape
+        if malformed is not None:
+            return malformed
+        arr = np.asarray(got)
         words = [OUTLINE_F1.shortfall(f1, "F1", f" (precision {precision:.3f}, recall {recall:.3f}, tolerance "
                                                 f"{OUTLINE_RADIUS} px)")]
         reference = self.f1(expected, case)

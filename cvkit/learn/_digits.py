@@ -10,9 +10,11 @@ that function reaches on held-out digits drawn per student at grading time
 The reference (:func:`train_digit_classifier`): the inputs standardised with the mean and
 standard deviation of all training pixels (one pair for the whole image: pixels that never vary
 in the training set would otherwise be divided by 0), then the linear softmax classifier of §9.7
-trained by mini-batch SGD (learning rate 0.1, batches of 32, 30 epochs, λ = 10⁻³). On 40 seeds
-(students' hidden cases) its held-out accuracy ranges from 94.8 % to 97.8 % (median 96.6 %), 1.8
+trained by mini-batch SGD (learning rate 0.1, batches of 32, 30 epochs, λ = 10⁻³). On the hidden
+cases of 40 students its held-out accuracy ranges from 94.8 % to 97.8 % (median 96.3 %), 1.8
 points or more above the top of the scale (93 %); one call takes well under a second on one core.
+Each mistake of the check's bank stays below the top on all 40 (softmax over the batch: 83–89 %;
+labels off by one: below 1 %; λ = 1: at most 69 %).
 """
 from __future__ import annotations
 
@@ -34,10 +36,13 @@ BUDGET_SECONDS = 10.0
 
 
 def fit_softmax(X: np.ndarray, y: np.ndarray, classes: int, generator: np.random.Generator, *, lr: float = 0.1,
-                epochs: int = 30, batch_size: int = 32, reg: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+                epochs: int = 30, batch_size: int = 32, reg: float = 1e-3,
+                softmax_axis: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """A linear softmax classifier ``(W (C, D), b (C,))`` fitted by mini-batch SGD from zero
     weights on the mean cross-entropy + reg·ΣW² (the compact twin of ``learn.sgd_train``, so
-    that the measured exercise's reference calls no registered function)."""
+    that the measured exercise's reference calls no registered function). ``softmax_axis=0``
+    normalises the probabilities over the batch instead of the classes (a mistake of the
+    exercise's bank)."""
     n, d = X.shape
     W, b = np.zeros((classes, d)), np.zeros(classes)
     onehot = np.eye(classes)[y]
@@ -47,8 +52,8 @@ def fit_softmax(X: np.ndarray, y: np.ndarray, classes: int, generator: np.random
             for start in range(0, n, batch_size):
                 batch = order[start:start + batch_size]
                 scores = X[batch] @ W.T + b
-                p = np.exp(scores - scores.max(axis=1, keepdims=True))
-                p /= p.sum(axis=1, keepdims=True)
+                p = np.exp(scores - scores.max(axis=softmax_axis, keepdims=True))
+                p /= p.sum(axis=softmax_axis, keepdims=True)
                 d_scores = (p - onehot[batch]) / batch.size
                 W -= lr * (d_scores.T @ X[batch] + 2 * reg * W)
                 b -= lr * d_scores.sum(axis=0)

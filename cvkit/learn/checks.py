@@ -1435,24 +1435,20 @@ def _classifier_credit(got: Any, case: Any) -> float:
     return ACCURACY.credit(DigitAccuracy.accuracy(got, case))
 
 
-def _linear_classifier(x_train, y_train, rng, *, per_pixel=False, reg=1e-3, label_offset=0):
+def _linear_classifier(x_train, y_train, rng, *, reg=1e-3, label_offset=0, softmax_axis=1):
     """The reference's recipe with one of its steps done wrong (the mistakes below)."""
     X = _flat(x_train)
-    if per_pixel:                                 # one mean and deviation per pixel, no guard
-        mean, std = X.mean(axis=0), X.std(axis=0) + 1e-12
-    else:
-        mean, std = X.mean(), X.std() + 1e-12
+    mean, std = X.mean(), X.std() + 1e-12
     W, b = fit_softmax((X - mean) / std, np.asarray(y_train).astype(np.int64), 10, np.random.default_rng(rng),
-                       reg=reg)
+                       reg=reg, softmax_axis=softmax_axis)
     return lambda x: np.argmax(((_flat(x) - mean) / std) @ W.T + b, axis=1) + label_offset
 
 
-@mistake("pixels that never vary divided by a standard deviation of 0",
-         "Standardise with one mean and one standard deviation for the whole image (or leave pixels whose "
-         "training deviation is 0 undivided): a corner pixel that is always black in training gets a deviation "
-         "of 0, and the slightest noise there at prediction time becomes enormous")
-def _classifier_per_pixel_zero_std(x_train, y_train, rng=None):
-    return _linear_classifier(x_train, y_train, rng, per_pixel=True)
+@mistake("softmax over the batch, not over the classes",
+         "Each row of scores is one image: exponentiate and divide by the sum along axis=1 (over the 10 classes), "
+         "so that every image's probabilities add up to 1")
+def _classifier_softmax_over_batch(x_train, y_train, rng=None):
+    return _linear_classifier(x_train, y_train, rng, softmax_axis=0)
 
 
 @mistake("labels off by one (1..10)",
@@ -1472,7 +1468,7 @@ train_digit_classifier = Check(
     public=_classifier_public,
     hidden=_classifier_hidden,
     compare=DigitAccuracy(),
-    mistakes=[_classifier_per_pixel_zero_std, _classifier_labels_off_by_one, _classifier_strong_regularisation],
+    mistakes=[_classifier_softmax_over_batch, _classifier_labels_off_by_one, _classifier_strong_regularisation],
     call=train_then_predict,
     arg_names=("x_train", "y_train", "x_eval", "seed"),
     output_names=("labels",),
