@@ -77,3 +77,9 @@ def dog(image, sigma, k=1.6, border="reflect101"):
     """Not attempted."""
     # YOUR CODE HERE
     raise NotImplementedError()
+
+# %% detect_outlines_answer
+@student("edges.detect_outlines")
+def detect_outlines(image):
+    """Outlines -- with Canny's default relative thresholds, which keep the noise edges."""
+    return canny(image)
