@@ -10,6 +10,7 @@
     cvkit course grade --regrade CHAPTER    ... and regrade a chapter (after a due date or check changed)
     cvkit course table              the grade table of what has been graded
     cvkit course refresh            after marking in the formgrader: pages and exports, without grading
+    cvkit course leaderboard [CH]   the opt-in leaderboards of the measured exercises (plan.toml [leaderboard])
     cvkit course collect            hand-ins from nbgrader's exchange, an LMS download or one notebook
     cvkit course export --canvas    a CSV Canvas's gradebook imports (--moodle FIELD: Moodle's; docs/lms.md)
     cvkit course push --lti CONFIG  the grades to the LMS's line items (LTI 1.3 Assignment and Grade Services)
@@ -250,10 +251,12 @@ def _summary(course, jobs) -> list[str]:
     note = None if isolation.sandbox_disabled() else isolation.limits_fallback()
     if note:
         lines.append(f"sandbox: {note}")
+    from .course.leaderboard import saved_summary
+
     assignments = {a for _, a in jobs}
     return lines + _without_notebooks(course, None) + _exchange_notes(course, assignments) \
         + similarity_summary(course) + [f"item analysis: {course.root / 'exports' / 'item_analysis.html'} "
-                                        "(a summary: cvkit course stats)"]
+                                        "(a summary: cvkit course stats)"] + saved_summary(course)
 
 
 def _without_notebooks(course, assignments) -> list[str]:
@@ -340,6 +343,16 @@ def _cmd_refresh(args) -> int:
     print(f"wrote {len(pages)} feedback page{'s' * (len(pages) != 1)} with new marks"
           + (f" ({', '.join(f'{s}/{a}' for s, a in pages)})" if pages else "")
           + f"; exports: {course.root / 'exports'}; marks: {course.root / '.cvkit' / 'marks.log'}")
+    return 0
+
+
+def _cmd_leaderboard(args) -> int:
+    from .course import leaderboard
+
+    course = _course(args)
+    chosen = ([args.chapter] if args.chapter else []) + (args.assignment or [])
+    for line in leaderboard.publish(course, chosen or None):
+        _show(line)
     return 0
 
 
@@ -712,6 +725,12 @@ def build_parser() -> argparse.ArgumentParser:
                                         "and the exports again, without grading")
     course_options(p)
     p.set_defaults(func=_cmd_refresh)
+    p = csub.add_parser("leaderboard", help="the opt-in leaderboards of the measured exercises: "
+                                            "leaderboard/<chapter>.html and .csv, and on the feedback pages "
+                                            "(plan.toml [leaderboard] enabled = true)")
+    course_options(p)
+    p.add_argument("chapter", nargs="?", help="only this chapter (default: every one with a measured exercise)")
+    p.set_defaults(func=_cmd_leaderboard)
 
     p = sub.add_parser("demo", help="build, make three sample submissions, autograde, print the grade table")
     p.add_argument("--dir", default="cvkit-demo", help="where the demo course is made (default ./cvkit-demo)")

@@ -19,7 +19,7 @@ import time
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any, Iterable
 
-from . import class_notes, exports, item_analysis, jobs, marks, results
+from . import class_notes, exports, item_analysis, jobs, leaderboard, marks, results
 from .feedback import feedback_submissions, write_feedback
 from .jobs import ExecutedSubmission, grade_in_fresh_process, grade_submission
 from .progress import Phase, progress
@@ -296,6 +296,7 @@ def grade(course: CourseState, assignments: Iterable[str] | None = None, workers
     exports.export_similarity(course, None, progress_bar)
     item_analysis.export(course)  # exports/item_analysis.csv and .html
     class_notes.annotate_feedback(course)  # plan.toml [class_notes]: off by default
+    leaderboard.publish(course)  # plan.toml [leaderboard]: off by default, opt-in by each student
     return sorted(graded_now, key=lambda r: (r.assignment, r.student))
 
 
@@ -312,4 +313,5 @@ def refresh(course: CourseState, progress_bar: bool = False) -> list[tuple[str, 
     exports.export(course, progress_bar)
     item_analysis.export(course)  # the marks changed the scores
     class_notes.annotate_feedback(course)  # the pages written again lost their notes
+    leaderboard.publish(course)  # and their leaderboard
     return pages

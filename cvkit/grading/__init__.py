@@ -13,7 +13,7 @@
 - :mod:`.isolation` and :mod:`.sandbox`: the operating-system sandbox (bubblewrap) and the
   trusted side of a sandboxed run.
 """
-from .checks import FORBIDDEN_LIBRARIES, Case, Check, Mistake, instance_call, mistake
+from .checks import FORBIDDEN_LIBRARIES, Case, Check, Measure, Mistake, instance_call, mistake
 from .compare import Close, Comparator, Mismatch, Statistics, close
 from .diagnose import Diagnosis, diagnose
 from .engine import CheckFailed, check, evaluate, hidden_seed, needs_answer
@@ -22,7 +22,7 @@ from .report import MIME_TYPE, CaseResult, Report
 from .runtime import guard, wire  # noqa: F401  (cvkit.grading.wire, cvkit.grading.guard)
 
 __all__ = [
-    "Case", "Check", "Mistake", "mistake", "FORBIDDEN_LIBRARIES", "instance_call",
+    "Case", "Check", "Measure", "Mistake", "mistake", "FORBIDDEN_LIBRARIES", "instance_call",
     "Comparator", "Close", "Statistics", "Mismatch", "close",
     "check", "evaluate", "hidden_seed", "needs_answer", "CheckFailed", "diagnose", "Diagnosis",
     "Report", "CaseResult", "MIME_TYPE", "load_answers", "AnswersUnavailable",

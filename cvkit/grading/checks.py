@@ -112,6 +112,43 @@ def mistake(name: str, hint: str) -> Callable[[_F], _F]:
     return record
 
 
+@dataclass(frozen=True)
+class Measure:
+    """What a measured check (:attr:`Check.credit`) measures, for the reports and the course's
+    leaderboards (:mod:`cvkit.course.leaderboard`): ``of(output, case) -> float`` is the value of
+    one case in ``unit`` (an accuracy in ``"%"``), and ``higher_is_better`` says which way ranks
+    first. It only describes; the points come from :attr:`Check.credit`.
+
+    >>> Measure("accuracy", lambda got, case: 97.5, "%").on(None, None)
+    {'name': 'accuracy', 'value': 97.5, 'unit': '%', 'better': 'higher'}
+    """
+
+    name: str
+    of: Callable[[Any, Any], float]
+    unit: str = ""
+    higher_is_better: bool = True
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise TypeError(f"Measure name must be a non-empty string, got {self.name!r}")
+        if not callable(self.of):
+            raise TypeError(f"Measure of must be a function (output, case) -> float, got {self.of!r}")
+        if not isinstance(self.unit, str):
+            raise TypeError(f"Measure unit must be a string, got {self.unit!r}")
+
+    def on(self, output: Any, case: Any) -> dict[str, Any] | None:
+        """The measured value of one case as report data (JSON-ready), or None when it cannot be
+        measured (the function raised, or gave no finite number)."""
+        try:
+            value = float(self.of(output, case))
+        except Exception:
+            return None
+        if not np.isfinite(value):
+            return None
+        return {"name": self.name, "value": round(value, 6), "unit": self.unit,
+                "better": "higher" if self.higher_is_better else "lower"}
+
+
 @dataclass
 class Check:
     """Everything the grader needs for one algorithm.
@@ -160,6 +197,10 @@ class Check:
         case's points the candidate's output earns (e.g. an accuracy put through a published
         scale), whether or not the comparator passes it; a case that passes earns 1. Without
         it a case earns 1 when it passes and 0 otherwise.
+    measure : Measure, optional
+        What a measured check measures (an accuracy in %): each case's value goes into the
+        report's data (:attr:`~cvkit.grading.report.CaseResult.measure`), which the course's
+        opt-in leaderboards rank (:mod:`cvkit.course.leaderboard`).
     output_names : tuple of str, optional
         The names of the results when the algorithm returns a tuple (``("gx", "gy")``), as
         reports name them ("`gx`: 12 of 48 values differ"); by default they are read from the
@@ -180,11 +221,14 @@ class Check:
     output_names: tuple = ()
     rules: tuple = ()
     credit: Callable[[Any, Case], float] | None = None
+    measure: Measure | None = None
 
     def __post_init__(self) -> None:
         unknown = [r for r in self.rules if r not in RULES]
         if isinstance(self.rules, str) or unknown:
             raise ValueError(f"Check.rules must be a tuple of {sorted(RULES)}; got {self.rules!r}")
+        if self.measure is not None and not isinstance(self.measure, Measure):
+            raise TypeError(f"Check.measure must be a Measure, got {self.measure!r}")
         # functions marked with @mistake stand for their Mistake; the bank keeps the listed order
         self.mistakes = [m if isinstance(m, Mistake) else Mistake.of(m) for m in self.mistakes]
 

@@ -607,6 +607,8 @@ def evaluate(
                     result.credit = 1.0 if result.passed else min(1.0, max(0.0, float(spec.credit(outcome.value, case))))
                 except Exception:
                     result.credit = 0.0
+            if spec.measure is not None:
+                result.measure = spec.measure.on(outcome.value, case)
         if not result.passed and result.got is not None and not warned:
             # every known mistake that reproduces this wrong output gets this case's vote (one
             # case may not tell two mistakes apart; the other cases then decide)

@@ -37,6 +37,7 @@ class CaseResult:
     timed_out: bool = False           # the candidate did not return within the case's time limit
     unexplained: bool = False         # failed, and no mistake of the bank reproduces it (course tools count these)
     credit: float | None = None       # a measured check's share of the case's points (0..1), else None
+    measure: dict | None = None       # a measured check's value: name, value, unit, better (Check.measure)
 
     #: what :meth:`to_dict` keeps (the report's JSON in notebooks and the course's results);
     #: the input, the outputs and the traceback stay out of it
@@ -54,6 +55,8 @@ class CaseResult:
         data = {name: getattr(self, name) for name in self.WIRE_FIELDS}
         if self.credit is not None:
             data["credit"] = round(float(self.credit), 6)
+        if self.measure is not None:
+            data["measure"] = dict(self.measure)
         data["elapsed"] = round(self.elapsed, 4)
         return data
 

@@ -38,7 +38,7 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
-from ..grading import Case, Check, Comparator, Mismatch, Mistake, Statistics, close, mistake
+from ..grading import Case, Check, Comparator, Measure, Mismatch, Mistake, Statistics, close, mistake
 from ..grading.casekit import variant
 from ..grading.casekit import argument as _arg
 from ..grading.casekit import seed as _seed
@@ -1862,6 +1862,10 @@ def _digits_credit(got: Any, case: Any) -> float:
     return ACCURACY.credit(HeldOutAccuracy.accuracy(got, case))
 
 
+def _digits_accuracy(got: Any, case: Any) -> float:
+    return 100.0 * HeldOutAccuracy.accuracy(got, case)
+
+
 @mistake("no normalisation (raw grey levels, no batch norm)",
          "Standardise the inputs with the training set's mean and standard deviation, and keep the batch norm "
          "layers: with grey levels in the hundreds the first steps blow the weights up")
@@ -1886,4 +1890,5 @@ train_digits = Check(
     output_names=("labels",),
     time_limit=BUDGET_SECONDS,
     credit=_digits_credit,
+    measure=Measure("accuracy", _digits_accuracy, "%"),
 )
