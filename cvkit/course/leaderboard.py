@@ -187,7 +187,9 @@ def read_opt_in(folder: Path) -> OptIn | None:
         except (OSError, ValueError, AttributeError):
             continue
         for cell in cells if isinstance(cells, list) else []:
-            if isinstance(cell, dict) and cell.get("cell_type") == "code" and isinstance(cell.get("source"), (str, list)):
+            if not isinstance(cell, dict) or cell.get("cell_type") != "code":
+                continue
+            if isinstance(cell.get("source"), (str, list)):
                 try:
                     found += opt_ins_in(cell_source(cell))
                 except TypeError:  # a source list that is not all strings
@@ -216,10 +218,6 @@ def pseudonym_problem(pseudonym: str, student_ids: Iterable[str], names: Iterabl
         return f"the pseudonym {problem}"
     if len(text) > MAX_PSEUDONYM:
         return f"the pseudonym is longer than {MAX_PSEUDONYM} characters"
-    odd = sorted({c for c in text if not (c.isalnum() or c in _PUNCTUATION)})
-    if odd:
-        return ("the pseudonym holds characters other than letters, digits, spaces and _ - . ' "
-                f"({printable(' '.join(odd[:5]))})")
     key = _key(text)
     if not key:
         return "the pseudonym has no letter or digit"
@@ -231,6 +229,10 @@ def pseudonym_problem(pseudonym: str, student_ids: Iterable[str], names: Iterabl
         other = _key(name)
         if len(other) >= 3 and other in key:
             return "the pseudonym holds a student's name"
+    odd = sorted({c for c in text if not (c.isalnum() or c in _PUNCTUATION)})
+    if odd:
+        return ("the pseudonym holds characters other than letters, digits, spaces and _ - . ' "
+                f"({printable(' '.join(odd[:5]))})")
     return None
 
 
@@ -437,17 +439,18 @@ def fragment(board: Board, own: str | None = None) -> str:
     sanitize_html` keeps as it is for a trusted report); ``own``: the pseudonym whose row is
     marked "(you)"."""
     parts = [f"<section class=\"cvkit-leaderboard\" aria-label=\"Leaderboard of {html.escape(board.assignment)}\">",
-             f"<p class=\"cvkit-leaderboard-title\"><b>Leaderboard of {html.escape(board.assignment)}</b></p>",
+             f"<p class=\"cvkit-leaderboard-title\"><b>Leaderboard of {html.escape(board.assignment, quote=False)}"
+             "</b></p>",
              "<p>Students who chose to take part, under the pseudonym they picked, ranked by what their work "
              "achieved on their own hidden cases. Equal values share a rank. It changes nothing in anyone's "
              "grade.</p>"]
     for table in board.tables:
-        parts.append(f"<table><caption>{html.escape(table.heading)}</caption><thead><tr>"
+        parts.append(f"<table><caption>{html.escape(table.heading, quote=False)}</caption><thead><tr>"
                      f"<th scope=\"col\">rank</th><th scope=\"col\">pseudonym</th>"
-                     f"<th scope=\"col\">{html.escape(table.measure)}</th></tr></thead><tbody>")
+                     f"<th scope=\"col\">{html.escape(table.measure, quote=False)}</th></tr></thead><tbody>")
         for position, pseudonym, value in table.rows:
             mine = own is not None and pseudonym == own
-            name = html.escape(printable(pseudonym)) + (" <b>(you)</b>" if mine else "")
+            name = html.escape(printable(pseudonym), quote=False) + (" <b>(you)</b>" if mine else "")
             parts.append(f"<tr><td>{position}</td><td>{name}</td><td>{_number(value)}</td></tr>")
         parts.append("</tbody></table>")
     parts.append("</section>")
