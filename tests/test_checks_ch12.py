@@ -325,7 +325,11 @@ def test_the_reference_recipe_clears_the_top_of_the_scale():
         assert report.passed and report.score == 1.0, report.text()
         assert _credits(report) == [1.0] * len(report.cases)
         for case in report.cases:
-            assert train_checks.HeldOutAccuracy.accuracy(case.got, _case_of(report, case)) >= top
+            accuracy = train_checks.HeldOutAccuracy.accuracy(case.got, _case_of(report, case))
+            assert accuracy >= top
+            # the measured value the course's leaderboards rank (Check.measure), in the report's data
+            assert case.to_dict()["measure"] == {"name": "accuracy", "value": pytest.approx(100 * accuracy),
+                                                 "unit": "%", "better": "higher"}
 
 
 def _case_of(report, result):

@@ -392,3 +392,99 @@ def test_every_chapter_with_a_measured_exercise_releases_the_opt_in_cell():
         before = "".join(cells[index - 1]["source"])
         assert cells[index - 1]["cell_type"] == "markdown" and "pseudonym" in before and "no points" in before
     assert seen >= 1  # Chapter 12's train_digits at least
+
+
+# ------------------------------------------------------------------------------ through the real pipeline
+TINY = "ch98_measured"
+_NEAREST = '''@student("train.train_digits")
+def train_digits(x_train, y_train, rng=None):
+    ### BEGIN SOLUTION
+    def unit(x):
+        x = np.asarray(x, dtype=float).reshape(len(x), -1)
+        x = x - x.mean(axis=1, keepdims=True)
+        return x / (np.linalg.norm(x, axis=1, keepdims=True) + 1e-12)
+
+    known, labels = unit(x_train), np.asarray(y_train)
+
+    def predict(x):
+        return labels[np.argmax(unit(x) @ known.T, axis=1)]
+    return predict
+    ### END SOLUTION'''
+
+
+def _variant(vote: str) -> str:
+    """The answer with another rule to pick the label (every variant clears 97 % here, so that no
+    mistake of the bank is trained: the test stays short)."""
+    plain = "\n".join(line for line in _NEAREST.splitlines() if "### " not in line)
+    return plain.replace("        return labels[np.argmax(unit(x) @ known.T, axis=1)]", vote)
+
+
+_THREE_NEIGHBOURS = _variant("        nearest = np.argsort(-(unit(x) @ known.T), axis=1)[:, :3]\n"
+                             "        return np.array([np.bincount(v, minlength=10).argmax() for v in labels[nearest]])")
+_ONE_NEIGHBOUR = _variant("        return labels[np.argmax(unit(x) @ known.T, axis=1)]")
+
+
+def _tiny_notebook(answer=_NEAREST, opt_in=lb.CELL):
+    def cell(source, grade_id=None, points=None, solution=False):
+        meta = {}
+        if grade_id:
+            meta["nbgrader"] = {"grade_id": grade_id, "solution": solution, "grade": points is not None,
+                                "locked": not solution, "schema_version": 3}
+            if points is not None:
+                meta["nbgrader"]["points"] = points
+        return {"cell_type": "code", "source": source, "metadata": meta, "outputs": [], "execution_count": None}
+
+    cells = [cell("import numpy as np\nfrom cvkit.grading import check\nfrom cvkit.registry import student", "setup"),
+             cell(answer, "train_digits_answer", solution=True),
+             cell('check("train.train_digits", train_digits)', "train_digits_visible", 1),
+             cell('### BEGIN HIDDEN TESTS\ncheck("train.train_digits", train_digits, hidden=True, points=4)\n'
+                  "### END HIDDEN TESTS", "train_digits_hidden", 4),
+             cell(opt_in)]
+    return {"cells": cells, "metadata": {"kernelspec": {"name": "python3", "display_name": "Python 3",
+                                                        "language": "python"}}, "nbformat": 4, "nbformat_minor": 5}
+
+
+@pytest.mark.slow
+def test_grading_a_course_publishes_the_board_from_the_sandboxed_reports(tmp_path):
+    """A tiny chapter with the digits exercise, graded for real (sandbox, nbgrader, feedback):
+    the hidden reports carry the accuracy on each student's own digits, and `cvkit course grade`
+    writes the board from them, ranked by it (who is left out and why: the tests above)."""
+    import shutil
+
+    from cvkit.course import Course
+
+    project = tmp_path / "project"
+    (project / "autograders").mkdir(parents=True)
+    shutil.copy(ROOT / "autograders" / "nbgrader_config.py", project / "autograders" / "nbgrader_config.py")
+    (project / "autograders" / "plan.toml").write_text(f'[[assignment]]\nid = "{TINY}"\n\n[leaderboard]\n'
+                                                       "enabled = true\n")
+    (project / "lectures" / TINY).mkdir(parents=True)
+    (project / "lectures" / TINY / f"{TINY}.ipynb").write_text(json.dumps(_tiny_notebook()))
+    project.chmod(0o755)
+    course = Course(tmp_path / "course", project=project)
+    (course.root / ".grading_salt").write_text("leaderboard-salt")
+    course.build([TINY])
+    hand_ins = {"ada": (_ONE_NEIGHBOUR, 'LEADERBOARD = {"join": True, "pseudonym": "Owl"}'),
+                "bob": (_THREE_NEIGHBOURS, 'LEADERBOARD = {"join": True, "pseudonym": "Falcon"}'),
+                "cyd": (_ONE_NEIGHBOUR, 'LEADERBOARD = {"join": True, "pseudonym": "Heron"}')}
+    for student, (answer, opt_in) in hand_ins.items():
+        course.submit(student, TINY, {f"{TINY}.ipynb": _tiny_notebook(answer, opt_in)})
+    results = course.grade(workers=2)
+    assert all(r.ok for r in results), [r.log for r in results if not r.ok]
+    accuracy = {}
+    for student in hand_ins:
+        values, missing = lb.measured_values(course.root / "autograded" / student / TINY)
+        assert not missing and values[DIGITS].name == "accuracy" and values[DIGITS].unit == "%"
+        accuracy[student] = values[DIGITS].value
+    pseudonym = {"ada": "Owl", "bob": "Falcon", "cyd": "Heron"}
+    expected = lb.rank({pseudonym[s]: accuracy[s] for s in pseudonym})
+    with (course.root / "leaderboard" / f"{TINY}.csv").open(encoding="utf-8", newline="") as handle:
+        rows = [(int(r["rank"]), r["pseudonym"], float(r["value"])) for r in csv.DictReader(handle)]
+    assert rows == expected
+    page = (course.root / "leaderboard" / f"{TINY}.html").read_text(encoding="utf-8")
+    assert all(student not in page for student in hand_ins)
+    for student in hand_ins:
+        feedback = (course.root / "feedback" / student / TINY / f"{TINY}.html").read_text(encoding="utf-8")
+        assert feedback.count('<section class="cvkit-leaderboard"') == 1
+        assert f"<td>{pseudonym[student]} <b>(you)</b></td>" in feedback
+    assert any(line.startswith(f"leaderboard {TINY}: leaderboard/{TINY}.html") for line in lb.saved_summary(course))

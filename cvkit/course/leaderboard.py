@@ -169,10 +169,14 @@ def opt_ins_in(source: str) -> list[OptIn]:
         return [OptIn(problem=f"the cell that sets {VARIABLE} is not valid Python")]
     found = []
     for node in tree.body:
-        targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign) \
-            else []
-        if any(isinstance(t, ast.Name) and t.id == VARIABLE for t in targets) and node.value is not None:
-            found.append(_literal(node.value))
+        if isinstance(node, ast.Assign):
+            targets, value = node.targets, node.value
+        elif isinstance(node, ast.AnnAssign) and node.value is not None:
+            targets, value = [node.target], node.value
+        else:
+            continue
+        if any(isinstance(t, ast.Name) and t.id == VARIABLE for t in targets):
+            found.append(_literal(value))
     return found
 
 
@@ -337,7 +341,7 @@ def rank(values: Mapping[str, float], higher_is_better: bool = True, digits: int
     ("competition" ranking: 1, 2, 2, 4); equal values are listed by pseudonym."""
     rounded = {name: round(float(v), digits) for name, v in values.items()}
     order = sorted(rounded.items(), key=lambda nv: (-nv[1] if higher_is_better else nv[1], nv[0].casefold(), nv[0]))
-    ranked = []
+    ranked: list[tuple[int, str, float]] = []
     for position, (name, value) in enumerate(order):
         shared = ranked[-1][0] if ranked and ranked[-1][2] == value else position + 1
         ranked.append((shared, name, value))
