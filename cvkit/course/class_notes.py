@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 from ..grading.report import MIME_TYPE
 from .notebook import cell_outputs
+from .plan import plan_data, switch_table
 
 if TYPE_CHECKING:
     from .state import CourseState
@@ -57,35 +58,13 @@ def settings(data: Mapping[str, Any], where: str = "plan.toml") -> Settings:
         Naming the key, when ``enabled`` is not true/false or ``min_class`` not a whole number of
         at least :data:`MIN_CLASS_FLOOR`, or the table has another key.
     """
-    table = data.get(TABLE, {})
-    if not isinstance(table, Mapping):
-        raise ValueError(f"{where}: [{TABLE}] must be a table (enabled, min_class)")
-    unknown = sorted(set(table) - {"enabled", "min_class"})
-    if unknown:
-        raise ValueError(f"{where}: [{TABLE}] has unknown key(s) {', '.join(unknown)}; expected enabled and min_class")
-    enabled = table.get("enabled", False)
-    if not isinstance(enabled, bool):
-        raise ValueError(f"{where}: [{TABLE}] enabled must be true or false, got {enabled!r}")
-    least = table.get("min_class", DEFAULT_MIN_CLASS)
-    if isinstance(least, bool) or not isinstance(least, int) or least < MIN_CLASS_FLOOR:
-        raise ValueError(f"{where}: [{TABLE}] min_class must be a whole number of at least {MIN_CLASS_FLOOR} "
-                         f"(fewer students and a share says too much about each), got {least!r}")
-    return Settings(enabled, least)
+    return Settings(*switch_table(data, TABLE, "min_class", DEFAULT_MIN_CLASS, MIN_CLASS_FLOOR,
+                                  "fewer students and a share says too much about each", where))
 
 
 def read_settings(path: Path) -> Settings:
     """:func:`settings` of a ``plan.toml`` (off when there is none)."""
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # pragma: no cover - Python 3.10 reads no plan: no notes
-        return Settings()
-    if not path.is_file():
-        return Settings()
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"{path}: not valid TOML ({error})") from None
-    return settings(data, str(path))
+    return settings(plan_data(path), str(path))
 
 
 def mistake_shares(named: Mapping[str, Iterable[tuple[str, str]]], min_class: int = DEFAULT_MIN_CLASS

@@ -59,11 +59,12 @@ import re
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, NamedTuple
 
 from .._text import name_problem, printable, skeleton
 from ..grading.report import MIME_TYPE
 from .cells import cell_outputs, cell_source, exercise_name
+from .plan import plan_data, switch_table
 
 if TYPE_CHECKING:
     from .course import Course
@@ -84,51 +85,23 @@ _SECTION = re.compile(r"<section class=\"cvkit-leaderboard\".*?</section>", re.S
 
 
 # ------------------------------------------------------------------------------ settings
-@dataclass(frozen=True)
-class Settings:
+class Settings(NamedTuple):
+    """The ``[leaderboard]`` table: on or off, and how many students a table needs to be shown."""
+
     enabled: bool = False
     min_entries: int = DEFAULT_MIN_ENTRIES
 
 
 def settings(data: Mapping[str, Any], where: str = "plan.toml") -> Settings:
-    """The ``[leaderboard]`` table of a plan's TOML data (absent: off).
-
-    Raises
-    ------
-    ValueError
-        Naming the key, when ``enabled`` is not true/false, ``min_entries`` not a whole number of
-        at least :data:`MIN_ENTRIES_FLOOR`, or the table has another key.
-    """
-    table = data.get(TABLE, {})
-    if not isinstance(table, Mapping):
-        raise ValueError(f"{where}: [{TABLE}] must be a table (enabled, min_entries)")
-    unknown = sorted(set(table) - {"enabled", "min_entries"})
-    if unknown:
-        raise ValueError(f"{where}: [{TABLE}] has unknown key(s) {', '.join(unknown)}; expected enabled and "
-                         "min_entries")
-    enabled = table.get("enabled", False)
-    if not isinstance(enabled, bool):
-        raise ValueError(f"{where}: [{TABLE}] enabled must be true or false, got {enabled!r}")
-    least = table.get("min_entries", DEFAULT_MIN_ENTRIES)
-    if isinstance(least, bool) or not isinstance(least, int) or least < MIN_ENTRIES_FLOOR:
-        raise ValueError(f"{where}: [{TABLE}] min_entries must be a whole number of at least {MIN_ENTRIES_FLOOR} "
-                         f"(with fewer, each student on the board knows the others' results), got {least!r}")
-    return Settings(enabled, least)
+    """The ``[leaderboard]`` table of a plan's TOML ``data`` (absent: off); a ValueError names the
+    key whose value is not what it should be (:func:`cvkit.course.plan.switch_table`)."""
+    return Settings(*switch_table(data, TABLE, "min_entries", DEFAULT_MIN_ENTRIES, MIN_ENTRIES_FLOOR,
+                                  "with fewer, each student on the board knows the others' results", where))
 
 
 def read_settings(path: Path) -> Settings:
     """:func:`settings` of a ``plan.toml`` (off when there is none, or Python cannot read TOML)."""
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # pragma: no cover - Python 3.10 reads no plan: no leaderboard
-        return Settings()
-    if not path.is_file():
-        return Settings()
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
-        raise ValueError(f"{path}: not valid TOML ({error})") from None
-    return settings(data, str(path))
+    return settings(plan_data(path), str(path))
 
 
 # ------------------------------------------------------------------------------ the student's choice

@@ -36,7 +36,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10: every chapter of 
     tomllib = None
 
 __all__ = ["LATE_POLICIES", "Plan", "PlannedAssignment", "LatePolicy", "plan_path", "read_plan", "parse_due",
-           "plan_toml", "not_in_plan", "sync_due_dates", "configure_nbgrader"]
+           "plan_toml", "not_in_plan", "sync_due_dates", "configure_nbgrader", "plan_data", "switch_table"]
 
 #: the late-submission policies of ``[late] policy``
 LATE_POLICIES = ("none", "zero", "per_hour")
@@ -373,6 +373,52 @@ def read_plan(path: str | os.PathLike[str], chapters: Iterable[str] = ()) -> Pla
     assignments = _assignments(data.get("assignment", []), name)
     return Plan(assignments, _late_policy(data.get("late"), name), str(course.get("id", "")),
                 str(course.get("title", "")), path, _extensions(data.get("extension", []), assignments, name), zone)
+
+
+def plan_data(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The TOML data of a plan file, for the optional tables other modules read themselves
+    (``[class_notes]``, ``[leaderboard]``): ``{}`` when there is no file (or Python 3.10 cannot
+    read TOML).
+
+    Raises
+    ------
+    ValueError
+        When the file is not valid TOML, naming it.
+    """
+    path = Path(path)
+    if tomllib is None or not path.is_file():
+        return {}
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+        raise ValueError(f"{path}: not valid TOML ({error})") from None
+
+
+def switch_table(data: Mapping[str, Any], table: str, count: str, default: int, floor: int, why: str,
+                 where: str = "plan.toml") -> tuple[bool, int]:
+    """An optional feature's table of a plan's TOML ``data``: ``enabled`` (true/false, absent:
+    false) and ``count``, a whole number of at least ``floor`` (absent: ``default``; ``why`` says
+    why not fewer). Returns ``(enabled, count)``.
+
+    Raises
+    ------
+    ValueError
+        Naming the table and the key, when a value is not of that kind or the table has another key.
+    """
+    found = data.get(table, {})
+    if not isinstance(found, Mapping):
+        raise ValueError(f"{where}: [{table}] must be a table (enabled, {count})")
+    unknown = sorted(set(found) - {"enabled", count})
+    if unknown:
+        raise ValueError(f"{where}: [{table}] has unknown key(s) {', '.join(unknown)}; expected enabled and {count}")
+    enabled = found.get("enabled", False)
+    if not isinstance(enabled, bool):
+        raise ValueError(f"{where}: [{table}] enabled must be true or false, got {enabled!r}")
+    least = found.get(count, default)
+    if isinstance(least, bool) or not isinstance(least, int) or least < floor:
+        raise ValueError(f"{where}: [{table}] {count} must be a whole number of at least {floor} ({why}), "
+                         f"got {least!r}")
+    return enabled, least
 
 
 def _toml_string(text: str) -> str:
