@@ -227,6 +227,15 @@ def test_each_feedback_page_gets_the_board_and_marks_the_students_own_row(course
     assert "<td>Owl <b>(you)</b></td>" in pages["stud_ada"]
     assert "(you)" not in pages["stud_dan"] and "(you)" not in pages["stud_kim"]
     assert "<td>Heron <b>(you)</b></td>" in pages["stud_cyd"]
+    # who asked and is not on it reads why on their own page, in words that name no one else
+    notes = {s: re.findall(r'<p class="cvkit-leaderboard-note">([^<]*)</p>', text) for s, text in pages.items()}
+    assert {s for s, found in notes.items() if found} == set(LEFT_OUT)
+    assert all(len(found) <= 1 for found in notes.values())
+    assert "looks like a student id" in notes["stud_gus"][0] and "empty" in notes["stud_jon"][0]
+    assert "someone else chose the same pseudonym" in notes["stud_hal"][0] == notes["stud_ivy"][0]
+    assert "no measured value" in notes["stud_kim"][0]
+    assert "ask your instructor" in notes["stud_lea"][0] and "public" not in notes["stud_lea"][0]
+    assert "\u202e" not in pages["stud_fay"] and "U+202E" in notes["stud_fay"][0]
     # idempotent: published again, the pages do not change
     lb.publish(course)
     assert {s: (course.root / "feedback" / s / ASSIGNMENT / f"{ASSIGNMENT}.html").read_text() for s in CLASS} == pages
@@ -234,8 +243,9 @@ def test_each_feedback_page_gets_the_board_and_marks_the_students_own_row(course
 
 def test_the_section_is_what_the_feedback_sanitizer_keeps():
     board = lb.Board(ASSIGNMENT, 3, [lb.Table(DIGITS, "accuracy", "%", True, [(1, "O'Neil <b>", 99.0)])])
-    section = lb.fragment(board, own="O'Neil <b>")
+    section = lb.fragment(board, own="O'Neil <b>", note="the pseudonym holds <script> & co")
     assert sanitize_html(section, trusted_report=True) == section
+    assert "&lt;script&gt; &amp; co" in section
     assert "<b>(you)</b>" in section and "&lt;b&gt;" in section
 
 

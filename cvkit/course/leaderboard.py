@@ -34,7 +34,8 @@ by the value measured on their **hidden** cases, under a **pseudonym** they chos
 Outputs (when enabled): ``leaderboard/<assignment>.html`` (static, no script, a
 Content-Security-Policy that allows none, every text escaped) and ``leaderboard/<assignment>.csv``
 in the course folder (no student id in either); the same tables at the end of each student's
-feedback pages of the assignment (a ``<section class="cvkit-leaderboard">``, their own row marked),
+feedback pages of the assignment (a ``<section class="cvkit-leaderboard">``, their own row marked;
+a student who asked to be on it and is not reads why, in words that name no one else),
 since nbgrader's exchange hands a student back only the pages of the notebooks they submitted; and
 the instructor's summary (who was left out and why, by student id) in
 ``exports/leaderboard_summary.txt``. A course turns it on in its ``plan.toml``::
@@ -341,7 +342,10 @@ class Table:
 class Board:
     """The leaderboard of one assignment: the tables shown, and for the instructor only who was
     left out and why (``left_out``: student id → reason) and whose pseudonym is whose
-    (``pseudonyms``: student id → pseudonym, to mark a student's own row on their page)."""
+    (``pseudonyms``: student id → pseudonym, to mark a student's own row on their page); and for
+    each student who asked to be on it and is not, the sentence their own page shows (``notes``:
+    student id → why, in words that name no one else and tell nothing the grader keeps for the
+    instructor)."""
 
     assignment: str
     min_entries: int
@@ -349,6 +353,7 @@ class Board:
     hidden_tables: dict[str, int] = field(default_factory=dict)  # algorithm → entries, below the minimum
     left_out: dict[str, str] = field(default_factory=dict)
     pseudonyms: dict[str, str] = field(default_factory=dict)
+    notes: dict[str, str] = field(default_factory=dict)
     measured: bool = False  # the assignment has a measured exercise
 
     @property
@@ -373,12 +378,14 @@ def build(course: Course, assignment: str, min_entries: int = DEFAULT_MIN_ENTRIE
             continue
         problem = opt_in.problem or pseudonym_problem(opt_in.pseudonym, ids, names)
         if problem:
-            board.left_out[student] = problem
+            board.left_out[student] = board.notes[student] = problem
             continue
         chosen[student] = opt_in.pseudonym.strip()
         values[student] = found
         for algorithm, why in missing.items():
             board.left_out.setdefault(student, f"{algorithm}: {why}")
+            board.notes.setdefault(student, f"{algorithm} is not ranked for you this time: "
+                                   + ("ask your instructor why" if why.startswith("flagged") else why))
     keys: dict[str, list[str]] = {}
     for student, pseudonym in chosen.items():
         keys.setdefault(_key(pseudonym), []).append(student)
@@ -387,6 +394,8 @@ def build(course: Course, assignment: str, min_entries: int = DEFAULT_MIN_ENTRIE
             for student in group:
                 board.left_out[student] = f"the pseudonym is also the choice of {len(group) - 1} other student" \
                                           f"{'s' * (len(group) > 2)} (all of them are left out)"
+                board.notes[student] = ("someone else chose the same pseudonym, so neither is shown: choose one "
+                                        "nobody else would think of")
                 chosen.pop(student)
     board.pseudonyms = dict(chosen)
     algorithms = sorted({a for student in chosen for a in values[student]})
@@ -396,6 +405,11 @@ def build(course: Course, assignment: str, min_entries: int = DEFAULT_MIN_ENTRIE
         kinds = {(v.name, v.unit, v.higher_is_better) for v in entries.values()}
         if len(kinds) > 1:  # graded under two versions of the check: the most common kind is ranked
             common = max(kinds, key=lambda k: sum((v.name, v.unit, v.higher_is_better) == k for v in entries.values()))
+            for student in chosen:
+                v = values[student].get(algorithm)
+                if v is not None and (v.name, v.unit, v.higher_is_better) != common:
+                    board.left_out.setdefault(student, f"{algorithm}: graded under another version of the check "
+                                                       "(regrade the chapter)")
             entries = {p: v for p, v in entries.items() if (v.name, v.unit, v.higher_is_better) == common}
             first = next(iter(entries.values()))
         if len(entries) < min_entries:
@@ -411,16 +425,19 @@ def _number(value: float) -> str:
     return f"{value:.{DIGITS}f}"
 
 
-def fragment(board: Board, own: str | None = None) -> str:
+def fragment(board: Board, own: str | None = None, note: str | None = None) -> str:
     """The tables as an HTML section (escaped text only; what :func:`cvkit.grading.safety.
     sanitize_html` keeps as it is for a trusted report); ``own``: the pseudonym whose row is
-    marked "(you)"."""
+    marked "(you)"; ``note``: why the reader, who asked to be on the board, is not."""
     parts = [f"<section class=\"cvkit-leaderboard\" aria-label=\"Leaderboard of {html.escape(board.assignment)}\">",
              f"<p class=\"cvkit-leaderboard-title\"><b>Leaderboard of {html.escape(board.assignment, quote=False)}"
              "</b></p>",
              "<p>Students who chose to take part, under the pseudonym they picked, ranked by what their work "
              "achieved on their own hidden cases. Equal values share a rank. It changes nothing in anyone's "
              "grade.</p>"]
+    if note:
+        parts.append(f"<p class=\"cvkit-leaderboard-note\">You asked to be on this board, but you are not on it: "
+                     f"{html.escape(printable(note), quote=False)}.</p>")
     for table in board.tables:
         parts.append(f"<table><caption>{html.escape(table.heading, quote=False)}</caption><thead><tr>"
                      f"<th scope=\"col\">rank</th><th scope=\"col\">pseudonym</th>"
@@ -452,7 +469,10 @@ td:first-child, td:last-child {{ text-align: right; }}
 
 def page(board: Board) -> str:
     """The standalone page ``leaderboard/<assignment>.html`` (no script, no student id)."""
-    return _PAGE.format(assignment=html.escape(board.assignment), body=fragment(board))
+    from ..grading.safety import sanitize_html
+
+    return _PAGE.format(assignment=html.escape(board.assignment),
+                        body=sanitize_html(fragment(board), trusted_report=True))
 
 
 CSV_COLUMNS = ["assignment", "exercise", "measure", "unit", "rank", "pseudonym", "value"]
@@ -492,7 +512,8 @@ def _annotate_pages(course: Course, board: Board | None, assignment: str) -> int
         student = path.parent.parent.name
         section = None
         if board is not None and board.published:
-            section = sanitize_html(fragment(board, board.pseudonyms.get(student)), trusted_report=True)
+            section = sanitize_html(fragment(board, board.pseudonyms.get(student), board.notes.get(student)),
+                                    trusted_report=True)
         try:
             text = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError):
