@@ -343,6 +343,10 @@ def _cmd_refresh(args) -> int:
     print(f"wrote {len(pages)} feedback page{'s' * (len(pages) != 1)} with new marks"
           + (f" ({', '.join(f'{s}/{a}' for s, a in pages)})" if pages else "")
           + f"; exports: {course.root / 'exports'}; marks: {course.root / '.cvkit' / 'marks.log'}")
+    from .course.leaderboard import saved_summary
+
+    for line in saved_summary(course):
+        _show(line)
     return 0
 
 

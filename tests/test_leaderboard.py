@@ -74,8 +74,11 @@ def test_the_digits_check_measures_the_accuracy_in_percent():
 
 
 # ------------------------------------------------------------------------------ a graded course, laid out
-def _cell(source, grade_id=None, outputs=None, cell_type="code"):
-    meta = {"nbgrader": {"grade_id": grade_id, "grade": True, "solution": False, "points": 4}} if grade_id else {}
+def _cell(source, grade_id=None, outputs=None, cell_type="code", trusted=True):
+    meta = {"nbgrader": {"grade_id": grade_id, "grade": not grade_id.endswith("_answer"),
+                         "solution": grade_id.endswith("_answer"), "points": 4}} if grade_id else {}
+    if grade_id and trusted and not grade_id.endswith("_answer"):  # what the trusted grader writes on a test cell
+        meta["cvkit"] = {"report": {"points": 4, "credit": 0.0, "checks": [], "flags": []}}
     cell = {"cell_type": cell_type, "source": source, "metadata": meta}
     if cell_type == "code":
         cell.update(outputs=outputs or [], execution_count=None)
@@ -125,12 +128,14 @@ CLASS = {
     "stud_nia": ('LEADERBOARD = {"join": "yes", "pseudonym": "Swift"}', 97.0, ()),
     "stud_pat": ('LEADERBOARD = {"join": True, "pseudonym": "Lovelace fan"}', 97.0, ()),  # a name in the gradebook
     "stud_quinn": ('LEADERBOARD = {"join": True, "pseudonym": "ud_bo"}', 97.0, ()),  # a piece of an id... (5 chars)
+    "stud_rex": ('LEADERBOARD = {"join": True, "pseudonym": "Raven"}', None, ()),  # crashed, displayed a forged report
 }
+FORGED = "stud_rex"
 PUBLISHED = [(1, "Owl", 99.0), (2, "Falcon", 98.0), (2, "Heron", 98.0)]
 LEFT_OUT = {"stud_fay": "invisible or format", "stud_gus": "looks like a student id", "stud_hal": "also the choice",
             "stud_ivy": "also the choice", "stud_jon": "empty", "stud_kim": "no measured value",
             "stud_lea": "flagged for review", "stud_mo": "longer than 24", "stud_nia": '"join" must be True',
-            "stud_pat": "student's name", "stud_quinn": "looks like a student id"}
+            "stud_pat": "student's name", "stud_quinn": "looks like a student id", "stud_rex": "no measured value"}
 PAGE = "<!DOCTYPE html><html><head><title>feedback</title></head><body><p>your feedback</p></body></html>"
 
 
@@ -157,7 +162,9 @@ def make_course(folder: Path, plan: str = "[leaderboard]\nenabled = true\n"):
         test = _cell("# (hidden tests: their results are shown below)", "train_digits_hidden",
                      [_hidden_output(accuracy), {"output_type": "execute_result", "data": {"text/plain": "2.0"},
                                                  "metadata": {}, "execution_count": None}])
-        (graded / f"{ASSIGNMENT}.ipynb").write_text(json.dumps(_notebook(cells + [test], flags)))
+        answer = _cell("def train_digits(x_train, y_train, rng=None): ...", "train_digits_answer",
+                       [_hidden_output(100.0)] if student == FORGED else [])
+        (graded / f"{ASSIGNMENT}.ipynb").write_text(json.dumps(_notebook([answer] + cells + [test], flags)))
         feedback = folder / "feedback" / student / ASSIGNMENT
         feedback.mkdir(parents=True)
         (feedback / f"{ASSIGNMENT}.html").write_text(PAGE)
@@ -200,7 +207,7 @@ def test_the_page_holds_no_student_id_no_name_and_no_script(course):
 def test_students_who_did_not_opt_in_never_appear(course):
     course, lines = course
     board = lb.build(course, ASSIGNMENT)
-    assert set(board.pseudonyms) == {"stud_ada", "stud_bob", "stud_cyd", "stud_kim", "stud_lea"}
+    assert set(board.pseudonyms) == {"stud_ada", "stud_bob", "stud_cyd", "stud_kim", "stud_lea", "stud_rex"}
     assert "stud_dan" not in board.left_out and "stud_eve" not in board.left_out  # not asked: nothing to say
     assert "99.50" not in _page(course)
 
@@ -362,6 +369,19 @@ def test_the_cell_is_read_never_run(source, expected):
 def test_what_cannot_be_read_is_no(source, words):
     found = lb.opt_ins_in(source)
     assert len(found) == 1 and not found[0].join and re.search(words, found[0].problem)
+
+
+def test_only_the_reports_the_trusted_grader_wrote_count(tmp_path):
+    """A report displayed by the student's own code (an answer cell, or a test cell the trusted
+    grader did not write) is never read; the test cell's is."""
+    forged = [_hidden_output(100.0)]
+    cells = [_cell("...", "train_digits_answer", forged), _cell("...", "train_digits_hidden", forged, trusted=False)]
+    (tmp_path / "a.ipynb").write_text(json.dumps(_notebook(cells)))
+    assert lb.measured_values(tmp_path) == ({}, {})
+    cells.append(_cell("...", "train_digits_hidden", [_hidden_output(96.5)]))
+    (tmp_path / "a.ipynb").write_text(json.dumps(_notebook(cells)))
+    values, missing = lb.measured_values(tmp_path)
+    assert values == {DIGITS: lb.Value("accuracy", "%", True, 96.5)} and not missing
 
 
 def test_two_different_settings_in_one_hand_in_are_no(tmp_path):

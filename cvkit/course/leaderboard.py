@@ -279,11 +279,13 @@ def _flags(folder: Path) -> dict[str, list[str]]:
 
 def measured_values(folder: Path) -> tuple[dict[str, Value], dict[str, str]]:
     """From one autograded submission's notebooks: algorithm id → the measured :class:`Value` of
-    each measured exercise's hidden report, and algorithm id → why there is none to rank."""
+    each measured exercise's hidden report, and algorithm id → why there is none to rank. Only
+    the reports the trusted grader wrote into the test cells count: an answer cell's outputs are
+    the student's code's, and could display a report of its own making."""
     values: dict[str, Value] = {}
     missing: dict[str, str] = {}
     flags = _flags(folder)
-    for cell_id, output in cell_outputs(folder):
+    for cell_id, output in cell_outputs(folder, trusted=True):
         report = (output.get("data") or {}).get(MIME_TYPE)
         if not cell_id or not isinstance(report, dict) or report.get("hidden") is not True:
             continue

@@ -84,10 +84,12 @@ def repaired_notebook(release: Mapping[str, Any], notebook: Mapping[str, Any]) -
     return dict(release, cells=cells)
 
 
-def cell_outputs(folder: Path) -> Iterator[tuple[str | None, Mapping[str, Any]]]:
+def cell_outputs(folder: Path, *, trusted: bool = False) -> Iterator[tuple[str | None, Mapping[str, Any]]]:
     """(grade id or None, output) of every output of every cell of the notebooks in ``folder``
     (a hand-in's or an autograded submission's), skipping what cannot be read: the one walk the
-    course's readers of reports (named mistakes, case verdicts, visible-test runs) share."""
+    course's readers of reports (named mistakes, case verdicts, visible-test runs) share.
+    ``trusted``: only the outputs of the test cells the trusted grader wrote (those with its
+    ``metadata.cvkit.report``, which it alone writes), never a report a student's own cell displayed."""
     for path in sorted(folder.glob("*.ipynb")):
         try:
             cells = json.loads(path.read_text()).get("cells", [])
@@ -97,9 +99,19 @@ def cell_outputs(folder: Path) -> Iterator[tuple[str | None, Mapping[str, Any]]]
             if not isinstance(cell, dict):
                 continue
             cell_id = grade_id(cell)
+            if trusted and not _trusted_cell(cell):
+                continue
             for output in cell.get("outputs", []) or []:
                 if isinstance(output, dict):
                     yield cell_id, output
+
+
+def _trusted_cell(cell: Mapping[str, Any]) -> bool:
+    """A test cell whose outputs the trusted grader wrote (:func:`~cvkit.course.nbgrader_plugins.
+    apply_trusted_checks` drops every cell's ``cvkit`` metadata first, then writes ``report``)."""
+    meta = cell.get("metadata")
+    found = meta.get("cvkit") if isinstance(meta, dict) else None
+    return isinstance(found, dict) and isinstance(found.get("report"), dict)
 
 
 def metadata_flags(meta: Mapping[str, Any]) -> list[str]:
