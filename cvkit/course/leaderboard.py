@@ -64,11 +64,11 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping, NamedTuple
 
 from .._text import name_problem, printable, skeleton
 from ..grading.report import MIME_TYPE
-from .cells import cell_outputs, cell_source, exercise_name
+from .notebook import cell_outputs, cell_source, exercise_name
 from .plan import plan_data, switch_table
 
 if TYPE_CHECKING:
-    from .course import Course
+    from .state import CourseState
 
 TABLE = "leaderboard"
 VARIABLE = "LEADERBOARD"
@@ -214,7 +214,7 @@ def pseudonym_problem(pseudonym: str, student_ids: Iterable[str], names: Iterabl
     return None
 
 
-def roster_names(course: Course) -> list[str]:
+def roster_names(course: CourseState) -> list[str]:
     """The students' first and last names the gradebook holds (none when it has none or cannot
     be read; an SQLite gradebook that does not exist yet is not created)."""
     url = course.db_url
@@ -363,7 +363,7 @@ class Board:
         return bool(self.tables)
 
 
-def build(course: Course, assignment: str, min_entries: int = DEFAULT_MIN_ENTRIES) -> Board:
+def build(course: CourseState, assignment: str, min_entries: int = DEFAULT_MIN_ENTRIES) -> Board:
     """The :class:`Board` of ``assignment`` from the course's hand-ins and autograded notebooks."""
     board = Board(assignment, min_entries)
     not_graded = course.not_graded()
@@ -428,7 +428,7 @@ def _number(value: float) -> str:
 
 
 def fragment(board: Board, own: str | None = None, note: str | None = None) -> str:
-    """The tables as an HTML section (escaped text only; what :func:`cvkit.grading.safety.
+    """The tables as an HTML section (escaped text only; what :func:`cvkit.course.safety.
     sanitize_html` keeps as it is for a trusted report); ``own``: the pseudonym whose row is
     marked "(you)"; ``note``: why the reader, who asked to be on the board, is not."""
     parts = [f"<section class=\"cvkit-leaderboard\" aria-label=\"Leaderboard of {html.escape(board.assignment)}\">",
@@ -471,7 +471,7 @@ td:first-child, td:last-child {{ text-align: right; }}
 
 def page(board: Board) -> str:
     """The standalone page ``leaderboard/<assignment>.html`` (no script, no student id)."""
-    from ..grading.safety import sanitize_html
+    from .safety import sanitize_html
 
     return _PAGE.format(assignment=html.escape(board.assignment),
                         body=sanitize_html(fragment(board), trusted_report=True))
@@ -482,7 +482,7 @@ CSV_COLUMNS = ["assignment", "exercise", "measure", "unit", "rank", "pseudonym",
 
 def write_csv(board: Board, path: Path) -> Path:
     """The tables, one row per entry (texts printable, never a spreadsheet formula)."""
-    from ..grading.safety import csv_safe
+    from .safety import csv_safe
 
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="", encoding="utf-8") as handle:
@@ -506,8 +506,8 @@ def with_board(text: str, section: str | None) -> str:
     return text + section if end < 0 else text[:end] + section + text[end:]
 
 
-def _annotate_pages(course: Course, board: Board | None, assignment: str) -> int:
-    from ..grading.safety import sanitize_html
+def _annotate_pages(course: CourseState, board: Board | None, assignment: str) -> int:
+    from .safety import sanitize_html
 
     pages = 0
     for path in sorted((course.root / "feedback").glob(f"*/{assignment}/*.html")):
@@ -527,13 +527,13 @@ def _annotate_pages(course: Course, board: Board | None, assignment: str) -> int
     return pages
 
 
-def _remove(course: Course, assignment: str) -> None:
+def _remove(course: CourseState, assignment: str) -> None:
     for suffix in (".html", ".csv"):
         (course.root / FOLDER / f"{assignment}{suffix}").unlink(missing_ok=True)
     _annotate_pages(course, None, assignment)
 
 
-def _assignments(course: Course) -> list[str]:
+def _assignments(course: CourseState) -> list[str]:
     try:
         planned = list(course.plan().ids())
     except (OSError, ValueError):
@@ -562,7 +562,7 @@ def summary(board: Board) -> list[str]:
     return lines
 
 
-def publish(course: Course, assignments: Iterable[str] | None = None, chosen: Settings | None = None) -> list[str]:
+def publish(course: CourseState, assignments: Iterable[str] | None = None, chosen: Settings | None = None) -> list[str]:
     """Write (or remove) the leaderboards of ``assignments`` (default: every assignment of the plan
     or with autograded hand-ins) as the course's ``[leaderboard]`` says (or ``chosen``).
 
@@ -608,7 +608,7 @@ def publish(course: Course, assignments: Iterable[str] | None = None, chosen: Se
     return lines
 
 
-def saved_summary(course: Course) -> list[str]:
+def saved_summary(course: CourseState) -> list[str]:
     """The lines of the last :func:`publish` (for the summary after ``cvkit course grade``)."""
     try:
         return (course.root / "exports" / SUMMARY_NAME).read_text(encoding="utf-8").splitlines()
