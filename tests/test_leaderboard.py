@@ -17,7 +17,7 @@ import pytest
 from cvkit.course import leaderboard as lb
 from cvkit.grading import Case, Check, CaseResult, Measure, Report, close, evaluate
 from cvkit.grading.report import MIME_TYPE
-from cvkit.grading.safety import sanitize_html
+from cvkit.course.safety import sanitize_html
 from cvkit.registry import get
 from cvkit.train.checks import MeasuredCase
 
