@@ -19,6 +19,7 @@ from cvkit.grading import CheckFailed, check
 from cvkit.sandbox import session as sandbox
 from cvkit.grading.engine import evaluate
 from cvkit.grading.runtime.guard import Outcome, run_guarded, timeout_message
+from cvkit.grading.runtime.wire import BoxCall
 
 CALLS: list = []
 
@@ -150,8 +151,9 @@ def test_the_sandbox_runs_no_other_case_of_a_check_after_a_timeout():
         def g(x):
             return x * 2
         """)]
-    one = {"function": "f", "args": (np.ones(2),), "kwargs": {}, "time_limit": 1.0, "group": "f:visible"}
-    calls = [one, dict(one), dict(one), dict(one, group="f:hidden"), {**one, "function": "g", "group": "g:visible"}]
+    one = BoxCall("f", group="f:visible", args=(np.ones(2),), time_limit=1.0)
+    calls = [one, one, one, dataclasses.replace(one, group="f:hidden"),
+             dataclasses.replace(one, function="g", group="g:visible")]
     result = sandbox.run_calls(cells, calls)
     first, skipped, other_call, other_function = result.outcomes[0], result.outcomes[1:3], *result.outcomes[3:]
     assert first.timed_out and (first.loop, first.loop_lines) == ("while", [4]), (first.error, first.loop)

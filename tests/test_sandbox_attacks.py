@@ -20,6 +20,7 @@ import pytest
 
 from cvkit.course import Course
 from cvkit.sandbox import isolation, session as sandbox
+from cvkit.grading.runtime.wire import BoxCall
 
 from test_course_scaling import ASSIGNMENT, ROOT, _answers, _cell, cell_grades, make_course
 from test_course_scaling import project  # noqa: F401  (the tiny chapter's project, a fixture)
@@ -297,7 +298,7 @@ def test_ignoring_sigalrm_does_not_beat_the_limit(bubblewrap):
             signal.signal(signal.SIGALRM, signal.SIG_IGN)
             time.sleep(2.5)
             return x''')]
-    result = sandbox.run_calls(cells, [{"function": "slow", "args": (np.ones(2),), "kwargs": {}, "time_limit": 1.0}])
+    result = sandbox.run_calls(cells, [BoxCall("slow", args=(np.ones(2),), time_limit=1.0)])
     assert result.outcomes[0].timed_out and result.outcomes[0].value is None
 
 

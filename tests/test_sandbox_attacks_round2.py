@@ -27,6 +27,7 @@ from cvkit.grading import evaluate, hidden_seed
 from cvkit.sandbox import isolation, session as sandbox
 from cvkit.sandbox.notebook_run import bounded, execute_in_sandbox
 from cvkit.grading.runtime.guard import Outcome
+from cvkit.grading.runtime.wire import BoxCall
 from cvkit.course import trusted
 from cvkit.course.trusted import grade_notebook, submission_version
 
@@ -463,7 +464,7 @@ def test_the_notebook_has_a_total_time_limit(bubblewrap):
 
 def test_a_deadline_ends_every_call_that_has_not_run(bubblewrap):
     cells = ["import time\ndef slow(x):\n    time.sleep(3)\n    return x"]
-    calls = [{"function": "slow", "args": (np.ones(2),), "kwargs": {}, "time_limit": 10.0} for _ in range(5)]
+    calls = [BoxCall("slow", args=(np.ones(2),), time_limit=10.0) for _ in range(5)]
     result = sandbox.run_calls(cells, calls, deadline=time.monotonic() + 8)
     assert result.exhausted
     assert result.outcomes[0].ok
@@ -473,7 +474,7 @@ def test_a_deadline_ends_every_call_that_has_not_run(bubblewrap):
 def test_requests_per_case_are_counted(bubblewrap):
     cells = ["from cvkit import data\ndef greedy(x):\n    for _ in range(1200):\n"
              "        try:\n            data.step_signal(3)\n        except RuntimeError:\n            pass\n    return x"]
-    result = sandbox.run_calls(cells, [{"function": "greedy", "args": (np.ones(2),), "kwargs": {}, "time_limit": 60.0}])
+    result = sandbox.run_calls(cells, [BoxCall("greedy", args=(np.ones(2),), time_limit=60.0)])
     outcome = result.outcomes[0]
     assert not outcome.ok and any("more than 1000 requests" in c for c in outcome.forbidden_calls), outcome
 
@@ -546,7 +547,7 @@ def test_a_cell_may_load_data_but_not_compute_a_building_block(bubblewrap):
     cells = ["from cvkit import data, filters\nSIGNAL = data.step_signal(5)\ndef f(x):\n    return SIGNAL",
              "from cvkit import filters\nPADDED = filters.pad(np.ones((2, 2)), 1)"]
     result = sandbox.run_calls(["import numpy as np"] + cells,
-                               [{"function": "f", "args": (np.ones(2),), "kwargs": {}, "time_limit": 20.0}],
+                               [BoxCall("f", args=(np.ones(2),), time_limit=20.0)],
                                blocks=("filters.pad",))
     assert result.outcomes[0].ok and np.array_equal(result.outcomes[0].value, data.step_signal(5))
     assert any("cell 2: RuntimeError" in e and "filters.pad is not allowed" in e for e in result.cell_errors), \

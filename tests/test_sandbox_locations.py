@@ -55,9 +55,10 @@ PROBE = r'''
 import json, os, sys
 import cvkit
 from cvkit.sandbox import notebook_run as execute, isolation, sandbox
+from cvkit.grading.runtime.wire import BoxCall
 
 kit, clone = sys.argv[1], sys.argv[2]
-result = sandbox.run_calls(["def f(x):\n    return x + 1"], [{"function": "f", "args": (1,), "kwargs": {}}])
+result = sandbox.run_calls(["def f(x):\n    return x + 1"], [BoxCall("f", args=(1,))])
 cell = ("import json, os, sys, cvkit\n"
         f"kit, clone = {kit!r}, {clone!r}\n"
         "print(json.dumps({'prefix': sys.prefix, 'cvkit': cvkit.__file__, 'answer': 6 * 7,\n"

@@ -382,7 +382,7 @@ def test_cvkit_modules_are_flagged_and_refused_through_one_list(monkeypatch, ext
     assert any("segmentation" in flag for flag in flags) == bool(extra)
 
     points = np.zeros((4, 3))
-    calls = [{"function": name, "args": (points,), "kwargs": {}, "time_limit": 5.0}
+    calls = [wire.BoxCall(name, args=(points,), time_limit=5.0)
              for name in ("project", "calibrate", "segment")]
     result = sandbox.run_calls([TOPIC_IMPORTS, NEW_TOPIC_IMPORT], calls)
     refused = [o for o in result.outcomes if o.error and "not available while your code is graded" in o.error]

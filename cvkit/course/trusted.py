@@ -27,6 +27,7 @@ from ..grading.served import served_helpers
 from ..grading.report import CaseResult, Report
 from ..grading.runtime.cells import is_solution, is_test_cell, nbgrader_metadata
 from ..grading.runtime.guard import Outcome, timeout_message
+from ..grading.runtime.wire import BoxCall
 from ..sandbox.session import NOTEBOOK_SECONDS, run_calls
 
 
@@ -307,13 +308,14 @@ class _Plan:
     seed: int | None
     cases: list[Case]               # drawn once (:func:`_draw_cases`)
     keys: list[tuple[int, int]]     # (case index, attempt) of each request
-    requests: list[dict]
+    requests: list[BoxCall]
     cells: list[str] = field(default_factory=list)   # the code the worker ran (for hidden tracebacks)
 
     def with_reference_blocks(self, substitute: dict[str, str]) -> "_Plan":
         """The same cases, the student's functions named in ``substitute`` (name → algorithm
         id) replaced in the sandbox by the reference building block."""
-        return dataclasses.replace(self, requests=[dict(r, substitute=dict(substitute)) for r in self.requests])
+        return dataclasses.replace(self, requests=[dataclasses.replace(r, substitute=dict(substitute))
+                                                   for r in self.requests])
 
     def report(self, outcomes: Sequence[Outcome | None]) -> Report:
         """The trusted report of these cases, whose requests' outcomes are ``outcomes`` (in order)."""
@@ -327,7 +329,7 @@ class _Plan:
         report = evaluate(self.call.algorithm_id, hidden=self.call.hidden, seed=self.seed, check=self.spec,
                           runner=runner, cases=copy.deepcopy(self.cases))
         if self.call.hidden:
-            names = set(self.requests[0]["arg_names"]) if self.requests else set()
+            names = set(self.requests[0].arg_names) if self.requests else set()
             for case in report.cases:
                 outcome = found.get((case.index, 0))
                 if outcome is not None:
@@ -348,25 +350,24 @@ def _plan(call: CheckCall, student: str, salt: str, version: str | None = None, 
         raise ValueError(f"a test cell checks {call.algorithm_id!r}, which has no check")
     seed = hidden_seed(call.algorithm_id, student=student, salt=salt, version=version) if call.hidden else None
     cases = _draw_cases(spec, call.hidden, seed)
-    names = list(arg_names(record.reference, spec))
-    helpers = list(served_helpers(call.algorithm_id, tuple(spec.allowed)))
+    names = tuple(arg_names(record.reference, spec))
+    helpers = tuple(served_helpers(call.algorithm_id, tuple(spec.allowed)))
     keys: list[tuple[int, int]] = []
-    requests: list[dict] = []
+    requests: list[BoxCall] = []
     for index, case in enumerate(cases):
         for attempt in ((0, 1) if spec.seeded else (0,)):
             keys.append((index, attempt))
-            requests.append({
+            requests.append(BoxCall(
                 # one check call: after a case that does not return in time, the sandbox runs none
                 # of the call's other cases (the visible and the hidden call are two groups)
-                "function": call.function,
-                "group": f"{call.function}:{call.algorithm_id}:{'hidden' if call.hidden else 'visible'}",
-                "args": case.args, "kwargs": case.kwargs,
-                "time_limit": spec.time_limit, "allowed": helpers, "arg_names": names,
-                "forbidden_libraries": list(spec.forbidden_libraries) if attempt == 0 else [],
-                "forbidden_functions": list(spec.forbidden) if attempt == 0 else [],
-                "call": (call_target(spec.call) or "").rpartition(":")[2] or None,
-                "substitute": {},
-            })
+                function=call.function,
+                group=f"{call.function}:{call.algorithm_id}:{'hidden' if call.hidden else 'visible'}",
+                args=case.args, kwargs=case.kwargs,
+                time_limit=spec.time_limit, allowed=helpers, arg_names=names,
+                forbidden_libraries=tuple(spec.forbidden_libraries) if attempt == 0 else (),
+                forbidden_functions=tuple(spec.forbidden) if attempt == 0 else (),
+                adapter=(call_target(spec.call) or "").rpartition(":")[2] or None,
+            ))
     return _Plan(call, spec, seed, cases, keys, requests, list(cells))
 
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from .compare import Comparator
 from .runtime.adapters import bind_call, instance_call  # noqa: F401  (re-exported)
+from .runtime.wire import DEFAULT_TIME_LIMIT
 
 #: libraries that would do a Chapter's exercise for the student (module-name prefixes)
 FORBIDDEN_LIBRARIES = (
@@ -215,7 +216,7 @@ class Check:
     allowed_libraries: tuple = ()
     forbidden: tuple = ()
     seeded: bool = False
-    time_limit: float = 20.0
+    time_limit: float = DEFAULT_TIME_LIMIT
     arg_names: tuple = ()
     call: Callable | None = None
     output_names: tuple = ()

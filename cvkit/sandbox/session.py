@@ -12,7 +12,7 @@ OpenCV, Pillow, scikit-learn or torch. It then drives the conversation:
   side spends serving the case's requests included, so that a student cannot ignore the limit
   nor hide slow work behind requests;
 - a building block the current case allows (``filters.pad``, or a data loader that is not
-  itself the exercise's answer: the case's ``"allowed"`` list, decided by :mod:`.trusted`) is
+  itself the exercise's answer: the call's :attr:`~cvkit.grading.runtime.wire.BoxCall.allowed`, decided by :mod:`.trusted`) is
   computed on this side by the :class:`~cvkit.sandbox.reference_server.ReferenceServer` and
   sent back as data, at most :data:`MAX_REQUESTS` times per case; any other id is refused and
   reported as a forbidden call;
@@ -24,7 +24,7 @@ OpenCV, Pillow, scikit-learn or torch. It then drives the conversation:
   turn ends the sandbox, and the call that was running fails with the reason;
 - if the student's code kills the worker, or a case runs out of time, the sandbox is killed
   (all its processes with it) and the remaining cases run in a fresh one — except the other
-  cases of the check call (``"group"``) whose case did not return: they are not run at all
+  cases of the check call (:attr:`~cvkit.grading.runtime.wire.BoxCall.group`) whose case did not return: they are not run at all
   (``"not run: …"``), so an endless loop costs one time limit per check call; two crashes of
   the worker end a call the same way.
 
@@ -177,7 +177,7 @@ def require_worker() -> None:
         return
     if "reason" not in _worker_checked:
         result = run_calls(["def _cvkit_probe(x):\n    return x + 1"],
-                           [{"function": "_cvkit_probe", "args": (1,), "kwargs": {}, "time_limit": 60.0}],
+                           [wire.BoxCall("_cvkit_probe", args=(1,), time_limit=60.0)],
                            max_restarts=0)
         outcome = result.outcomes[0]
         _worker_checked["reason"] = None if outcome.ok and outcome.value == 2 else (
@@ -290,7 +290,7 @@ def _not_run(calls: list, stalled: int | None) -> str:
     the index of that call), or two crashed the worker."""
     if stalled is None:
         return "not run: two earlier cases of this check crashed the grading worker"
-    limit = float(calls[stalled].get("time_limit", 20.0))
+    limit = float(calls[stalled].time_limit)
     return (f"not run: an earlier case did not return within {limit:g} s, so the rest of this check was skipped "
             "(see that case)")
 
@@ -322,7 +322,7 @@ def _serve(session: _Session, message: dict, allowed: set | frozenset, budget: f
 
 def run_calls(
     cells: list[str],
-    calls: list[dict],
+    calls: list[wire.BoxCall],
     *,
     blocks: tuple = (),
     memory_mb: int = 3072,
@@ -331,12 +331,12 @@ def run_calls(
     cell_seconds: float = CELL_SECONDS,
     deadline: float | None = None,
 ) -> SandboxResult:
-    """Execute ``cells`` in a sandboxed worker, then each call ``{"function", "args", "kwargs",
-    "time_limit", "allowed", "group", ...}`` in order; see the module docstring.
+    """Execute ``cells`` in a sandboxed worker, then each of ``calls``
+    (:class:`~cvkit.grading.runtime.wire.BoxCall`) in order; see the module docstring.
 
     ``blocks`` are the algorithm ids some call may use as building blocks; each call lists the
-    ids it really may use in ``"allowed"`` (building blocks and ``"data.<loader>"``; a call
-    without that key may use the data loaders only). A call's outcome is ``None`` only if it
+    ids it really may use in ``allowed`` (building blocks and ``"data.<loader>"``; a call
+    whose ``allowed`` is None may use the data loaders only). A call's outcome is ``None`` only if it
     was never reached (it then fails with the reason). ``deadline`` (``time.monotonic()``
     seconds; default :data:`NOTEBOOK_SECONDS` from now) ends the whole run, restarts included.
     ``sandboxed=False`` (``--no-sandbox``) runs the same worker with resource limits only.
@@ -345,8 +345,7 @@ def run_calls(
     sandboxed = (not isolation.sandbox_disabled()) if sandboxed is None else sandboxed
     if sandboxed:
         isolation.require()
-    encoded = [dict(call, args=wire.encode(tuple(call["args"])), kwargs=wire.encode(dict(call["kwargs"])))
-               for call in calls]
+    encoded = [call.to_wire() for call in calls]
     outcomes: list = [None] * len(calls)
     result = SandboxResult(outcomes, sandboxed=sandboxed, started=False)
     skipped_cells: set = set()
@@ -396,7 +395,7 @@ def run_calls(
             while pending:
                 current = pending[0]
                 call = calls[current]
-                group = call.get("group", call["function"])
+                group = call.check_group
                 if group in stalled or strikes.get(group, 0) >= 2:
                     # one case of this check did not return in time, or two crashed the worker: the
                     # rest of the check is not run (an endless loop costs one time limit, not one per case)
@@ -405,8 +404,8 @@ def run_calls(
                     pending.pop(0)
                     current = None
                     continue
-                limit = float(call.get("time_limit", 20.0))
-                allowed = set(call["allowed"]) if "allowed" in call else {f"data.{name}" for name in DATA_SOURCES}
+                limit = float(call.time_limit)
+                allowed = set(call.allowed) if call.allowed is not None else {f"data.{name}" for name in DATA_SOURCES}
                 refused: list = []
                 session.send({"call": encoded[current]})
                 started, requests = time.monotonic(), 0
@@ -432,7 +431,7 @@ def run_calls(
                 if outcome.timed_out:
                     stalled.setdefault(group, current)
                     # the rest of this check is not run: no fresh sandbox just to skip it
-                    for index in [i for i in pending if calls[i].get("group", calls[i]["function"]) == group]:
+                    for index in [i for i in pending if calls[i].check_group == group]:
                         outcomes[index] = Outcome(error=_not_run(calls, current), exception="NotRun", from_grader=True)
                         pending.remove(index)
                 current = None
@@ -457,12 +456,12 @@ def run_calls(
                     break
                 continue  # a cell was stopped: start again without it
             call = calls[current]
-            group = call.get("group", call["function"])
+            group = call.check_group
             if stop.timed_out:
                 stalled.setdefault(group, current)
             else:
                 strikes[group] = strikes.get(group, 0) + 1
-            outcomes[current] = Outcome(error=timeout_message(float(call.get("time_limit", 20.0))) if stop.timed_out
+            outcomes[current] = Outcome(error=timeout_message(float(call.time_limit)) if stop.timed_out
                                         else f"no result: {stop.reason}",
                                         exception="Timeout" if stop.timed_out else "WorkerDied",
                                         timed_out=stop.timed_out, from_grader=True)

@@ -830,7 +830,7 @@ def run_guarded(
     kwargs: dict,
     *,
     arg_names: tuple = (),
-    time_limit: float | None = 20.0,
+    time_limit: float | None = wire.DEFAULT_TIME_LIMIT,
     forbidden_libraries: tuple = (),
     forbidden_functions: tuple = (),
     allowed_ids: tuple = (),

@@ -3,18 +3,23 @@
 The grader never unpickles anything that comes from a student's process (unpickling runs
 code). Values are numbers, strings, None, tuples, lists, dicts with string keys, NumPy arrays
 of numeric or boolean dtype, and NumPy random generators (their bit-generator state).
+
+:class:`BoxCall` is the one request the trusted side sends the sandbox's worker for a case.
 """
 from __future__ import annotations
 
 import base64
 import json
 import math
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 _ARRAY_KINDS = "biuf"
 MAX_BYTES = 64 * 1024 * 1024  # one value crossing the sandbox boundary
+#: seconds a case may run when its check sets no limit of its own (``Check.time_limit``)
+DEFAULT_TIME_LIMIT = 20.0
 
 
 class WireError(ValueError):
@@ -107,3 +112,64 @@ def dumps(value: Any) -> str:
 
 def loads(text: str) -> Any:
     return decode(json.loads(text))
+
+
+@dataclass(frozen=True)
+class BoxCall:
+    """One call of a student's function on one case, as the trusted side asks the sandbox for it.
+
+    Built by the trusted grader (:mod:`cvkit.course.trusted`), sent by the session
+    (:mod:`cvkit.sandbox.session`) as :meth:`to_wire`, read back by the worker
+    (:mod:`cvkit.grading.runtime.worker`) with :meth:`from_wire`.
+    """
+
+    #: the name of the student's function in the notebook's namespace
+    function: str
+    #: the check call the case belongs to: after one of its cases does not return in time, the
+    #: sandbox runs none of the others (None: the function's name)
+    group: str | None = None
+    args: tuple = ()
+    kwargs: dict = field(default_factory=dict)
+    time_limit: float = DEFAULT_TIME_LIMIT
+    #: building blocks and ``"data.<loader>"`` ids the case may have computed outside (None:
+    #: the data loaders only)
+    allowed: tuple[str, ...] | None = None
+    arg_names: tuple[str, ...] = ()
+    forbidden_libraries: tuple[str, ...] = ()
+    forbidden_functions: tuple[str, ...] = ()
+    #: the name of the :mod:`~cvkit.grading.runtime.adapters` function that calls the
+    #: candidate (``Check.call``), or None for a plain call
+    adapter: str | None = None
+    #: a cascade: the student's functions (name → algorithm id) the worker replaces by the
+    #: building block the trusted side serves
+    substitute: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def check_group(self) -> str:
+        """The group the call belongs to (:attr:`group`, else the function's name)."""
+        return self.group if self.group is not None else self.function
+
+    def to_wire(self) -> dict[str, Any]:
+        """The call as JSON data, its inputs encoded (raises :class:`WireError` for an input
+        that cannot cross)."""
+        return {"function": self.function, "group": self.group,
+                "args": encode(tuple(self.args)), "kwargs": encode(dict(self.kwargs)),
+                "time_limit": self.time_limit, "allowed": None if self.allowed is None else list(self.allowed),
+                "arg_names": list(self.arg_names), "forbidden_libraries": list(self.forbidden_libraries),
+                "forbidden_functions": list(self.forbidden_functions), "call": self.adapter,
+                "substitute": dict(self.substitute)}
+
+    @classmethod
+    def from_wire(cls, data: dict[str, Any]) -> "BoxCall":
+        """Inverse of :meth:`to_wire` (raises :class:`WireError` for inputs :func:`decode` refuses)."""
+        allowed = data.get("allowed")
+        return cls(
+            function=str(data["function"]), group=data.get("group"),
+            args=decode(data["args"]), kwargs=decode(data["kwargs"]),
+            time_limit=float(data.get("time_limit", DEFAULT_TIME_LIMIT)),
+            allowed=None if allowed is None else tuple(allowed),
+            arg_names=tuple(data.get("arg_names", ())),
+            forbidden_libraries=tuple(data.get("forbidden_libraries", ())),
+            forbidden_functions=tuple(data.get("forbidden_functions", ())),
+            adapter=data.get("call") or None, substitute=dict(data.get("substitute") or {}),
+        )

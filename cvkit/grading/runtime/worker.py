@@ -10,7 +10,7 @@ trusted side → worker                 worker → trusted side
 ====================================  =====================================================
 ``{"cells": [...], "blocks": ...}``    ``{"cell": i}`` before and ``{"cell_done": i, "error":
                                       ...}`` after each cell, then ``{"ready": ...}``
-``{"call": {...}}``                   any number of ``{"rpc": id, "args", "kwargs"}`` (the
+``{"call": BoxCall}``                 any number of ``{"rpc": id, "args", "kwargs"}`` (the
                                       trusted side answers each with ``{"value"}`` or
                                       ``{"error"}``), then ``{"outcome": {...}}``
 ``{"end": true}``                     (exits)
@@ -249,32 +249,31 @@ def main() -> None:  # pragma: no cover - runs inside the sandbox
         message = channel.receive()
         if "call" not in message:
             break
-        call = message["call"]
         before = len(gate.refused)
-        function = namespace.get(call["function"])
-        if not callable(function):
-            why = "; ".join(e for e in cell_errors if "not allowed" in e or "Error" in e)[:400]
-            channel.send({"outcome": Outcome(
-                error=f"no function called {call['function']!r} is defined"
-                      + (f" (its cell stopped: {why})" if why else " (did its cell run?)"),
-                exception="NameError").to_json()})
-            continue
         try:
-            args, kwargs = wire.decode(call["args"]), wire.decode(call["kwargs"])
+            call = wire.BoxCall.from_wire(message["call"])
         except wire.WireError as exc:
             channel.send({"outcome": Outcome(error=f"grader error decoding the case: {exc}").to_json()})
             continue
-        adapter = getattr(adapters, call["call"]) if call.get("call") else None
+        function = namespace.get(call.function)
+        if not callable(function):
+            why = "; ".join(e for e in cell_errors if "not allowed" in e or "Error" in e)[:400]
+            channel.send({"outcome": Outcome(
+                error=f"no function called {call.function!r} is defined"
+                      + (f" (its cell stopped: {why})" if why else " (did its cell run?)"),
+                exception="NameError").to_json()})
+            continue
+        adapter = getattr(adapters, call.adapter) if call.adapter else None
         # a cascade: the student's own building block (their `pad`) replaced by the grader's
-        substitute = {name: proxies[block] for name, block in (call.get("substitute") or {}).items() if block in proxies}
+        substitute = {name: proxies[block] for name, block in call.substitute.items() if block in proxies}
         saved = {name: namespace.get(name) for name in substitute}
         namespace.update(substitute)
         try:
             outcome = run_guarded(
-                bind_call(adapter, function), args, kwargs,
-                arg_names=tuple(call.get("arg_names", ())), time_limit=float(call.get("time_limit", 20.0)),
-                forbidden_libraries=tuple(call.get("forbidden_libraries", ())),
-                forbidden_functions=tuple(call.get("forbidden_functions", ())),
+                bind_call(adapter, function), call.args, call.kwargs,
+                arg_names=call.arg_names, time_limit=call.time_limit,
+                forbidden_libraries=call.forbidden_libraries,
+                forbidden_functions=call.forbidden_functions,
                 watch_reference=False, reference_codes={},
             )
         finally:
