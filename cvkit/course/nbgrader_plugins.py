@@ -26,19 +26,10 @@ from nbgrader.plugins import LateSubmissionPlugin
 from nbgrader.preprocessors import NbGraderPreprocessor
 from traitlets import Bool, Dict, Enum, Float, Int, Unicode
 
-from ..grading.report import MIME_TYPE, Report
+from ..grading.report import Report
 from ..grading.runtime.cells import cell_source, is_test_cell
 from .safety import SafeFeedbackExporter, SanitizeStudentContent  # noqa: F401  (re-exported for the config)
 from .trusted import CheckCall, grade_notebook, hide_hidden_tests
-
-
-def _bundle(report: Report) -> dict[str, Any]:
-    bundle = {"text/plain": report.text(), MIME_TYPE: json.loads(json.dumps(report.to_dict(), default=str))}
-    try:
-        bundle["text/html"] = report._repr_html_()
-    except Exception:  # a report that cannot draw its images still says what is wrong
-        pass
-    return bundle
 
 
 MISSING_SALT = (
@@ -319,7 +310,7 @@ def apply_trusted_checks(nb: NotebookNode, *, student: str, salt: str, source_no
         if not is_test_cell(cell) or grade_id not in grade.reports:
             continue
         entries = grade.reports[grade_id]
-        outputs = [new_output("display_data", data=_bundle(report)) for _, report in entries]
+        outputs = [new_output("display_data", data=report.mime_bundle()) for _, report in entries]
         points = float(cell.metadata["nbgrader"].get("points", 0))
         credit, reasons = grade.credit(grade_id, points)
         hidden = any(call.hidden for call, _ in entries)

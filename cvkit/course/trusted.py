@@ -24,7 +24,7 @@ from .. import registry
 from ..grading.checks import FORBIDDEN_LIBRARIES, Case, Check, call_target
 from ..grading.engine import arg_names, evaluate, hidden_seed
 from ..grading.served import served_helpers
-from ..grading.report import CaseResult, Report
+from ..grading.report import CaseResult, Report, cascade_report
 from ..grading.runtime.cells import is_solution, is_test_cell, nbgrader_metadata
 from ..grading.runtime.guard import Outcome, timeout_message
 from ..grading.runtime.wire import BoxCall
@@ -408,20 +408,8 @@ def _cascades(plans: list[_Plan], reports: list[Report], result: NotebookGrade, 
     outcome = run_calls(cells, [r for p in student_plans for r in p.requests], blocks=blocks, memory_mb=memory_mb,
                         deadline=deadline)
     for new_report, (i, culprits) in zip(_evaluate_plans(student_plans, outcome.outcomes), again):
-        old = reports[i]
-        names = ", ".join(f"`{name}`" for name in culprits)
-        own = plans[i].call.function
-        ids = ", ".join(culprits.values())
-        if new_report.score > old.score:
-            verdict = "passes" if new_report.passed else f"passes {sum(c.passed for c in new_report.cases)} of " \
-                                                         f"{len(new_report.cases)} cases"
-            new_report.cascade = (f"Your {names} fails its own check ({ids}), and your `{own}` calls it. Graded with "
-                                  f"cvkit's reference {names} instead, your `{own}` {verdict} — so the mistake costs "
-                                  f"points once: fix {names} first.")
-            reports[i] = new_report
-        else:
-            old.cascade = (f"Your {names} fails its own check ({ids}), but even with cvkit's reference {names} "
-                           f"your `{own}` fails: the problem is in `{own}` itself.")
+        reports[i] = cascade_report(reports[i], new_report, functions=list(culprits), blocks=list(culprits.values()),
+                                    caller=plans[i].call.function)
     return outcome.exhausted
 
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 import copy
 import hashlib
 import inspect
-import json
 import os
 import re
 import warnings
@@ -22,7 +21,7 @@ from .compare import Mismatch, Statistics
 from .diagnose import CONVENTION, diagnose, explain_exception, image_variants
 from .served import DATA_TRANSFORMS
 from .runtime.guard import Outcome, run_guarded, use_reference_functions
-from .report import MIME_TYPE, CaseResult, Report, headline
+from .report import MIME_TYPE, CaseResult, Report, cascade_report, headline
 from . import probes
 
 SALT_VARIABLE = "CVKIT_GRADING_SALT"
@@ -722,13 +721,8 @@ def _show(report: Report, visible_runs: int | None = None) -> None:
     if shell is not None and getattr(shell, "kernel", None) is not None:
         from IPython.display import display
 
-        bundle = {"text/plain": report.text(), MIME_TYPE: json.loads(json.dumps(report.to_dict(), default=str))}
-        try:
-            bundle["text/html"] = report._repr_html_()
-        except Exception:
-            pass
         metadata = {MIME_TYPE: {"visible_runs": visible_runs}} if visible_runs else None
-        display(bundle, raw=True, metadata=metadata)
+        display(report.mime_bundle(), raw=True, metadata=metadata)
     else:
         print(report.text())
 
@@ -843,18 +837,8 @@ def _with_reference_building_blocks(algorithm_id: str, candidate: Callable, repo
         again = evaluate(algorithm_id, candidate, hidden=hidden, seed=seed)
     finally:
         namespace.update(saved)
-    yours = ", ".join(f"`{names[0]}`" for names, _ in culprits.values())
-    ids = ", ".join(culprits)
-    own_name = getattr(own_code, "__name__", "function")
-    if again.score > report.score:
-        verdict = "passes" if again.passed else f"passes {sum(c.passed for c in again.cases)} of {len(again.cases)} cases"
-        again.cascade = (f"Your {yours} fails its own check ({ids}), and your `{own_name}` calls it. Graded with "
-                         f"cvkit's reference {yours} instead, your `{own_name}` {verdict} — so the mistake costs "
-                         f"points once: fix {yours} first.")
-        return again
-    report.cascade = (f"Your {yours} fails its own check ({ids}), but even with cvkit's reference {yours} your "
-                      f"`{own_name}` fails: the problem is in `{own_name}` itself.")
-    return report
+    return cascade_report(report, again, functions=[names[0] for names, _ in culprits.values()],
+                          blocks=list(culprits), caller=getattr(own_code, "__name__", "function"))
 
 
 class CheckFailed(AssertionError):

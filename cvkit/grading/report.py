@@ -4,9 +4,10 @@ from __future__ import annotations
 import base64
 import html
 import io
+import json
 import re
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -82,7 +83,7 @@ class Report:
     problem: str | None = None  # a failure before any case ran (e.g. not a function), or "not graded"
     dropped: list = field(default_factory=list)  # cases the reference could not compute (instructor's bug)
     fallback: str | None = None  # why the cases graded are the visible ones although hidden=True
-    cascade: str | None = None  # graded with a reference building block: which of the student's functions to fix
+    cascade: str | None = None  # graded with a reference building block: which of the student's functions to fix (:func:`cascade_report`)
     notes: list = field(default_factory=list)  # a passing visible test: what the hidden cases will check besides
 
     @property
@@ -244,6 +245,16 @@ class Report:
         data["dropped"] = [str(d) for d in self.dropped]
         return data
 
+    def mime_bundle(self) -> dict[str, Any]:
+        """The report as a notebook's output shows it: its text, its data (:meth:`to_dict`,
+        under :data:`MIME_TYPE`) and its HTML (left out when it cannot be drawn)."""
+        bundle = {"text/plain": self.text(), MIME_TYPE: json.loads(json.dumps(self.to_dict(), default=str))}
+        try:
+            bundle["text/html"] = self._repr_html_()
+        except Exception:  # a report that cannot draw its images still says what is wrong
+            pass
+        return bundle
+
     # ---------------------------------------------------------------- HTML for JupyterLab
     def _repr_html_(self) -> str:
         """The report for JupyterLab and the feedback pages.
@@ -312,6 +323,32 @@ class Report:
             parts.append(_image_comparison(first))
         parts.append("</section>")
         return "\n".join(parts)
+
+
+def cascade_report(own: Report, again: Report, *, functions: Sequence[str], blocks: Sequence[str],
+                   caller: str) -> Report:
+    """One mistake costs points once: the report that counts for ``caller``, which failed
+    (``own``) while it calls the student's ``functions`` that fail their own checks
+    (``blocks``, their algorithm ids), and was graded again with cvkit's reference building
+    blocks in their place (``again``).
+
+    Returns
+    -------
+    Report
+        ``again`` when it scores better, else ``own``; its :attr:`Report.cascade` says which
+        function the student is to fix.
+    """
+    yours = ", ".join(f"`{name}`" for name in functions)
+    ids = ", ".join(blocks)
+    if again.score > own.score:
+        verdict = "passes" if again.passed else f"passes {sum(c.passed for c in again.cases)} of {len(again.cases)} cases"
+        again.cascade = (f"Your {yours} fails its own check ({ids}), and your `{caller}` calls it. Graded with "
+                         f"cvkit's reference {yours} instead, your `{caller}` {verdict} — so the mistake costs "
+                         f"points once: fix {yours} first.")
+        return again
+    own.cascade = (f"Your {yours} fails its own check ({ids}), but even with cvkit's reference {yours} your "
+                   f"`{caller}` fails: the problem is in `{caller}` itself.")
+    return own
 
 
 #: the numpy.testing vocabulary of reports written before plain words came first
