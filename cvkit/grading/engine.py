@@ -6,11 +6,13 @@
 from __future__ import annotations
 
 import copy
+import enum
 import hashlib
 import inspect
 import os
 import re
 import warnings
+from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
 import numpy as np
@@ -465,84 +467,156 @@ def evaluate(
       and ``passed`` False — so that the instructor, who sees ``report.dropped``, fixes the
       check and regrades; nothing is awarded that was not checked.
     """
+    mode = _Mode.of(hidden, cases, runner)
     record = registry.get(algorithm_id)
     spec = check if check is not None else record.check
     if spec is None:
         raise ValueError(f"algorithm {algorithm_id!r} has no check")
-    if cases is not None:
-        cases = list(cases)
-        seed = int(seed) if hidden and seed is not None else None
-    elif hidden:
-        seed = hidden_seed(algorithm_id) if seed is None else int(seed)
-        cases = spec.hidden_cases(np.random.default_rng(seed))
-    else:
-        cases = spec.public_cases()
-        seed = None
+    drawn, seed = _cases_and_seed(mode, algorithm_id, spec, cases, seed)
     report = Report(algorithm_id, record.cited, hidden, seed, [])
-    if runner is None and not callable(candidate):
+    if mode.runs_here and not callable(candidate):
         report.problem = f"expected a function to grade, got {type(candidate).__name__}"
         return report
+    evaluation = _Evaluation.start(record, spec, mode, report, candidate, runner)
+    for index, case in enumerate(drawn):
+        evaluation.grade_case(index, case)
+    if report.dropped and not report.cases:
+        return _nothing_counted(report, algorithm_id, candidate, spec, mode.falls_back_to_visible)
+    evaluation.add_notes(drawn)
+    evaluation.name_the_mistake()
+    return report
 
-    names = arg_names(record.reference, spec)
-    results = output_names(record.reference, spec)
-    mistake_votes: dict[str, int] = {}
-    matching: list[list[Mistake]] = []  # per counted case, the known mistakes that reproduce its output
-    runs_here = runner is None  # the candidate is called in this process (it can run other cases)
-    run_here = None
-    if runner is None:
-        assert candidate is not None  # checked above: no runner needs a candidate
-        graded = bind_call(spec.call, candidate)
 
-        def runner(index, case, attempt):
-            return run_guarded(
-                graded, case.args, case.kwargs,
-                arg_names=names,
-                time_limit=spec.time_limit,
-                forbidden_libraries=spec.forbidden_libraries if attempt == 0 else (),
-                forbidden_functions=spec.forbidden if attempt == 0 else (),
-                allowed_ids=tuple(spec.allowed),
-                watch_reference=attempt == 0,
-                reference_codes=watched_functions() if attempt == 0 else None,
-            )
+class _Cases(enum.Enum):
+    """Where the cases of an evaluation come from."""
 
-        def run_here(case):  # a variant of a case, to explain a crash (short: it is only feedback)
-            return run_guarded(
-                graded, case.args, case.kwargs,
-                arg_names=names,
-                time_limit=min(spec.time_limit, _VARIANT_TIME_LIMIT),
-                forbidden_libraries=spec.forbidden_libraries,
-                forbidden_functions=spec.forbidden,
-                allowed_ids=tuple(spec.allowed),
-                watch_reference=True,
-                reference_codes=watched_functions(),
-            )
-    crashes_explained = 0
-    stalled: int | None = None  # the first case that did not return within its time limit
+    PUBLIC = "the check's public cases"
+    HIDDEN = "the hidden cases drawn from the seed"
+    GIVEN = "cases the caller drew (the trusted grader)"
 
-    for index, case in enumerate(cases):
-        found: list[Mistake] = []
-        if stalled is not None:
-            # an endless loop costs one time limit per check call, not one per case
-            outcome = Outcome(error=(f"not run: case {stalled + 1} did not return within {spec.time_limit:g} s, so "
-                                     "the rest of this check was skipped (see that case)"),
-                              exception="NotRun", from_grader=True)
-        else:
-            outcome = runner(index, case, 0)
-        if outcome is None:  # e.g. the isolated worker died before this case
-            outcome = Outcome(error="no result: the grading worker stopped before this case (exit, crash or memory)")
-        if outcome.timed_out and stalled is None:
-            stalled = index
+
+@dataclass(frozen=True)
+class _Mode:
+    """How one :func:`evaluate` runs, resolved once from its arguments: its cases (public,
+    hidden or given) × where the candidate runs (here, under the guard, or elsewhere, its
+    outcomes given by a ``runner``) — six modes; what depends on them has a name below."""
+
+    cases: _Cases
+    hidden: bool       # the report is about hidden cases (given cases carry the caller's word)
+    runs_here: bool    # the candidate is called in this process, under the guard
+
+    @classmethod
+    def of(cls, hidden: bool, cases: Sequence[Case] | None, runner: Callable | None) -> "_Mode":
+        """The mode of ``evaluate(hidden=…, cases=…, runner=…)``."""
+        source = _Cases.GIVEN if cases is not None else _Cases.HIDDEN if hidden else _Cases.PUBLIC
+        return cls(source, hidden, runner is None)
+
+    @property
+    def reruns_variants(self) -> bool:
+        """A crash is explained by running the candidate again on variants of its case (visible cases, run here)."""
+        return self.runs_here and not self.hidden
+
+    @property
+    def adds_notes(self) -> bool:
+        """A passing report gets the notes of the visible probes (visible cases, run here)."""
+        return self.runs_here and not self.hidden
+
+    @property
+    def falls_back_to_visible(self) -> bool:
+        """No hidden case computed: the candidate is graded on the visible ones (hidden cases, run here)."""
+        return self.runs_here and self.hidden
+
+
+def _cases_and_seed(mode: _Mode, algorithm_id: str, spec: Check, cases: Sequence[Case] | None,
+                    seed: int | None) -> tuple[list[Case], int | None]:
+    """The cases to grade on and the seed the report names (None for public cases)."""
+    if mode.cases is _Cases.GIVEN:
+        assert cases is not None
+        return list(cases), int(seed) if mode.hidden and seed is not None else None
+    if mode.cases is _Cases.HIDDEN:
+        seed = hidden_seed(algorithm_id) if seed is None else int(seed)
+        return spec.hidden_cases(np.random.default_rng(seed)), seed
+    return spec.public_cases(), None
+
+
+#: ``runner(index, case, attempt)``: the candidate's outcome on a case (attempt 1: the seeded re-run)
+_Runner = Callable[[int, Case, int], Outcome | None]
+
+
+def _guarded_runners(spec: Check, candidate: Callable, names: tuple) -> tuple[_Runner, Callable[[Case], Outcome]]:
+    """The candidate called here under the guard: on a case, and on a variant of a case (to explain a crash)."""
+    graded = bind_call(spec.call, candidate)
+
+    def runner(index: int, case: Case, attempt: int) -> Outcome:
+        return run_guarded(
+            graded, case.args, case.kwargs,
+            arg_names=names,
+            time_limit=spec.time_limit,
+            forbidden_libraries=spec.forbidden_libraries if attempt == 0 else (),
+            forbidden_functions=spec.forbidden if attempt == 0 else (),
+            allowed_ids=tuple(spec.allowed),
+            watch_reference=attempt == 0,
+            reference_codes=watched_functions() if attempt == 0 else None,
+        )
+
+    def run_here(case: Case) -> Outcome:  # short: it is only feedback
+        return run_guarded(
+            graded, case.args, case.kwargs,
+            arg_names=names,
+            time_limit=min(spec.time_limit, _VARIANT_TIME_LIMIT),
+            forbidden_libraries=spec.forbidden_libraries,
+            forbidden_functions=spec.forbidden,
+            allowed_ids=tuple(spec.allowed),
+            watch_reference=True,
+            reference_codes=watched_functions(),
+        )
+
+    return runner, run_here
+
+
+@dataclass
+class _Evaluation:
+    """One evaluation under way: the check, how the candidate runs, and what its cases found."""
+
+    record: registry.Algorithm
+    spec: Check
+    mode: _Mode
+    report: Report
+    names: tuple                                 # the names of a case's arguments
+    results: tuple                               # the names of the algorithm's results
+    runner: _Runner
+    run_here: Callable[[Case], Outcome] | None   # a variant of a case, run here (the candidate runs here)
+    votes: dict[str, int] = field(default_factory=dict)             # mistake → failing cases it reproduces
+    matching: list[list[Mistake]] = field(default_factory=list)     # per counted case, the mistakes reproducing it
+    crashes_explained: int = 0
+    stalled: int | None = None                   # the first case that did not return within its time limit
+
+    @classmethod
+    def start(cls, record: registry.Algorithm, spec: Check, mode: _Mode, report: Report,
+              candidate: Callable | None, runner: _Runner | None) -> "_Evaluation":
+        """The evaluation before its first case: names, and the runners of the candidate."""
+        names = arg_names(record.reference, spec)
+        results = output_names(record.reference, spec)
+        run_here = None
+        if runner is None:
+            assert candidate is not None  # checked by evaluate: no runner needs a candidate
+            runner, run_here = _guarded_runners(spec, candidate, names)
+        return cls(record, spec, mode, report, names, results, runner, run_here)
+
+    def grade_case(self, index: int, case: Case) -> None:
+        """Run the candidate on one case and record its verdict (or drop the case the reference cannot compute)."""
+        outcome = self._outcome(index, case)
         label = case.label or f"case {index + 1}"
         # computed only after the candidate ran: it cannot be read from the grader's frames
         try:
-            expected = _reference_output(record.reference, case, spec.call)
+            expected = _reference_output(self.record.reference, case, self.spec.call)
         except Exception as error:  # the check's fault, not the candidate's: drop the case
-            report.dropped.append(_dropped_entry(index, label, error))
-            continue
+            self.report.dropped.append(_dropped_entry(index, label, error))
+            return
         result = CaseResult(
             index=index,
             label=label,
-            description=case.describe(names),
+            description=case.describe(self.names),
             passed=False,
             elapsed=outcome.elapsed,
             warnings=outcome.warnings,
@@ -552,18 +626,39 @@ def evaluate(
             expected=expected,
             timed_out=outcome.timed_out,
         )
-        mismatch = None
-        warned = False
+        found: list[Mistake] = []
+        mismatch, warned = self._judge(index, case, outcome, expected, result, found)
+        if not result.passed and result.got is not None and not warned:
+            self._explain_output(case, outcome, expected, result, found, mismatch)
+        if not result.passed and not found and not warned and not result.timed_out \
+                and outcome.exception != "NotImplementedError":
+            result.unexplained = True  # a failure no mistake of the bank names: counted by course tools
+        self._name_outputs(result, expected)
+        self.report.cases.append(result)
+        self.matching.append(found)
+
+    def _outcome(self, index: int, case: Case) -> Outcome:
+        """The candidate's outcome on a case, unless an earlier case did not return (then: not run)."""
+        if self.stalled is not None:
+            # an endless loop costs one time limit per check call, not one per case
+            outcome = Outcome(error=(f"not run: case {self.stalled + 1} did not return within "
+                                     f"{self.spec.time_limit:g} s, so the rest of this check was skipped (see that "
+                                     "case)"),
+                              exception="NotRun", from_grader=True)
+        else:
+            found = self.runner(index, case, 0)
+            # None: e.g. the isolated worker died before this case
+            outcome = found if found is not None else Outcome(
+                error="no result: the grading worker stopped before this case (exit, crash or memory)")
+        if outcome.timed_out and self.stalled is None:
+            self.stalled = index
+        return outcome
+
+    def _judge(self, index: int, case: Case, outcome: Outcome, expected: Any, result: CaseResult,
+               found: list[Mistake]) -> tuple[Mismatch | None, bool]:
+        """The verdict on an outcome: an error, a forbidden call, a modified input, or the output compared."""
         if outcome.error is not None:
-            result.message = outcome.error
-            if outcome.exception in _CRASHES and crashes_explained < 3:
-                crashes_explained += 1
-                text, culprit = _explain_crash(spec, record.reference, case, outcome, expected,
-                                               None if hidden else run_here)
-                result.diagnosis = text
-                if culprit is not None:
-                    found.append(culprit)
-                    mistake_votes[culprit.name] = mistake_votes.get(culprit.name, 0) + 1
+            self._crashed(case, outcome, expected, result, found)
         elif outcome.forbidden_calls:
             result.message = (
                 "calls " + ", ".join(outcome.forbidden_calls)
@@ -575,78 +670,115 @@ def evaluate(
                 "input; work on a copy or write the result to a new array"
             )
         else:
-            result.got = outcome.value
-            with np.errstate(all="ignore"):
-                mismatch = spec.compare(outcome.value, expected, case)
-            if mismatch is None and spec.seeded:
-                again = runner(index, case, 1)
-                if again is not None and again.timed_out:
-                    result.message, result.timed_out, result.traceback = again.error or "", True, again.traceback
-                    stalled = index
-                elif again is None or again.error is not None or spec.compare(again.value, outcome.value, case) is not None \
-                        or not identical(again.value, outcome.value):
-                    result.message = (
-                        "two calls with the same rng seed gave different results: draw every random "
-                        "number from np.random.default_rng(rng), never from np.random.* directly"
-                    )
-                else:
-                    result.passed = True
-            elif mismatch is None and "no warnings" in spec.rules and outcome.warnings:
-                warned = True  # right values: no mistake of the bank to look for
-                result.message = (f"right values, but your code raised a warning ({outcome.warnings[0]}): the "
-                                  "statement asks for no warning — find the operation that overflows or divides "
-                                  "by zero and compute it another way")
-            elif mismatch is None:
-                result.passed = True
-            else:
-                result.message, result.details = _plain_words(mismatch)
-                result.worst = mismatch.worst
-            if spec.credit is not None:
-                try:
-                    result.credit = 1.0 if result.passed else min(1.0, max(0.0, float(spec.credit(outcome.value, case))))
-                except Exception:
-                    result.credit = 0.0
-            if spec.measure is not None:
-                result.measure = spec.measure.on(outcome.value, case)
-        if not result.passed and result.got is not None and not warned:
-            # every known mistake that reproduces this wrong output gets this case's vote (one
-            # case may not tell two mistakes apart; the other cases then decide)
-            for mistake in _matching_mistakes(spec, case, outcome.value, expected):
-                found.append(mistake)
-                mistake_votes[mistake.name] = mistake_votes.get(mistake.name, 0) + 1
-            if not found and mismatch is not None:
-                # no named mistake fits: say what the wrong output looks like (shifted, transposed...)
-                result.diagnosis = _diagnosis(spec, outcome.value, expected)
-        if not result.passed and not found and not warned and not result.timed_out \
-                and outcome.exception != "NotImplementedError":
-            result.unexplained = True  # a failure no mistake of the bank names: counted by course tools
+            return self._compared(index, case, outcome, expected, result)
+        return None, False
+
+    def _crashed(self, case: Case, outcome: Outcome, expected: Any, result: CaseResult,
+                 found: list[Mistake]) -> None:
+        """The error as the case's message, explained for the first three index and shape errors."""
+        result.message = outcome.error or ""
+        if outcome.exception in _CRASHES and self.crashes_explained < 3:
+            self.crashes_explained += 1
+            text, culprit = _explain_crash(self.spec, self.record.reference, case, outcome, expected,
+                                           self.run_here if self.mode.reruns_variants else None)
+            result.diagnosis = text
+            if culprit is not None:
+                self._vote(found, culprit)
+
+    def _compared(self, index: int, case: Case, outcome: Outcome, expected: Any,
+                  result: CaseResult) -> tuple[Mismatch | None, bool]:
+        """The output against the expected one, the statement's rules and a measured check's credit."""
+        spec = self.spec
+        result.got = outcome.value
+        with np.errstate(all="ignore"):
+            mismatch = spec.compare(outcome.value, expected, case)
+        warned = False
+        if mismatch is None and spec.seeded:
+            self._rerun_seeded(index, case, outcome, result)
+        elif mismatch is None and "no warnings" in spec.rules and outcome.warnings:
+            warned = True  # right values: no mistake of the bank to look for
+            result.message = (f"right values, but your code raised a warning ({outcome.warnings[0]}): the "
+                              "statement asks for no warning — find the operation that overflows or divides "
+                              "by zero and compute it another way")
+        elif mismatch is None:
+            result.passed = True
+        else:
+            result.message, result.details = _plain_words(mismatch)
+            result.worst = mismatch.worst
+        if spec.credit is not None:
+            try:
+                result.credit = 1.0 if result.passed else min(1.0, max(0.0, float(spec.credit(outcome.value, case))))
+            except Exception:
+                result.credit = 0.0
+        if spec.measure is not None:
+            result.measure = spec.measure.on(outcome.value, case)
+        return mismatch, warned
+
+    def _rerun_seeded(self, index: int, case: Case, outcome: Outcome, result: CaseResult) -> None:
+        """A random function passes only if a second call with the same seed gives the same result."""
+        spec = self.spec
+        again = self.runner(index, case, 1)
+        if again is not None and again.timed_out:
+            result.message, result.timed_out, result.traceback = again.error or "", True, again.traceback
+            self.stalled = index
+        elif again is None or again.error is not None or spec.compare(again.value, outcome.value, case) is not None \
+                or not identical(again.value, outcome.value):
+            result.message = (
+                "two calls with the same rng seed gave different results: draw every random "
+                "number from np.random.default_rng(rng), never from np.random.* directly"
+            )
+        else:
+            result.passed = True
+
+    def _explain_output(self, case: Case, outcome: Outcome, expected: Any, result: CaseResult,
+                        found: list[Mistake], mismatch: Mismatch | None) -> None:
+        """The bank's mistakes that reproduce a wrong output, else what the output looks like."""
+        # every known mistake that reproduces this wrong output gets this case's vote (one
+        # case may not tell two mistakes apart; the other cases then decide)
+        for mistake in _matching_mistakes(self.spec, case, outcome.value, expected):
+            self._vote(found, mistake)
+        if not found and mismatch is not None:
+            # no named mistake fits: say what the wrong output looks like (shifted, transposed...)
+            result.diagnosis = _diagnosis(self.spec, outcome.value, expected)
+
+    def _vote(self, found: list[Mistake], mistake: Mistake) -> None:
+        """One case's vote for a mistake of the bank."""
+        found.append(mistake)
+        self.votes[mistake.name] = self.votes.get(mistake.name, 0) + 1
+
+    def _name_outputs(self, result: CaseResult, expected: Any) -> None:
+        """The comparators' ``result [i]`` in the case's texts replaced by the names of the results."""
         count = len(expected) if isinstance(expected, (tuple, list)) else None
         listed = isinstance(expected, list)
-        result.message = _name_results(result.message, results, count, listed) or ""
-        result.details = _name_results(result.details, results, count, listed) or ""
-        result.diagnosis = _name_results(result.diagnosis, results, count, listed)
-        report.cases.append(result)
-        matching.append(found)
-    if report.dropped and not report.cases:
-        return _nothing_counted(report, algorithm_id, candidate, spec, runs_here)
-    if not hidden and runs_here and report.passed and not report.dropped:
+        result.message = _name_results(result.message, self.results, count, listed) or ""
+        result.details = _name_results(result.details, self.results, count, listed) or ""
+        result.diagnosis = _name_results(result.diagnosis, self.results, count, listed)
+
+    def add_notes(self, cases: Sequence[Case]) -> None:
+        """A passing visible test run here: what the hidden cases will check besides (never the verdict)."""
+        report, spec = self.report, self.spec
+        if not (self.mode.adds_notes and report.passed and not report.dropped):
+            return
+        assert self.run_here is not None  # the candidate runs here
         passed = [(c.got, c.expected) for c in report.cases]
         try:  # the notes are a courtesy: they never change the verdict, nor stop the report
-            report.notes = probes.notes(spec, list(cases), passed, run_here,
-                                        lambda probe: _reference_output(record.reference, probe, spec.call), headline,
-                                        budget=max(2.0, sum(c.elapsed for c in report.cases)))
+            report.notes = probes.notes(spec, list(cases), passed, self.run_here,
+                                        lambda probe: _reference_output(self.record.reference, probe, spec.call),
+                                        headline, budget=max(2.0, sum(c.elapsed for c in report.cases)))
         except Exception:
             report.notes = []
-    if mistake_votes:
-        # the mistake consistent with the most failing cases; ties go to the bank's order
-        best = max(mistake_votes, key=lambda name: mistake_votes[name])
-        report.mistake = best
-        report.hint = spec.mistake(best).hint
-    for result, found in zip(report.cases, matching):
-        if found:  # each case names the overall mistake when it fits, else its first match
-            chosen = next((m for m in found if m.name == report.mistake), found[0])
-            result.mistake, result.hint = chosen.name, chosen.hint
-    return report
+
+    def name_the_mistake(self) -> None:
+        """The mistake most failing cases reproduce (ties: the bank's order), and each case's own."""
+        report = self.report
+        if self.votes:
+            best = max(self.votes, key=lambda name: self.votes[name])
+            report.mistake = best
+            report.hint = self.spec.mistake(best).hint
+        for result, found in zip(report.cases, self.matching):
+            if found:  # each case names the overall mistake when it fits, else its first match
+                chosen = next((m for m in found if m.name == report.mistake), found[0])
+                result.mistake, result.hint = chosen.name, chosen.hint
 
 
 def _dropped_entry(index: int, label: str, error: BaseException, limit: int = 300) -> str:
@@ -658,13 +790,14 @@ def _dropped_entry(index: int, label: str, error: BaseException, limit: int = 30
 
 
 def _nothing_counted(report: Report, algorithm_id: str, candidate: Callable | None, spec: Check,
-                     runs_here: bool) -> Report:
+                     fall_back: bool) -> Report:
     """The reference raised on every case (see :func:`evaluate`, Notes): grade on the visible
-    cases instead when possible, else mark the report as not graded."""
+    cases instead when possible (``fall_back``: hidden cases, the candidate run here), else
+    mark the report as not graded."""
     n = len(report.dropped)
     kind = "hidden" if report.hidden else "visible"
     what = f"the reference could not compute any of the {n} {kind} case{'s' if n != 1 else ''}"
-    if report.hidden and runs_here:
+    if fall_back:
         visible = evaluate(algorithm_id, candidate, hidden=False, check=spec)
         if visible.cases:
             report.cases = visible.cases

@@ -83,7 +83,7 @@ class Report:
     problem: str | None = None  # a failure before any case ran (e.g. not a function), or "not graded"
     dropped: list = field(default_factory=list)  # cases the reference could not compute (instructor's bug)
     fallback: str | None = None  # why the cases graded are the visible ones although hidden=True
-    cascade: str | None = None  # graded with a reference building block: which of the student's functions to fix (:func:`cascade_report`)
+    cascade: str | None = None  # graded with a reference building block: which of the student's functions to fix
     notes: list = field(default_factory=list)  # a passing visible test: what the hidden cases will check besides
 
     @property
@@ -341,7 +341,8 @@ def cascade_report(own: Report, again: Report, *, functions: Sequence[str], bloc
     yours = ", ".join(f"`{name}`" for name in functions)
     ids = ", ".join(blocks)
     if again.score > own.score:
-        verdict = "passes" if again.passed else f"passes {sum(c.passed for c in again.cases)} of {len(again.cases)} cases"
+        passed = sum(c.passed for c in again.cases)
+        verdict = "passes" if again.passed else f"passes {passed} of {len(again.cases)} cases"
         again.cascade = (f"Your {yours} fails its own check ({ids}), and your `{caller}` calls it. Graded with "
                          f"cvkit's reference {yours} instead, your `{caller}` {verdict} — so the mistake costs "
                          f"points once: fix {yours} first.")

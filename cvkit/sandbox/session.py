@@ -12,7 +12,7 @@ OpenCV, Pillow, scikit-learn or torch. It then drives the conversation:
   side spends serving the case's requests included, so that a student cannot ignore the limit
   nor hide slow work behind requests;
 - a building block the current case allows (``filters.pad``, or a data loader that is not
-  itself the exercise's answer: the call's :attr:`~cvkit.grading.runtime.wire.BoxCall.allowed`, decided by :mod:`.trusted`) is
+  itself the exercise's answer: the call's ``allowed``, decided by :mod:`.trusted`) is
   computed on this side by the :class:`~cvkit.sandbox.reference_server.ReferenceServer` and
   sent back as data, at most :data:`MAX_REQUESTS` times per case; any other id is refused and
   reported as a forbidden call;
@@ -24,7 +24,7 @@ OpenCV, Pillow, scikit-learn or torch. It then drives the conversation:
   turn ends the sandbox, and the call that was running fails with the reason;
 - if the student's code kills the worker, or a case runs out of time, the sandbox is killed
   (all its processes with it) and the remaining cases run in a fresh one — except the other
-  cases of the check call (:attr:`~cvkit.grading.runtime.wire.BoxCall.group`) whose case did not return: they are not run at all
+  cases of the check call (the call's ``group``) whose case did not return: they are not run at all
   (``"not run: …"``), so an endless loop costs one time limit per check call; two crashes of
   the worker end a call the same way.
 
@@ -345,140 +345,197 @@ def run_calls(
     sandboxed = (not isolation.sandbox_disabled()) if sandboxed is None else sandboxed
     if sandboxed:
         isolation.require()
-    encoded = [call.to_wire() for call in calls]
-    outcomes: list = [None] * len(calls)
-    result = SandboxResult(outcomes, sandboxed=sandboxed, started=False)
-    skipped_cells: set = set()
-    strikes: dict[str, int] = {}      # group → cases that killed the worker
-    stalled: dict[str, int] = {}      # group → the first of its calls that did not return in time
-    pending = list(range(len(calls)))
-    data_names = list(DATA_LOADERS)
-    topics = registry.topic_modules()  # the worker's stand-ins for cvkit's modules
+    run = _Run.prepare(cells, calls, blocks, sandboxed, cell_seconds, deadline)
     restarts = 0
     while restarts <= max_restarts and time.monotonic() < deadline:
         restarts += 1
         session = _Session(memory_mb, sandboxed, deadline)
-        current = None
+        run.current = None
         try:
-            session.send({"cells": [("pass  # stopped: ran longer than its limit" if i in skipped_cells else c)
-                                    for i, c in enumerate(cells)],
-                          "blocks": sorted(blocks), "data": data_names, "topics": topics})
-            for index in range(len(cells)):
-                if session.receive(STARTUP_SECONDS if index == 0 else cell_seconds,
-                                   "starting the sandbox").get("cell") != index:
-                    raise _Stopped("the graded code sent a message out of turn")
-                try:
-                    cell_started, cell_requests = time.monotonic(), 0
-                    cell_refused: list = []
-                    while True:  # a cell may load data (a demo the student added): served like a case's
-                        message = session.receive(cell_seconds - (time.monotonic() - cell_started), f"cell {index}")
-                        if "rpc" not in message:
-                            break
-                        cell_requests += 1
-                        _serve(session, message, CELL_HELPERS, cell_seconds - (time.monotonic() - cell_started),
-                               cell_refused, cell_requests)
-                    if message.get("cell_done") != index:
-                        raise _Stopped("the graded code sent a message out of turn")
-                except _Stopped as stop:
-                    skipped_cells.add(index)
-                    note = (f"cell {index}: ran longer than {cell_seconds:g} s and was stopped (what it defines is missing)"
-                            if stop.timed_out else f"cell {index}: {stop.reason}")
-                    result.cell_errors.append(note)
-                    raise
-            ready = session.receive(STARTUP_SECONDS if not cells else cell_seconds, "starting the sandbox")
-            if not ready.get("ready"):
-                raise _Stopped("the graded code sent a message out of turn")
-            result.cell_errors = [e for e in result.cell_errors if "was stopped" in e or "ended early" in e
-                                  or "killed" in e] + [str(e)[:400] for e in ready.get("cell_errors", [])][:50]
-            result.refused = [str(r)[:200] for r in ready.get("refused", [])][:20]
-            result.started = True
-            while pending:
-                current = pending[0]
-                call = calls[current]
-                group = call.check_group
-                if group in stalled or strikes.get(group, 0) >= 2:
-                    # one case of this check did not return in time, or two crashed the worker: the
-                    # rest of the check is not run (an endless loop costs one time limit, not one per case)
-                    outcomes[current] = Outcome(error=_not_run(calls, stalled.get(group)), exception="NotRun",
-                                                from_grader=True)
-                    pending.pop(0)
-                    current = None
-                    continue
-                limit = float(call.time_limit)
-                allowed = set(call.allowed) if call.allowed is not None else {f"data.{name}" for name in DATA_SOURCES}
-                refused: list = []
-                session.send({"call": encoded[current]})
-                started, requests = time.monotonic(), 0
-                while True:  # the wall clock, serving included: the case's time is all of it
-                    used = time.monotonic() - started
-                    message = session.receive(limit + KILL_GRACE_SECONDS - used, "this case")
-                    if "rpc" in message:
-                        requests += 1
-                        _serve(session, message, allowed, limit + KILL_GRACE_SECONDS - (time.monotonic() - started),
-                               refused, requests)
-                        continue
-                    if "outcome" not in message or not isinstance(message["outcome"], dict):
-                        raise _Stopped("the graded code sent a message out of turn")
-                    break
-                outcome = Outcome.from_json(message["outcome"])
-                outcome.forbidden_calls += [r for r in refused if r not in outcome.forbidden_calls]
-                used = time.monotonic() - started
-                if used > limit + GRACE_SECONDS and not outcome.timed_out:
-                    outcome = Outcome(error=timeout_message(limit), exception="Timeout", timed_out=True,
-                                      from_grader=True)
-                outcomes[current] = outcome
-                pending.pop(0)
-                if outcome.timed_out:
-                    stalled.setdefault(group, current)
-                    # the rest of this check is not run: no fresh sandbox just to skip it
-                    for index in [i for i in pending if calls[i].check_group == group]:
-                        outcomes[index] = Outcome(error=_not_run(calls, current), exception="NotRun", from_grader=True)
-                        pending.remove(index)
-                current = None
-                if outcome.timed_out and pending:
-                    raise _Replace()
+            run.start_cells(session)
+            run.take_ready(session)
+            run.run_pending(session)
             session.send({"end": True})
             break
         except _Replace:
             restarts -= 1  # a timeout is not a crash: it does not use up the restarts
             continue
         except _Stopped as stop:
-            result.output = session.output
-            if stop.exhausted:
-                result.exhausted = True
-                result.crashed = stop.reason
-                break
-            if current is None:
-                if not result.started and not skipped_cells:
-                    # the sandbox itself, or the cells, cannot get going: no retry helps
-                    result.crashed = stop.reason
-                    result.started = False
-                    break
-                continue  # a cell was stopped: start again without it
-            call = calls[current]
-            group = call.check_group
-            if stop.timed_out:
-                stalled.setdefault(group, current)
-            else:
-                strikes[group] = strikes.get(group, 0) + 1
-            outcomes[current] = Outcome(error=timeout_message(float(call.time_limit)) if stop.timed_out
-                                        else f"no result: {stop.reason}",
-                                        exception="Timeout" if stop.timed_out else "WorkerDied",
-                                        timed_out=stop.timed_out, from_grader=True)
-            result.crashed = stop.reason
-            pending.pop(0)
-            if not pending:
+            run.result.output = session.output
+            if not run.goes_on_after(stop):
                 break
         finally:
-            result.output = result.output or session.output
+            run.result.output = run.result.output or session.output
             session.close()
-    if any(outcome is None for outcome in outcomes) and time.monotonic() >= deadline:
-        result.exhausted = True
-    for index, outcome in enumerate(outcomes):
-        if outcome is None and result.exhausted:
-            outcomes[index] = Outcome(error=f"not run: {EXHAUSTED}", exception="Timeout", timed_out=True,
-                                      from_grader=True)
-        elif outcome is None:
-            outcomes[index] = Outcome(error=f"no result: {result.crashed or 'the grading worker stopped'} "
-                                            "(too many restarts)", exception="WorkerDied", from_grader=True)
-    return result
+    run.settle_the_rest()
+    return run.result
+
+
+def _answer_requests(session: _Session, started: float, seconds: float, what: str, allowed: set | frozenset,
+                     refused: list) -> dict:
+    """Serve the box's requests until it sends another message (returned), ``seconds`` after ``started`` at most."""
+    requests = 0
+    while True:  # the wall clock, serving included: the time is all of it
+        message = session.receive(seconds - (time.monotonic() - started), what)
+        if "rpc" not in message:
+            return message
+        requests += 1
+        _serve(session, message, allowed, seconds - (time.monotonic() - started), refused, requests)
+
+
+@dataclass
+class _Run:
+    """One :func:`run_calls` under way: its calls, their outcomes, and what a fresh sandbox keeps."""
+
+    cells: list[str]
+    calls: list[wire.BoxCall]
+    encoded: list[dict]                     # the calls as they are sent (encoded once, before any sandbox)
+    opening: dict                           # the first message but its cells: building blocks, data, topics
+    cell_seconds: float
+    deadline: float                         # ``time.monotonic()`` seconds: the end of the whole run
+    result: SandboxResult
+    skipped_cells: set[int] = field(default_factory=set)
+    strikes: dict[str, int] = field(default_factory=dict)   # group → cases that killed the worker
+    stalled: dict[str, int] = field(default_factory=dict)   # group → its first call that did not return in time
+    pending: list[int] = field(default_factory=list)
+    current: int | None = None              # the call running now
+
+    @classmethod
+    def prepare(cls, cells: list[str], calls: list[wire.BoxCall], blocks: tuple, sandboxed: bool,
+                cell_seconds: float, deadline: float) -> "_Run":
+        """The run before its first sandbox: the calls encoded, nothing decided yet."""
+        encoded = [call.to_wire() for call in calls]
+        result = SandboxResult([None] * len(calls), sandboxed=sandboxed, started=False)
+        # the worker's stand-ins for cvkit's modules
+        opening = {"blocks": sorted(blocks), "data": list(DATA_LOADERS), "topics": registry.topic_modules()}
+        return cls(cells, calls, encoded, opening, cell_seconds, deadline, result, pending=list(range(len(calls))))
+
+    @property
+    def outcomes(self) -> list:
+        """The calls' outcomes so far (None: not decided yet)."""
+        return self.result.outcomes
+
+    def start_cells(self, session: _Session) -> None:
+        """Send the cells (those stopped before left out) and see each of them run."""
+        session.send({"cells": [("pass  # stopped: ran longer than its limit" if i in self.skipped_cells else c)
+                                for i, c in enumerate(self.cells)], **self.opening})
+        for index in range(len(self.cells)):
+            if session.receive(STARTUP_SECONDS if index == 0 else self.cell_seconds,
+                               "starting the sandbox").get("cell") != index:
+                raise _Stopped("the graded code sent a message out of turn")
+            self._run_cell(session, index)
+
+    def _run_cell(self, session: _Session, index: int) -> None:
+        """One cell under its wall-clock limit, serving its data requests; a cell stopped is skipped from now on."""
+        try:
+            # a cell may load data (a demo the student added): served like a case's
+            message = _answer_requests(session, time.monotonic(), self.cell_seconds, f"cell {index}", CELL_HELPERS,
+                                       [])
+            if message.get("cell_done") != index:
+                raise _Stopped("the graded code sent a message out of turn")
+        except _Stopped as stop:
+            self.skipped_cells.add(index)
+            note = (f"cell {index}: ran longer than {self.cell_seconds:g} s and was stopped (what it defines is "
+                    "missing)" if stop.timed_out else f"cell {index}: {stop.reason}")
+            self.result.cell_errors.append(note)
+            raise
+
+    def take_ready(self, session: _Session) -> None:
+        """The worker's word that the cells ran: their errors and the imports it refused."""
+        result = self.result
+        ready = session.receive(STARTUP_SECONDS if not self.cells else self.cell_seconds, "starting the sandbox")
+        if not ready.get("ready"):
+            raise _Stopped("the graded code sent a message out of turn")
+        result.cell_errors = [e for e in result.cell_errors if "was stopped" in e or "ended early" in e
+                              or "killed" in e] + [str(e)[:400] for e in ready.get("cell_errors", [])][:50]
+        result.refused = [str(r)[:200] for r in ready.get("refused", [])][:20]
+        result.started = True
+
+    def run_pending(self, session: _Session) -> None:
+        """The calls not decided yet, in order, until one does not return in time (then: a fresh sandbox)."""
+        while self.pending:
+            current = self.current = self.pending[0]
+            group = self.calls[current].check_group
+            if group in self.stalled or self.strikes.get(group, 0) >= 2:
+                # one case of this check did not return in time, or two crashed the worker: the
+                # rest of the check is not run (an endless loop costs one time limit, not one per case)
+                self.outcomes[current] = Outcome(error=_not_run(self.calls, self.stalled.get(group)),
+                                                 exception="NotRun", from_grader=True)
+                self.pending.pop(0)
+                self.current = None
+                continue
+            outcome = self._run_call(session, current)
+            self.outcomes[current] = outcome
+            self.pending.pop(0)
+            if outcome.timed_out:
+                self._skip_the_rest_of(group, current)
+            self.current = None
+            if outcome.timed_out and self.pending:
+                raise _Replace()
+
+    def _run_call(self, session: _Session, index: int) -> Outcome:
+        """One call under its time limit on the wall clock, serving included, with the building blocks it may use."""
+        call = self.calls[index]
+        limit = float(call.time_limit)
+        allowed = set(call.allowed) if call.allowed is not None else {f"data.{name}" for name in DATA_SOURCES}
+        refused: list = []
+        session.send({"call": self.encoded[index]})
+        started = time.monotonic()
+        message = _answer_requests(session, started, limit + KILL_GRACE_SECONDS, "this case", allowed, refused)
+        if "outcome" not in message or not isinstance(message["outcome"], dict):
+            raise _Stopped("the graded code sent a message out of turn")
+        outcome = Outcome.from_json(message["outcome"])
+        outcome.forbidden_calls += [r for r in refused if r not in outcome.forbidden_calls]
+        used = time.monotonic() - started
+        if used > limit + GRACE_SECONDS and not outcome.timed_out:
+            outcome = Outcome(error=timeout_message(limit), exception="Timeout", timed_out=True, from_grader=True)
+        return outcome
+
+    def _skip_the_rest_of(self, group: str, stalled: int) -> None:
+        """The pending calls of the check whose call ``stalled`` did not return: not run (no fresh sandbox for them)."""
+        self.stalled.setdefault(group, stalled)
+        for index in [i for i in self.pending if self.calls[i].check_group == group]:
+            self.outcomes[index] = Outcome(error=_not_run(self.calls, stalled), exception="NotRun", from_grader=True)
+            self.pending.remove(index)
+
+    def goes_on_after(self, stop: _Stopped) -> bool:
+        """Record why the sandbox stopped; whether a fresh one may take over the calls still pending."""
+        result = self.result
+        if stop.exhausted:
+            result.exhausted = True
+            result.crashed = stop.reason
+            return False
+        current = self.current
+        if current is None:
+            if not result.started and not self.skipped_cells:
+                # the sandbox itself, or the cells, cannot get going: no retry helps
+                result.crashed = stop.reason
+                result.started = False
+                return False
+            return True  # a cell was stopped: start again without it
+        call = self.calls[current]
+        group = call.check_group
+        if stop.timed_out:
+            self.stalled.setdefault(group, current)
+        else:
+            self.strikes[group] = self.strikes.get(group, 0) + 1
+        self.outcomes[current] = Outcome(error=timeout_message(float(call.time_limit)) if stop.timed_out
+                                         else f"no result: {stop.reason}",
+                                         exception="Timeout" if stop.timed_out else "WorkerDied",
+                                         timed_out=stop.timed_out, from_grader=True)
+        result.crashed = stop.reason
+        self.pending.pop(0)
+        return bool(self.pending)
+
+    def settle_the_rest(self) -> None:
+        """Every call never reached fails with the reason: the run's deadline, or too many restarts."""
+        result = self.result
+        if any(outcome is None for outcome in self.outcomes) and time.monotonic() >= self.deadline:
+            result.exhausted = True
+        for index, outcome in enumerate(self.outcomes):
+            if outcome is None and result.exhausted:
+                self.outcomes[index] = Outcome(error=f"not run: {EXHAUSTED}", exception="Timeout", timed_out=True,
+                                               from_grader=True)
+            elif outcome is None:
+                self.outcomes[index] = Outcome(error=f"no result: {result.crashed or 'the grading worker stopped'} "
+                                                     "(too many restarts)", exception="WorkerDied", from_grader=True)
