@@ -272,6 +272,23 @@ def test_report_html_shows_images_and_json_roundtrip():
     assert MIME_TYPE.startswith("application/vnd.cvkit")
 
 
+def test_a_report_shows_the_same_bundle_in_the_kernel_and_on_the_feedback_page(monkeypatch):
+    """Report.mime_bundle is what check() displays and what the trusted grader writes: the text,
+    the report's data under MIME_TYPE, and the HTML unless it cannot be drawn."""
+    import json
+
+    report = evaluate("testing.shift_right", lambda image, steps=1: np.roll(image, steps, axis=0))
+    bundle = report.mime_bundle()
+    assert bundle["text/plain"] == report.text() and bundle["text/html"] == report._repr_html_()
+    assert bundle[MIME_TYPE] == json.loads(json.dumps(report.to_dict(), default=str))
+
+    def broken(self):
+        raise ValueError("no images today")
+
+    monkeypatch.setattr(type(report), "_repr_html_", broken)
+    assert sorted(report.mime_bundle()) == sorted(["text/plain", MIME_TYPE])
+
+
 def _html_elements(page: str) -> list[tuple[str, dict]]:
     from html.parser import HTMLParser
 

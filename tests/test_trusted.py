@@ -282,6 +282,33 @@ def test_wire_format_refuses_objects_and_roundtrips_arrays():
         wire.decode({"t": "nd", "dtype": "|O", "shape": [1], "data": ""})
 
 
+def test_a_box_call_crosses_the_wire_as_the_worker_reads_it():
+    """The one request for a case: the trusted side's BoxCall comes back the same from its wire form
+    (JSON), with the keys the worker has always read, and an input that cannot cross is refused
+    before any sandbox starts."""
+    import json
+
+    call = wire.BoxCall("correlate", group="correlate:filters.correlate:hidden", args=(np.arange(6.0).reshape(2, 3),),
+                        kwargs={"border": "wrap"}, time_limit=7.5, allowed=("filters.pad", "data.camera"),
+                        arg_names=("image", "kernel"), forbidden_libraries=("scipy",),
+                        forbidden_functions=("numpy.pad",), adapter="instance_call", substitute={"pad": "filters.pad"})
+    data = json.loads(json.dumps(call.to_wire()))
+    assert list(data) == ["function", "group", "args", "kwargs", "time_limit", "allowed", "arg_names",
+                          "forbidden_libraries", "forbidden_functions", "call", "substitute"]
+    back = wire.BoxCall.from_wire(data)
+    assert np.array_equal(back.args[0], call.args[0]) and back.kwargs == call.kwargs
+    assert (back.function, back.group, back.time_limit, back.allowed, back.arg_names, back.forbidden_libraries,
+            back.forbidden_functions, back.adapter, back.substitute) == \
+        (call.function, call.group, call.time_limit, call.allowed, call.arg_names, call.forbidden_libraries,
+         call.forbidden_functions, call.adapter, call.substitute)
+    plain = wire.BoxCall.from_wire(json.loads(json.dumps(wire.BoxCall("f", args=(1,)).to_wire())))
+    assert plain.check_group == "f" and plain.allowed is None and plain.time_limit == wire.DEFAULT_TIME_LIMIT
+    with pytest.raises(wire.WireError):
+        wire.BoxCall("f", args=(object(),)).to_wire()
+    with pytest.raises(wire.WireError):
+        sandbox.run_calls(["def f(x):\n    return x"], [wire.BoxCall("f", args=(object(),))], sandboxed=False)
+
+
 def test_scan_flags_and_hidden_test_source_is_hidden():
     flags = scan("import ctypes\nimport subprocess\nx.__globals__\nos.remove('a')\nsys.setprofile(None)")
     text = " | ".join(flags)
@@ -465,6 +492,27 @@ def test_in_the_notebook_a_wrong_building_block_costs_points_once(capsys):
     finally:
         student.functions.clear()
         student.functions.update(saved)
+
+
+def test_the_kernel_and_the_grader_word_a_cascade_alike(capsys):
+    """One wording of "which function to fix" (cvkit.grading.report.cascade_report): the
+    sentence the trusted grader writes is the one check() prints in the student's kernel."""
+    import cvkit
+    from cvkit.grading import check
+
+    graded = grade_notebook(_cascade_notebook(WRONG_PAD, CORRELATE_WITH_OWN_PAD), student="cas", salt="s",
+                            source_notebook=_cascade_notebook("pass", "pass"))
+    (_, report), = graded.reports["correlate_visible"]
+    student = registry.provider("student")
+    saved = dict(student.functions)
+    namespace = {"np": np, "student": cvkit.student}
+    try:
+        exec(compile(WRONG_PAD + "\n" + CORRELATE_WITH_OWN_PAD, "<answers>", "exec"), namespace)
+        check("filters.correlate", namespace["correlate"])
+    finally:
+        student.functions.clear()
+        student.functions.update(saved)
+    assert report.cascade and report.cascade in capsys.readouterr().out
 
 
 LECTURES = sorted((Path(__file__).resolve().parent.parent / "lectures").glob("ch*/*.ipynb"))
