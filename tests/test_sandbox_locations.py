@@ -54,7 +54,7 @@ VERSION = f"python{sys.version_info.major}.{sys.version_info.minor}"
 PROBE = r'''
 import json, os, sys
 import cvkit
-from cvkit.sandbox import notebook_run as execute, isolation, sandbox
+from cvkit.sandbox import notebook_run as execute, isolation, session as sandbox
 from cvkit.grading.runtime.wire import BoxCall
 
 kit, clone = sys.argv[1], sys.argv[2]
