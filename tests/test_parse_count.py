@@ -88,3 +88,25 @@ def test_cvkit_parses_a_submission_twice_and_nbgrader_runs_once(course, monkeypa
     assert runs == ["ada"]
     graded = course.root / "autograded" / "ada" / CHAPTER
     assert MARKER in next(graded.glob("*.ipynb")).read_text()  # the submission did reach nbgrader
+
+
+def test_a_grading_run_reads_each_submission_folder_once(course, monkeypatch):
+    """``cvkit course grade`` reads a submission's folder once: the job's files, the journal's hash,
+    the received time, the staged copy and the refused files' flags are one version of it."""
+    from cvkit.course import journal, received, state
+
+    release = course.release_notebooks(CHAPTER)[0]
+    course.submit("bob", CHAPTER, {release.name: json.loads(release.read_text())})
+    reads: dict[str, int] = {}
+    for module in (state, journal, received):
+        original = module.collect_files
+
+        def counted(folder, *args, _original=original, **kwargs):
+            reads[str(folder)] = reads.get(str(folder), 0) + 1
+            return _original(folder, *args, **kwargs)
+
+        monkeypatch.setattr(module, "collect_files", counted)
+    results = course.grade([CHAPTER], workers=1, regrade=True)
+    assert all(r.ok for r in results), [r.log for r in results]
+    folders = {str(course.root / "submitted" / s / CHAPTER) for s in ("ada", "bob")}
+    assert {f: reads.get(f, 0) for f in folders} == {f: 1 for f in folders}, reads

@@ -226,7 +226,14 @@ def _regrading(course: CourseState, jobs: list[tuple[str, str]], regrade: bool |
 def grade(course: CourseState, assignments: Iterable[str] | None = None, workers: int = 2, scheduler: str | None = None,
           progress_bar: bool = False, regrade: bool | Iterable[str] = False, batch: int | None = None,
           sandbox: bool = True) -> list[JobResult]:
-    """See :meth:`Course.grade`."""
+    """See :meth:`Course.grade`. Each submission folder is read once in the run
+    (:meth:`~.state.CourseState.one_read_per_submission`)."""
+    with course.one_read_per_submission():
+        return _grade(course, assignments, workers, scheduler, progress_bar, regrade, batch, sandbox)
+
+
+def _grade(course: CourseState, assignments: Iterable[str] | None, workers: int, scheduler: str | None,
+           progress_bar: bool, regrade: bool | Iterable[str], batch: int | None, sandbox: bool) -> list[JobResult]:
     from ..sandbox import isolation
 
     if sandbox:
@@ -302,6 +309,11 @@ def grade(course: CourseState, assignments: Iterable[str] | None = None, workers
 
 def refresh(course: CourseState, progress_bar: bool = False) -> list[tuple[str, str]]:
     """See :meth:`Course.refresh`."""
+    with course.one_read_per_submission():
+        return _refresh(course, progress_bar)
+
+
+def _refresh(course: CourseState, progress_bar: bool) -> list[tuple[str, str]]:
     not_graded = course.not_graded()
     graded = [(s, a) for s, a in course.submissions() if f"{s}/{a}" not in not_graded and results.is_graded(course, s, a)]
     pages = marks.stale_pages(course, graded)

@@ -323,9 +323,10 @@ def _version(files: Mapping[str, bytes], refused: list[str]) -> str:
     return digest.hexdigest()
 
 
-def _submission(root: Path, student: str, assignment: str) -> tuple[Path, dict[str, bytes], str]:
+def _submission(root: Path, student: str, assignment: str,
+                course: CourseState | None = None) -> tuple[Path, dict[str, bytes], str]:
     folder = root / "submitted" / student / assignment
-    files, refused = collect_files(folder)
+    files, refused = course.submission_snapshot(student, assignment) if course is not None else collect_files(folder)
     return folder, files, _version(files, refused)
 
 
@@ -449,7 +450,7 @@ def received_time(course: CourseState, student: str, assignment: str) -> Receive
     listed = read_list(root / LIST_NAME).get((student, assignment))
     if listed is not None:
         return Received(listed, "list")
-    folder, files, version = _submission(root, student, assignment)
+    folder, files, version = _submission(root, student, assignment, course)
     records = _Records(root)
     recorded = records.submission(student, assignment, version)
     if recorded is not None and recorded.source == "exchange":

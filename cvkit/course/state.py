@@ -19,6 +19,7 @@ does not mount it (:mod:`cvkit.sandbox.isolation`).
 from __future__ import annotations
 
 import ast
+import contextlib
 import copy
 import os
 import secrets
@@ -27,7 +28,7 @@ import subprocess
 import sys
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable
+from typing import TYPE_CHECKING, Any, Iterable, Iterator
 
 from .._text import differences, name_problem, printable, skeleton
 from ..sandbox.isolation import collect_files
@@ -194,7 +195,8 @@ class CourseState:
         self.db_url: str = db_url or os.environ.get("CVKIT_DB_URL") or f"sqlite:///{self.root / 'gradebook.db'}"
         self._nbgrader_config: Config | None = None
         self._fingerprints: dict[str, str] = {}
-        self.journal = Journal(self.root)
+        self._snapshots: dict[tuple[str, str], tuple[dict[str, bytes], list[str]]] | None = None
+        self.journal = Journal(self.root, read=self.submission_snapshot)
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(root={self.root!r}, db_url={self.db_url!r}, project={self.project!r})"
@@ -451,13 +453,44 @@ class CourseState:
                                                       "rename the folder to the chapter's id")
         return refused
 
+    def submission_snapshot(self, student: str, assignment: str) -> tuple[dict[str, bytes], list[str]]:
+        """The submission's regular files and the notes on the files refused (links, devices and
+        the like, see :func:`~cvkit.sandbox.isolation.collect_files`). Within a run
+        (:meth:`one_read_per_submission`) the folder is read once, and everything that run does
+        with the submission — the job's files, the journal's hash, the received time, the staged
+        copy, the refused files' flags — is about that one version."""
+        key = (student, assignment)
+        if self._snapshots is not None and key in self._snapshots:
+            return self._snapshots[key]
+        found = collect_files(self.root / "submitted" / student / assignment)
+        if self._snapshots is not None:
+            self._snapshots[key] = found
+        return found
+
+    def forget_snapshot(self, student: str, assignment: str) -> None:
+        """The next :meth:`submission_snapshot` of this submission reads its folder again (the
+        grader itself changed it: nbgrader's ``timestamp.txt`` made to say the trusted time)."""
+        if self._snapshots is not None:
+            self._snapshots.pop((student, assignment), None)
+
+    @contextlib.contextmanager
+    def one_read_per_submission(self) -> Iterator[None]:
+        """Within this block, each submission folder is read once (:meth:`submission_snapshot`);
+        outside it, every call reads the folder as it is now."""
+        outer = self._snapshots
+        self._snapshots = {} if outer is None else outer
+        try:
+            yield
+        finally:
+            self._snapshots = outer
+
     def submission_files(self, student: str, assignment: str) -> dict[str, bytes]:
         """The submission's regular files (links, devices and the like are refused, see
         :func:`~cvkit.sandbox.isolation.collect_files`, and flagged when it is recorded)."""
-        return collect_files(self.root / "submitted" / student / assignment)[0]
+        return self.submission_snapshot(student, assignment)[0]
 
     def refused_files(self, student: str, assignment: str) -> list[str]:
-        return collect_files(self.root / "submitted" / student / assignment)[1]
+        return self.submission_snapshot(student, assignment)[1]
 
     def not_graded(self) -> dict[str, str]:
         """``"student/assignment"`` → why it could not be graded (never a zero): the journal's list,

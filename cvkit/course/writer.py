@@ -63,6 +63,13 @@ class Writer:
     def __init__(self, course: CourseState) -> None:
         self.course = course
         self.journal = course.journal
+        self.flagged_here: set[tuple[str, str]] = set()  # submissions this writer flagged after nbgrader
+
+    def _flag(self, student: str, assignment: str, note: str) -> None:
+        """A flag in the autograded notebooks of a submission (:meth:`~.journal.Journal.add_flag`),
+        remembered for the gradebook's "Flagged?" (:meth:`flag_in_gradebook`)."""
+        self.journal.add_flag(student, assignment, note)
+        self.flagged_here.add((student, assignment))
 
     def record_many(self, batch: list[ExecutedSubmission], repair: bool = False) -> list[JobResult]:
         """See :meth:`Course.record_many`."""
@@ -147,7 +154,7 @@ class Writer:
             outcome = {"success": False, "error": f"{type(error).__name__}: {error}"}
         if outcome.get("success"):
             for student, note in marks.restore(course, assignment, before, {e.student: e.notebooks for e in group}):
-                self.journal.add_flag(student, assignment, note)
+                self._flag(student, assignment, note)
         shutil.rmtree(staging, ignore_errors=True)
         return subprocess.CompletedProcess(["nbgrader", "autograde", assignment, *students],
                                            0 if outcome.get("success") else 1,
@@ -161,15 +168,16 @@ class Writer:
             log = (executed.log[-1500:] + "\n" + done.stdout + done.stderr)[-4000:]
             self.journal.set_not_graded(executed.student, assignment, None)
             for note in self.course.refused_files(executed.student, assignment):
-                self.journal.add_flag(executed.student, assignment, f"(notebook): {note}")
+                self._flag(executed.student, assignment, f"(notebook): {note}")
             when = received.received_time(self.course, executed.student, assignment)
             for flag in received.cross_check(self.course, executed.student, assignment, when):
-                self.journal.add_flag(executed.student, assignment, flag)
+                self._flag(executed.student, assignment, flag)
             # the collected timestamp.txt now says what nbgrader recorded (the student's file is kept)
-            received.settle_stamp(self.course.root, executed.student, assignment, when)
+            if received.settle_stamp(self.course.root, executed.student, assignment, when):
+                self.course.forget_snapshot(executed.student, assignment)  # the journal hashes the folder as it is now
             if repair or executed.repaired:
                 log += "\ngraded from a repaired copy: the submission's graded cells had been tampered with"
-                self.journal.add_flag(executed.student, assignment, REPAIRED_FLAG)
+                self._flag(executed.student, assignment, REPAIRED_FLAG)
             results.append(JobResult(executed.student, assignment, done.returncode, 1, log, executed=executed.ok))
         pairs = [(executed.student, assignment) for executed in group]
         self.flag_in_gradebook(pairs, {(e.student, assignment): e.flagged for e in group if e.verified and e.flagged})
@@ -190,7 +198,7 @@ class Writer:
         flagged = []
         for student, assignment in pairs:
             said = (known or {}).get((student, assignment))
-            if said is not None:
+            if said is not None and (student, assignment) not in self.flagged_here:
                 flagged += [(student, assignment, name[:-len(".ipynb")]) for name, yes in sorted(said.items()) if yes]
                 continue
             flagged += [(student, assignment, path.stem) for path in
