@@ -1,9 +1,12 @@
-"""Shared assertions of the ``test_checks_*`` files: is a check complete, are its hidden cases
+"""The one harness of the ``test_checks_*`` files: is a check complete, are its hidden cases
 reproducible, do the reference and correct alternatives pass, does a stub score 0, does every
 mistake fail and get named.
 
 Every function takes what differs between chapters (seeds, thresholds, allowed building
-blocks, how to fingerprint a case) as an argument; none has a chapter's value built in.
+blocks, how to fingerprint a case) as an argument; none has a chapter's value built in. The
+tests every chapter owes are written once, in :class:`MistakeBankChecks` and
+:class:`ChapterChecks`: a chapter's file subclasses one of them (``class TestChapterNN``) and
+sets what differs as class attributes.
 ``tests/`` is not a package: import this module as the test files import ``alternatives_chNN``.
 """
 from __future__ import annotations
@@ -22,6 +25,10 @@ from cvkit import registry
 from cvkit.grading import Check, engine, evaluate
 
 BORDERS = frozenset({"zero", "replicate", "reflect", "reflect101"})
+#: the seeds of the hidden cases every chapter's checks are tested on
+SEEDS = (101, 202, 303)
+#: every registered algorithm id: the building blocks a mistake may call in most chapters
+EVERY_ID = tuple(a.id for a in registry.algorithms())
 
 
 # --------------------------------------------------------------------------------------------
@@ -190,6 +197,29 @@ def assert_stub_scores_zero(algorithm_id, seeds, stub=raising_stub, message="not
             assert message in report.cases[0].message, report.cases[0].message
 
 
+def assert_scores_zero(algorithm_id, candidate, words, *, every_case=False, **evaluate_kwargs):
+    """``candidate`` scores 0 and the message of its first case (``every_case``: of every case)
+    says ``words``. Returns the report."""
+    report = evaluate(algorithm_id, candidate, **evaluate_kwargs)
+    assert report.score == 0.0, report.text()
+    for case in report.cases if every_case else report.cases[:1]:
+        assert words in case.message, report.text()
+    return report
+
+
+def assert_only_the_library_fails(algorithm_id, candidate, library):
+    """``candidate`` scores 0 and every case names the forbidden ``library``, yet the same
+    function passes once ``library`` is allowed: only the forbidden call fails it."""
+    assert_scores_zero(algorithm_id, candidate, library, every_case=True)
+    open_check = dataclasses.replace(check_of(algorithm_id), allowed_libraries=(library,))
+    assert evaluate(algorithm_id, candidate, check=open_check).passed
+
+
+def assert_ids_are_the_module(ids, module):
+    """``ids`` are exactly the registered algorithms of ``module``: each has a check here."""
+    assert sorted(a.id for a in registry.algorithms() if a.module == module) == sorted(ids)
+
+
 def _named_wrongly(report, name):
     return (f"named {report.mistake!r} instead of {name!r}; per case: "
             + str([(c.label, c.mistake) for c in report.cases if not c.passed]))
@@ -285,3 +315,134 @@ def assert_hidden_cases_use_every_border(spec, seeds, borders=BORDERS, default="
         assert {case.kwargs.get("border", default) for case in cases} == set(borders)
         drawn[seed] = cases
     return drawn
+
+
+# --------------------------------------------------------------------------------------------
+# the tests every chapter owes, written once
+# --------------------------------------------------------------------------------------------
+class MistakeBankChecks:
+    """The tests every mistake bank owes: each check of ``IDS`` is complete, a stub scores 0
+    everywhere, and every mistake of every bank fails (public and hidden cases) and is named.
+
+    Mistake functions are built on the reference implementations (they run under the reference
+    provider when the grader compares outputs), so to grade a mistake *as a candidate* the tests
+    allow the building blocks ``MISTAKES_MAY_CALL`` (``None``: the check as registered); the
+    guard itself is tested by each chapter's own tests on the checks as registered.
+
+    Subclass it in a test file as ``class TestChapterNN(MistakeBankChecks)`` with the class
+    attributes below; pytest collects the inherited tests once per subclass, parametrised by
+    :meth:`pytest_generate_tests` over that subclass's ids and mistakes.
+    """
+
+    #: the algorithm ids of the chapter
+    IDS: tuple = ()
+    SEEDS = SEEDS
+    #: the building blocks a mistake graded as a candidate may call (``None``: the check as
+    #: registered; unset: the chapter's own ``IDS``)
+    MISTAKES_MAY_CALL: tuple | None
+    #: the fewest mistakes a bank may have; ``TRIVIAL`` ids (the simplest exercises) may have one fewer
+    MIN_MISTAKES = 4
+    TRIVIAL: frozenset = frozenset()
+    MAX_NAME_LENGTH = 70
+
+    #: test name -> what it is parametrised over (a method of the instance, by name)
+    _PARAMETERS = {
+        "test_check_is_complete": "_ids",
+        "test_stub_scores_zero": "_ids",
+        "test_mistake_fails_and_is_named": "_mistakes",
+    }
+
+    def pytest_generate_tests(self, metafunc):
+        assert self.IDS, f"{type(self).__name__} names no IDS: its tests would test nothing"
+        source = self._PARAMETERS.get(metafunc.function.__name__)
+        if source is not None:
+            argnames, values, ids = getattr(self, source)()
+            metafunc.parametrize(argnames, values, ids=ids)
+
+    def _ids(self):
+        return "algorithm_id", list(self.IDS), None
+
+    def _mistakes(self):
+        pairs = mistakes_of(self.IDS)
+        return ("algorithm_id", "name"), pairs, pair_ids(pairs)
+
+    def stub(self, algorithm_id):
+        """The released, unanswered exercise of ``algorithm_id``."""
+        return raising_stub
+
+    def test_check_is_complete(self, algorithm_id):
+        minimum = self.MIN_MISTAKES - 1 if algorithm_id in self.TRIVIAL else self.MIN_MISTAKES
+        assert_check_is_complete(check_of(algorithm_id), self.SEEDS, public=(1, 6), hidden=(8, 14),
+                                 min_mistakes=minimum, max_name_length=self.MAX_NAME_LENGTH)
+
+    def test_stub_scores_zero(self, algorithm_id):
+        assert_stub_scores_zero(algorithm_id, self.SEEDS, stub=self.stub(algorithm_id))
+
+    def test_mistake_fails_and_is_named(self, algorithm_id, name):
+        allowed = getattr(self, "MISTAKES_MAY_CALL", self.IDS)
+        assert_mistake_fails_and_is_named(algorithm_id, name, self.SEEDS, allowed=allowed)
+
+
+class ChapterChecks(MistakeBankChecks):
+    """:class:`MistakeBankChecks` and the rest a chapter owes: the hidden cases are reproducible
+    and depend on the seed, the reference passes everywhere (and is named no mistake), every id
+    has a correct alternative and every alternative passes everywhere.
+
+    ``ALTERNATIVES`` maps each id to one correct alternative (a chapter's file passes only its
+    own ids); ``EXTRA_ALTERNATIVES`` lists further ``(id, function)`` pairs.
+    """
+
+    ALTERNATIVES: dict = {}
+    EXTRA_ALTERNATIVES: tuple = ()
+    #: whether the NaNs of two fingerprints compare equal
+    EQUAL_NAN = False
+
+    _PARAMETERS = {
+        **MistakeBankChecks._PARAMETERS,
+        "test_hidden_cases_are_reproducible_and_depend_on_the_seed": "_ids",
+        "test_reference_passes": "_ids",
+        "test_correct_alternative_passes": "_alternatives",
+    }
+
+    def _alternatives(self):
+        pairs = list(self.ALTERNATIVES.items()) + list(self.EXTRA_ALTERNATIVES)
+        return ("algorithm_id", "function"), pairs, function_ids(pairs)
+
+    # what a chapter may change: methods, so that a subclass overrides them in place
+    def fingerprint(self, case):
+        """What must be the same when a case is drawn twice from one seed."""
+        return describe_and_array_args(case)
+
+    def varies(self, case):
+        """What must change with the seed (some case of another seed differs in it)."""
+        return self.fingerprint(case)
+
+    def reference_check(self, algorithm_id):
+        """The check the reference is graded with (``None``: as registered)."""
+        return None
+
+    def test_hidden_cases_are_reproducible_and_depend_on_the_seed(self, algorithm_id):
+        assert_hidden_cases_reproducible(check_of(algorithm_id), self.fingerprint, varies=self.varies,
+                                         equal_nan=self.EQUAL_NAN)
+
+    def test_reference_passes(self, algorithm_id):
+        assert_reference_passes(algorithm_id, self.SEEDS, check=self.reference_check(algorithm_id))
+
+    def test_correct_alternative_passes(self, algorithm_id, function):
+        assert_passes_everywhere(algorithm_id, function, self.SEEDS)
+
+    def test_every_algorithm_has_an_alternative(self):
+        assert set(self.ALTERNATIVES) == set(self.IDS)
+
+
+class WholeModuleChecks(ChapterChecks):
+    """:class:`ChapterChecks` of a chapter that covers a whole module of the library (the one
+    its ``IDS`` are in): its ``IDS`` and its ``MEASURED`` exercises (graded by what they reach,
+    tested on their own) are exactly the algorithms registered in that module."""
+
+    MEASURED: tuple = ()
+
+    def test_every_algorithm_of_the_module_has_a_check(self):
+        modules = {algorithm_id.split(".")[0] for algorithm_id in self.IDS}
+        assert len(modules) == 1, f"the ids of {type(self).__name__} are in several modules: {sorted(modules)}"
+        assert_ids_are_the_module(list(self.IDS) + list(self.MEASURED), modules.pop())

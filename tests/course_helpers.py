@@ -1,12 +1,111 @@
-"""Test helpers of the course pipeline: what nbgrader should record for a (trusted) notebook."""
+"""Test helpers of the course pipeline: the notebooks and projects of the tiny throwaway
+courses the course tests grade, and what nbgrader should record for a (trusted) notebook."""
 from __future__ import annotations
 
 import ast
+import copy
+import json
+import shutil
+from pathlib import Path
 
 from cvkit import registry
 from cvkit.grading import evaluate, hidden_seed
 from cvkit.grading.runtime.cells import is_solution as is_answer_cell, is_test_cell
 from cvkit.course.trusted import submission_version
+
+ROOT = Path(__file__).resolve().parent.parent
+#: the set-up cell of a tiny chapter
+SETUP = "import numpy as np\nimport cvkit\nfrom cvkit.grading import check\nfrom cvkit.registry import student"
+#: the released solution of the tiny chapters' exercise (``filters.temporal_mean``)
+TEMPORAL_MEAN = ('@student("filters.temporal_mean")\ndef temporal_mean(frames):\n'
+                 '    ### BEGIN SOLUTION\n    return np.asarray(frames, dtype=float).mean(axis=0)\n    ### END SOLUTION')
+#: a right answer of a student: the mean by a loop
+TEMPORAL_MEAN_LOOP = ('@student("filters.temporal_mean")\ndef temporal_mean(frames):\n'
+                      '    stack = np.asarray(frames, dtype=float)\n    total = np.zeros(stack.shape[1:])\n'
+                      '    for frame in stack:\n        total = total + frame\n    return total / len(stack)')
+
+
+# --------------------------------------------------------------------------------------------
+# the tiny courses' notebooks and projects
+# --------------------------------------------------------------------------------------------
+def new_cell(source, grade_id=None, *, solution=False, grade=False, points=None, cell_type="code") -> dict:
+    """A notebook cell; with ``grade_id`` an nbgrader cell (locked unless it is a solution)."""
+    meta = {}
+    if grade_id:
+        meta["nbgrader"] = {"grade_id": grade_id, "solution": solution, "grade": grade, "locked": not solution,
+                            "schema_version": 3, **({"points": points} if points is not None else {})}
+    cell = {"cell_type": cell_type, "source": source, "metadata": meta}
+    if cell_type == "code":
+        cell.update(outputs=[], execution_count=None)
+    return cell
+
+
+def exercise_cells(algorithm_id: str, name: str, answer: str, *, hidden_points: int = 2) -> list[dict]:
+    """The answer cell ``{name}_answer``, the visible test ``{name}_visible`` (1 point) and the
+    hidden test ``{name}_hidden`` of function ``name`` checked as ``algorithm_id``."""
+    return [
+        new_cell(answer, f"{name}_answer", solution=True),
+        new_cell(f'check("{algorithm_id}", {name})', f"{name}_visible", grade=True, points=1),
+        new_cell(f'### BEGIN HIDDEN TESTS\ncheck("{algorithm_id}", {name}, hidden=True, points={hidden_points})\n'
+                 '### END HIDDEN TESTS', f"{name}_hidden", grade=True, points=hidden_points),
+    ]
+
+
+def new_notebook(cells: list[dict], *, ids: bool = False) -> dict:
+    """An nbformat 4.5 notebook of ``cells`` on a Python 3 kernel; ``ids``: cell N gets the id
+    ``cell-N``."""
+    if ids:
+        for index, cell in enumerate(cells):
+            cell["id"] = f"cell-{index}"
+    return {"cells": cells, "metadata": {"kernelspec": {"name": "python3", "display_name": "Python 3",
+                                                        "language": "python"}},
+            "nbformat": 4, "nbformat_minor": 5}
+
+
+def submitted(notebook: dict, answers: dict[str, str]) -> dict:
+    """What a student hands in: a copy of the released ``notebook`` with its hidden test cells
+    (grade ids ending in ``_hidden``) emptied and the answer cells of ``answers`` ({grade id:
+    source}) written."""
+    notebook = copy.deepcopy(notebook)
+    for cell in notebook["cells"]:
+        grade_id = cell["metadata"].get("nbgrader", {}).get("grade_id", "")
+        if grade_id.endswith("_hidden"):
+            cell["source"] = ""
+        if grade_id in answers:
+            cell["source"] = answers[grade_id]
+    return notebook
+
+
+def write_project(folder: Path, plan: str | None, notebooks: dict[str, dict]) -> Path:
+    """A project in ``folder`` (made if missing, readable by everyone) with the real course
+    configuration, ``plan`` as its plan.toml (``None``: none) and ``notebooks`` ({path under
+    lectures/: notebook})."""
+    (folder / "autograders").mkdir(parents=True)
+    shutil.copy(ROOT / "autograders" / "nbgrader_config.py", folder / "autograders" / "nbgrader_config.py")
+    if plan is not None:
+        (folder / "autograders" / "plan.toml").write_text(plan)
+    for path, notebook in notebooks.items():
+        (folder / "lectures" / path).parent.mkdir(parents=True, exist_ok=True)
+        (folder / "lectures" / path).write_text(json.dumps(notebook))
+    folder.chmod(0o755)
+    return folder
+
+
+def cell_grades(course) -> dict[str, dict[str, float]]:
+    """The scores nbgrader's gradebook holds: {student: {grade id: score}}."""
+    from nbgrader.api import Gradebook
+
+    out = {}
+    with Gradebook(course.db_url) as gb:
+        for student, assignment in course.submissions():
+            submission = gb.find_submission(assignment, student)
+            out[student] = {g.name: g.score for nb in submission.notebooks for g in nb.grades}
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# what nbgrader should record
+# --------------------------------------------------------------------------------------------
 
 
 def _source(cell: dict) -> str:

@@ -18,8 +18,9 @@ import numpy as np
 import pytest
 import scipy.linalg
 import scipy.optimize
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
+from input_helpers import FAST
 
 import cvkit
 from cvkit import calibration, camera, data, registry
@@ -520,7 +521,6 @@ def test_calibrate_runs_on_a_providers_building_blocks():
 # --------------------------------------------------------------------------------------------
 # bad input (hypothesis)
 # --------------------------------------------------------------------------------------------
-FAST = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 @FAST

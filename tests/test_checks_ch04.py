@@ -1,10 +1,6 @@
-"""The Chapter 4 checks are worth their points: the reference and correct alternatives pass,
-every mistake of every bank fails (public and hidden cases) and is named, mistakes that hide on
-natural images are still caught, and the comparators say clearly how outputs differ.
-
-Mistake functions are built on the reference implementations; to grade a mistake *as a
-candidate* the tests allow every reference building block (the guard is tested separately).
-"""
+"""The Chapter 4 checks are worth their points (the tests every chapter owes:
+``checks_harness.ChapterChecks``), mistakes that hide on natural images are still caught, the
+comparators say clearly how outputs differ, and the guard catches what it should."""
 from __future__ import annotations
 
 import dataclasses
@@ -16,54 +12,38 @@ import scipy.ndimage
 
 import cvkit.edges
 import cvkit.filters
-from cvkit import data, registry
+from cvkit import data
 from cvkit.edges.checks import Angles, EdgeF1, edge_f1
 from cvkit.grading import evaluate
 
-try:
-    from . import alternatives_ch04 as alt
-    from . import checks_harness as harness
-    from . import measured_harness
-except ImportError:  # tests/ is not a package: pytest puts it on sys.path
-    import alternatives_ch04 as alt
-    import checks_harness as harness
-    import measured_harness
+import alternatives_ch04 as alt
+import checks_harness as harness
+import measured_harness
+from checks_harness import EVERY_ID, SEEDS, check_of
 
-SEEDS = (101, 202, 303)
-BORDERS = {"zero", "replicate", "reflect", "reflect101"}
 CH04 = [
     "edges.gradient", "edges.magnitude", "edges.direction", "edges.prewitt", "edges.sobel",
     "edges.non_max_suppression", "edges.hysteresis", "edges.canny", "edges.laplacian",
     "edges.log_kernel", "edges.log", "edges.zero_crossings", "edges.dog",
 ]
 WITH_BORDER = ["edges.gradient", "edges.prewitt", "edges.sobel", "edges.laplacian", "edges.log", "edges.dog"]
-EVERY_ID = tuple(a.id for a in registry.algorithms())
 #: the measured exercise (§4.10): graded by the F1 score it reaches against true outlines
 OUTLINES = "edges.detect_outlines"
-_check = harness.check_of
-MISTAKES = harness.mistakes_of(CH04)
+
+
+class TestChapter04(harness.WholeModuleChecks):
+    IDS = CH04
+    MEASURED = (OUTLINES,)
+    MISTAKES_MAY_CALL = EVERY_ID
+    ALTERNATIVES = alt.ALTERNATIVES
 
 
 # --------------------------------------------------------------------------------------------
-# the shape of every check
+# the cases
 # --------------------------------------------------------------------------------------------
-def test_every_edges_algorithm_has_a_check():
-    assert sorted(a.id for a in registry.algorithms() if a.module == "edges") == sorted(CH04 + [OUTLINES])
-
-
-@pytest.mark.parametrize("algorithm_id", CH04)
-def test_check_is_complete(algorithm_id):
-    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14), min_mistakes=4)
-
-
-@pytest.mark.parametrize("algorithm_id", CH04)
-def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
-    harness.assert_hidden_cases_reproducible(_check(algorithm_id), harness.describe_and_array_args)
-
-
 @pytest.mark.parametrize("algorithm_id", WITH_BORDER)
 def test_hidden_cases_use_every_border(algorithm_id):
-    harness.assert_hidden_cases_use_every_border(_check(algorithm_id), SEEDS, BORDERS, default="reflect101")
+    harness.assert_hidden_cases_use_every_border(check_of(algorithm_id), SEEDS)
 
 
 def _options(cases, name, index, default):
@@ -73,18 +53,18 @@ def _options(cases, name, index, default):
 def test_hidden_cases_use_every_option_value():
     for seed in SEEDS:
         rng = np.random.default_rng(seed)
-        assert _options(_check("edges.gradient").hidden_cases(rng), "scheme", 1, "central") == {"central", "forward", "backward"}
-        assert _options(_check("edges.magnitude").hidden_cases(rng), "norm", 2, "l2") == {"l2", "l1", "max"}
-        assert _options(_check("edges.non_max_suppression").hidden_cases(rng), "interpolate", 3, True) == {True, False}
-        assert _options(_check("edges.canny").hidden_cases(rng), "relative", 4, True) == {True, False}
+        assert _options(check_of("edges.gradient").hidden_cases(rng), "scheme", 1, "central") == {"central", "forward", "backward"}
+        assert _options(check_of("edges.magnitude").hidden_cases(rng), "norm", 2, "l2") == {"l2", "l1", "max"}
+        assert _options(check_of("edges.non_max_suppression").hidden_cases(rng), "interpolate", 3, True) == {True, False}
+        assert _options(check_of("edges.canny").hidden_cases(rng), "relative", 4, True) == {True, False}
 
 
 def test_sigma_is_never_one():
     """σ = 1 would hide "σ used as variance"; k = 1.6 would hide "k ignored" (except once)."""
     for seed in SEEDS:
-        for case in _check("edges.log_kernel").hidden_cases(np.random.default_rng(seed)):
+        for case in check_of("edges.log_kernel").hidden_cases(np.random.default_rng(seed)):
             assert abs(case.args[0] - 1.0) > 0.01
-        dog_cases = _check("edges.dog").hidden_cases(np.random.default_rng(seed))
+        dog_cases = check_of("edges.dog").hidden_cases(np.random.default_rng(seed))
         ks = [c.kwargs.get("k", c.args[2] if len(c.args) > 2 else 1.6) for c in dog_cases]
         assert sum(abs(k - 1.6) < 1e-9 for k in ks) == 1
 
@@ -95,52 +75,27 @@ def test_separating_inputs_are_in_the_hidden_cases():
     zeros (zero crossings), tight relative thresholds on a disk (Canny L1)."""
     for seed in SEEDS:
         rng = np.random.default_rng(seed)
-        labels = " | ".join(c.label for c in _check("edges.non_max_suppression").hidden_cases(rng))
+        labels = " | ".join(c.label for c in check_of("edges.non_max_suppression").hidden_cases(rng))
         assert "plateaus" in labels and "not hypot" in labels
-        hyst = _check("edges.hysteresis").hidden_cases(rng)
+        hyst = check_of("edges.hysteresis").hidden_cases(rng)
         assert any(np.any(c.args[0] == c.args[1]) and np.any(c.args[0] == c.args[2]) for c in hyst)
-        zc = _check("edges.zero_crossings").hidden_cases(rng)
+        zc = check_of("edges.zero_crossings").hidden_cases(rng)
         assert any(np.any(c.args[0] == 0) for c in zc)
-        canny_labels = " | ".join(c.label for c in _check("edges.canny").hidden_cases(rng))
+        canny_labels = " | ".join(c.label for c in check_of("edges.canny").hidden_cases(rng))
         assert "tight relative thresholds" in canny_labels and "constant image" in canny_labels
 
 
 # --------------------------------------------------------------------------------------------
-# right answers pass, wrong ones fail and are named
+# mistakes that hide, alternatives built of the student's own pieces
 # --------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("algorithm_id", CH04)
-def test_reference_passes(algorithm_id):
-    harness.assert_reference_passes(algorithm_id, SEEDS)
-
-
-@pytest.mark.parametrize("algorithm_id", CH04)
-def test_stub_scores_zero(algorithm_id):
-    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
-
-
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
-def test_mistake_fails_and_is_named(algorithm_id, name):
-    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=EVERY_ID)
-
-
-@pytest.mark.parametrize(("algorithm_id", "function"), list(alt.ALTERNATIVES.items()),
-                         ids=harness.function_ids(alt.ALTERNATIVES.items()))
-def test_correct_alternative_passes(algorithm_id, function):
-    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
-
-
-def test_every_algorithm_has_an_alternative():
-    assert set(alt.ALTERNATIVES) == set(CH04)
-
-
 def test_a_mistake_hidden_by_natural_images_is_still_caught():
     """Canny with an L1 magnitude agrees with the right edges on the camera image (F1 ≈ 0.98
     within 1 px), yet fails the check: the hidden disks with tight relative thresholds expose it."""
     camera = data.resize_half(data.camera())
-    wrong = _check("edges.canny").mistake("L1 magnitude instead of L2").function
+    wrong = check_of("edges.canny").mistake("L1 magnitude instead of L2").function
     f1 = edge_f1(wrong(camera, 1.4), cvkit.edges.canny(camera, 1.4), radius=1)[0]
     assert 0.95 < f1 < 0.995
-    allowing = dataclasses.replace(_check("edges.canny"), allowed=EVERY_ID)
+    allowing = dataclasses.replace(check_of("edges.canny"), allowed=EVERY_ID)
     for seed in SEEDS:
         report = evaluate("edges.canny", wrong, hidden=True, seed=seed, check=allowing)
         failed = [c.label for c in report.cases if not c.passed]
@@ -214,20 +169,14 @@ def test_scipy_ndimage_is_forbidden_and_named():
         image = np.asarray(image, dtype=np.float64)
         return scipy.ndimage.sobel(image, axis=1, mode=mode), scipy.ndimage.sobel(image, axis=0, mode=mode)
 
-    report = evaluate("edges.sobel", sobel)
-    assert report.score == 0.0
-    assert all("scipy.ndimage" in c.message for c in report.cases), report.text()
-    open_check = dataclasses.replace(_check("edges.sobel"), allowed_libraries=("scipy.ndimage",))
-    assert evaluate("edges.sobel", sobel, check=open_check).passed
+    harness.assert_only_the_library_fails("edges.sobel", sobel, "scipy.ndimage")
 
 
 def test_calling_the_reference_is_forbidden_and_named():
     def hysteresis(magnitude, low, high):
         return cvkit.edges.hysteresis(magnitude, low, high)
 
-    report = evaluate("edges.hysteresis", hysteresis, hidden=True, seed=SEEDS[0])
-    assert report.score == 0.0
-    assert "'edges.hysteresis'" in report.cases[0].message
+    harness.assert_scores_zero("edges.hysteresis", hysteresis, "'edges.hysteresis'", hidden=True, seed=SEEDS[0])
 
 
 def test_canny_may_call_the_allowed_building_blocks():
@@ -270,9 +219,7 @@ def test_canny_returning_0_1_integers_is_told_to_return_bool():
     def canny(image, sigma=1.4, low=0.1, high=0.2, relative=True):
         return alt.canny(image, sigma, low, high, relative).astype(np.uint8)
 
-    report = evaluate("edges.canny", canny)
-    assert report.score == 0.0
-    assert "bool" in report.cases[0].message
+    harness.assert_scores_zero("edges.canny", canny, "bool")
 
 
 # --------------------------------------------------------------------------------------------

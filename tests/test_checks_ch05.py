@@ -1,11 +1,7 @@
-"""The Chapter 5 checks are worth their points: the reference and correct alternatives pass,
-every mistake of every bank fails (public and hidden cases) and is named, mistakes that hide on
-natural images are still caught, the comparators say clearly how outputs differ, and the k-d tree
-— a class — is graded through ``Check.call`` both in this process and in the isolated worker.
-
-Mistake functions are built on the reference implementations; to grade a mistake *as a
-candidate* the tests allow every reference building block (the guard is tested separately).
-"""
+"""The Chapter 5 checks are worth their points (the tests every chapter owes:
+``checks_harness.ChapterChecks``), mistakes that hide on natural images are still caught, the
+comparators say clearly how outputs differ, and the k-d tree — a class — is graded through
+``Check.call`` both in this process and in the isolated worker."""
 from __future__ import annotations
 
 import dataclasses
@@ -15,70 +11,66 @@ import numpy as np
 import pytest
 
 import cvkit.features
-from cvkit import data, registry
+from cvkit import data
 from cvkit.features import checks as ch
 from cvkit.features.checks import IndexRows, Keypoints, NeighbourSearch, PointSets
 from cvkit.grading import Case, evaluate, instance_call
 from cvkit.course.trusted import grade_notebook
 
-try:
-    from . import alternatives_ch05 as alt
-    from . import checks_harness as harness
-except ImportError:  # tests/ is not a package: pytest puts it on sys.path
-    import alternatives_ch05 as alt
-    import checks_harness as harness
+import alternatives_ch05 as alt
+import checks_harness as harness
+from checks_harness import EVERY_ID, SEEDS, check_of
 
-SEEDS = (101, 202, 303)
 CH05 = [
     "features.moravec", "features.structure_tensor", "features.harris", "features.peaks",
     "features.gaussian_pyramid", "features.dog_pyramid", "features.log_blobs", "features.dog_extrema",
     "features.refine_extremum", "features.is_edge_like", "features.orientations", "features.sift_descriptor",
     "features.sift", "features.match_ratio", "features.KDTree",
 ]
-TRIVIAL = {"features.dog_pyramid"}
-EVERY_ID = tuple(a.id for a in registry.algorithms())
-_check = harness.check_of
-MISTAKES = harness.mistakes_of(CH05)
+
+
+class _StubTree:
+    def __init__(self, points):
+        raise NotImplementedError
+
+
+class TestChapter05(harness.WholeModuleChecks):
+    IDS = CH05
+    MISTAKES_MAY_CALL = EVERY_ID
+    TRIVIAL = frozenset({"features.dog_pyramid"})
+    ALTERNATIVES = alt.ALTERNATIVES
+    EXTRA_ALTERNATIVES = [
+        ("features.orientations", alt.orientations_vectorised),
+        ("features.sift_descriptor", alt.descriptor_vectorised),
+        ("features.KDTree", ch._Tree),  # one point per leaf, cycling axes, heap-based BBF
+    ]
+
+    def fingerprint(self, case):
+        """The array arguments of a case, positional and keyword, and those inside list arguments."""
+        return tuple(item for value in list(case.args) + list(case.kwargs.values())
+                     for item in (value if isinstance(value, list) else [value]) if isinstance(item, np.ndarray))
+
+    def stub(self, algorithm_id):
+        return _StubTree if algorithm_id == "features.KDTree" else harness.raising_stub
 
 
 # --------------------------------------------------------------------------------------------
-# the shape of every check
+# the cases
 # --------------------------------------------------------------------------------------------
-def test_every_features_algorithm_has_a_check():
-    assert sorted(a.id for a in registry.algorithms() if a.module == "features") == sorted(CH05)
-
-
-@pytest.mark.parametrize("algorithm_id", CH05)
-def test_check_is_complete(algorithm_id):
-    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14),
-                                     min_mistakes=3 if algorithm_id in TRIVIAL else 4)
-
-
-def _arrays(case):
-    """The array arguments of a case, positional and keyword, and those inside list arguments."""
-    return tuple(item for value in list(case.args) + list(case.kwargs.values())
-                 for item in (value if isinstance(value, list) else [value]) if isinstance(item, np.ndarray))
-
-
-@pytest.mark.parametrize("algorithm_id", CH05)
-def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
-    harness.assert_hidden_cases_reproducible(_check(algorithm_id), _arrays)
-
-
 def test_hidden_cases_use_every_border_and_option():
     for seed in SEEDS:
         rng = np.random.default_rng(seed)
-        moravec = _check("features.moravec").hidden_cases(rng)
+        moravec = check_of("features.moravec").hidden_cases(rng)
         assert {c.kwargs.get("border", "reflect101") for c in moravec} == set(ch.BORDERS)
-        pyramid = _check("features.gaussian_pyramid").hidden_cases(rng)
+        pyramid = check_of("features.gaussian_pyramid").hidden_cases(rng)
         assert {c.kwargs.get("upsample", True) for c in pyramid} == {True, False}
-        tree = _check("features.KDTree").hidden_cases(rng)
+        tree = check_of("features.KDTree").hidden_cases(rng)
         assert {c.args[1] for c in tree} == {"query", "query_bbf"}
         assert any(c.args[2].ndim == 1 for c in tree if c.args[1] == "query")
         assert any(c.args[2].ndim == 1 for c in tree if c.args[1] == "query_bbf")
         assert any(c.kwargs.get("max_checks") == 1 for c in tree)
         assert any(c.kwargs.get("max_checks", 0) >= len(c.args[0]) for c in tree)
-        sift = _check("features.sift").hidden_cases(rng)
+        sift = check_of("features.sift").hidden_cases(rng)
         assert {c.kwargs.get("upsample", True) for c in sift} == {True, False}
         assert {c.kwargs.get("scales", 3) for c in sift} == {2, 3}
 
@@ -87,74 +79,34 @@ def test_separating_inputs_are_in_the_hidden_cases():
     """The awkward inputs the mistakes need, whatever the seed."""
     for seed in SEEDS:
         rng = np.random.default_rng(seed)
-        peaks = _check("features.peaks").hidden_cases(rng)
+        peaks = check_of("features.peaks").hidden_cases(rng)
         # a threshold equal to a peak value (≥ instead of >) and plateaus (strict maxima)
         assert any(np.any(np.asarray(c.args[0]) == c.args[1]) for c in peaks)
-        extrema = _check("features.dog_extrema").hidden_cases(rng)
+        extrema = check_of("features.dog_extrema").hidden_cases(rng)
         assert any(np.all(np.mod(s, 1) == 0) for c in extrema for s in c.args[0] if np.abs(s).max() > 0)
-        matches = " | ".join(c.label for c in _check("features.match_ratio").hidden_cases(rng))
+        matches = " | ".join(c.label for c in check_of("features.match_ratio").hidden_cases(rng))
         assert "0.85" in matches and "exactly 0.8" in matches and "d2 = 0" in matches
-        edges = " | ".join(c.label for c in _check("features.is_edge_like").hidden_cases(rng))
+        edges = " | ".join(c.label for c in check_of("features.is_edge_like").hidden_cases(rng))
         assert "saddle" in edges and "between r and" in edges and "45°" in edges
-        orient = " | ".join(c.label for c in _check("features.orientations").hidden_cases(rng))
+        orient = " | ".join(c.label for c in check_of("features.orientations").hidden_cases(rng))
         assert "far from the keypoint" in orient and "two directions" in orient
 
 
 # --------------------------------------------------------------------------------------------
-# right answers pass, wrong ones fail and are named
+# mistakes that hide, a SIFT built of the student's own pieces
 # --------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("algorithm_id", CH05)
-def test_reference_passes(algorithm_id):
-    harness.assert_reference_passes(algorithm_id, SEEDS)
-
-
-class _StubTree:
-    def __init__(self, points):
-        raise NotImplementedError
-
-
-@pytest.mark.parametrize("algorithm_id", CH05)
-def test_stub_scores_zero(algorithm_id):
-    stub = _StubTree if algorithm_id == "features.KDTree" else harness.raising_stub
-    harness.assert_stub_scores_zero(algorithm_id, SEEDS, stub=stub)
-
-
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
-def test_mistake_fails_and_is_named(algorithm_id, name):
-    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=EVERY_ID)
-
-
-EXTRA_ALTERNATIVES = [
-    ("features.orientations", alt.orientations_vectorised),
-    ("features.sift_descriptor", alt.descriptor_vectorised),
-    ("features.KDTree", ch._Tree),  # one point per leaf, cycling axes, heap-based BBF
-]
-
-
-ALTERNATIVE_IDS = list(alt.ALTERNATIVES.items()) + EXTRA_ALTERNATIVES
-
-
-@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS, ids=harness.function_ids(ALTERNATIVE_IDS))
-def test_correct_alternative_passes(algorithm_id, function):
-    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
-
-
-def test_every_algorithm_has_an_alternative():
-    assert set(alt.ALTERNATIVES) == set(CH05)
-
-
 def test_mistakes_hidden_by_natural_images_are_still_caught():
     """On real images, float responses have no plateaus and DoG stacks no ties: strict maxima
     and ≥-comparisons give exactly the right answer there. The hidden cases still catch them."""
     camera = data.resize_half(data.camera())[:96, :96]
     response = cvkit.features.harris(camera)
-    strict = _check("features.peaks").mistake("strict maximum (plateaus dropped)").function
+    strict = check_of("features.peaks").mistake("strict maximum (plateaus dropped)").function
     assert np.array_equal(strict(response, 1e-4), cvkit.features.peaks(response, 1e-4))
     dog = cvkit.features.dog_pyramid(cvkit.features.gaussian_pyramid(camera, octaves=3))
-    ties = _check("features.dog_extrema").mistake("ties accepted (≥ instead of >)").function
+    ties = check_of("features.dog_extrema").mistake("ties accepted (≥ instead of >)").function
     assert np.array_equal(ties(dog, 0.01), cvkit.features.dog_extrema(dog, 0.01))
     for algorithm_id, wrong in (("features.peaks", strict), ("features.dog_extrema", ties)):
-        allowing = dataclasses.replace(_check(algorithm_id), allowed=EVERY_ID)
+        allowing = dataclasses.replace(check_of(algorithm_id), allowed=EVERY_ID)
         for seed in SEEDS:
             assert not evaluate(algorithm_id, wrong, hidden=True, seed=seed, check=allowing).passed
 
@@ -257,7 +209,7 @@ def test_neighbour_search_comparator():
 # grading a class: Check.call
 # --------------------------------------------------------------------------------------------
 def test_kdtree_check_builds_the_class_and_calls_its_methods():
-    spec = _check("features.KDTree")
+    spec = check_of("features.KDTree")
     assert spec.call is instance_call
     calls = []
 
@@ -316,9 +268,7 @@ def test_kdtree_must_not_modify_its_points():
             points.sort(axis=0)  # the student's code sorts the caller's array in place
             super().__init__(points)
 
-    report = evaluate("features.KDTree", Sorting)
-    assert report.score == 0.0
-    assert "modified its input 'points'" in report.cases[0].message
+    harness.assert_scores_zero("features.KDTree", Sorting, "modified its input 'points'")
 
 
 SETUP = textwrap.dedent("""\

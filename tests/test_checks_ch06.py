@@ -1,56 +1,35 @@
-"""The Chapter 6 checks are worth their points: the reference and correct alternatives pass,
-every mistake of every bank fails (public and hidden cases) and is named, mistakes that hide on
-natural inputs are still caught, and the comparators say clearly how outputs differ.
-
-Mistake functions are built on the reference implementations; to grade a mistake *as a
-candidate* the tests allow every reference building block (the guard is tested separately).
-"""
+"""The Chapter 6 checks are worth their points (the tests every chapter owes:
+``checks_harness.ChapterChecks``), mistakes that hide on natural inputs are still caught, and
+the comparators say clearly how outputs differ."""
 from __future__ import annotations
 
 import dataclasses
 import math
 
 import numpy as np
-import pytest
 
 import cvkit.detection
-from cvkit import registry
 from cvkit.detection.checks import HoughVotes, RTableClose, ShapeModelClose, VotesAndBest, moved_votes
 from cvkit.grading import evaluate
 
-try:
-    from . import alternatives_ch06 as alt
-    from . import checks_harness as harness
-    from . import measured_harness
-except ImportError:  # tests/ is not a package: pytest puts it on sys.path
-    import alternatives_ch06 as alt
-    import checks_harness as harness
-    import measured_harness
+import alternatives_ch06 as alt
+import checks_harness as harness
+import measured_harness
+from checks_harness import EVERY_ID, SEEDS, check_of
 
-SEEDS = (101, 202, 303)
 CH06 = [
     "detection.match_template", "detection.best_match", "detection.shape_model", "detection.shape_match",
     "detection.hough_lines", "detection.hough_peaks", "detection.ght_build", "detection.ght_detect",
 ]
-EVERY_ID = tuple(a.id for a in registry.algorithms())
 #: the measured exercise (§6.0.5): graded by the F1 of the lines it finds
 LINES = "detection.find_lines"
-_check = harness.check_of
-MISTAKES = harness.mistakes_of(CH06)
 
 
-def test_every_detection_algorithm_has_a_check():
-    assert sorted(a.id for a in registry.algorithms() if a.module == "detection") == sorted(CH06 + [LINES])
-
-
-@pytest.mark.parametrize("algorithm_id", CH06)
-def test_check_is_complete(algorithm_id):
-    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14), min_mistakes=4)
-
-
-@pytest.mark.parametrize("algorithm_id", CH06)
-def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
-    harness.assert_hidden_cases_reproducible(_check(algorithm_id), harness.describe_and_array_args)
+class TestChapter06(harness.WholeModuleChecks):
+    IDS = CH06
+    MEASURED = (LINES,)
+    MISTAKES_MAY_CALL = EVERY_ID
+    ALTERNATIVES = alt.ALTERNATIVES
 
 
 def _option(case, name, index, default):
@@ -60,13 +39,13 @@ def _option(case, name, index, default):
 def test_hidden_cases_use_every_option_value():
     for seed in SEEDS:
         rng = np.random.default_rng(seed)
-        tm = _check("detection.match_template").hidden_cases(rng)
+        tm = check_of("detection.match_template").hidden_cases(rng)
         assert {_option(c, "measure", 2, "zncc") for c in tm} == {"ssd", "sad", "ncc", "zncc"}
-        bm = _check("detection.best_match").hidden_cases(rng)
+        bm = check_of("detection.best_match").hidden_cases(rng)
         assert {c.args[1] for c in bm} == {"ssd", "sad", "ncc", "zncc"}
-        sm = _check("detection.shape_match").hidden_cases(rng)
+        sm = check_of("detection.shape_match").hidden_cases(rng)
         assert {_option(c, "polarity", 2, "none") for c in sm} == {"none", "global", "local"}
-        gd = _check("detection.ght_detect").hidden_cases(rng)
+        gd = check_of("detection.ght_detect").hidden_cases(rng)
         assert any(len(_option(c, "angles", 3, (0.0,))) > 1 for c in gd)
         assert any(len(_option(c, "scales", 2, (1.0,))) > 1 for c in gd)
 
@@ -77,43 +56,18 @@ def test_separating_inputs_are_in_the_hidden_cases():
     rounding), votes equal to the threshold (peaks), reference points on half pixels (GHT)."""
     for seed in SEEDS:
         rng = np.random.default_rng(seed)
-        labels = " | ".join(c.label for c in _check("detection.match_template").hidden_cases(rng))
+        labels = " | ".join(c.label for c in check_of("detection.match_template").hidden_cases(rng))
         assert "constant windows" in labels and "all-zero" in labels
-        bm = _check("detection.best_match").hidden_cases(rng)
+        bm = check_of("detection.best_match").hidden_cases(rng)
         assert any("tied" in c.label for c in bm)
-        sm = _check("detection.shape_model").hidden_cases(rng)
+        sm = check_of("detection.shape_model").hidden_cases(rng)
         assert any(np.any(np.hypot(*cvkit.edges.sobel(c.args[0])) == c.args[1]) for c in sm)
-        hl = _check("detection.hough_lines").hidden_cases(rng)
+        hl = check_of("detection.hough_lines").hidden_cases(rng)
         assert any("exact halves" in c.label for c in hl)
-        hp = _check("detection.hough_peaks").hidden_cases(rng)
+        hp = check_of("detection.hough_peaks").hidden_cases(rng)
         assert any("threshold" in c.kwargs and np.any(np.asarray(c.args[0]) == c.kwargs["threshold"]) for c in hp)
-        gd = _check("detection.ght_detect").hidden_cases(rng)
+        gd = check_of("detection.ght_detect").hidden_cases(rng)
         assert any("half pixels" in c.label for c in gd)
-
-
-@pytest.mark.parametrize("algorithm_id", CH06)
-def test_reference_passes(algorithm_id):
-    harness.assert_reference_passes(algorithm_id, SEEDS)
-
-
-@pytest.mark.parametrize("algorithm_id", CH06)
-def test_stub_scores_zero(algorithm_id):
-    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
-
-
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
-def test_mistake_fails_and_is_named(algorithm_id, name):
-    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=EVERY_ID)
-
-
-@pytest.mark.parametrize(("algorithm_id", "function"), list(alt.ALTERNATIVES.items()),
-                         ids=harness.function_ids(alt.ALTERNATIVES.items()))
-def test_correct_alternative_passes(algorithm_id, function):
-    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
-
-
-def test_every_algorithm_has_an_alternative():
-    assert set(alt.ALTERNATIVES) == set(CH06)
 
 
 def test_a_mistake_hidden_by_natural_images_is_still_caught():
@@ -123,10 +77,10 @@ def test_a_mistake_hidden_by_natural_images_is_still_caught():
 
     img = data.camera()[100:180, 150:250]
     tpl = img[30:45, 40:60]
-    wrong = _check("detection.match_template").mistake("image mean subtracted instead of each window's mean").function
+    wrong = check_of("detection.match_template").mistake("image mean subtracted instead of each window's mean").function
     assert cvkit.detection.best_match(wrong(img, tpl), "zncc") == cvkit.detection.best_match(
         cvkit.detection.match_template(img, tpl), "zncc")
-    allowing = dataclasses.replace(_check("detection.match_template"), allowed=EVERY_ID)
+    allowing = dataclasses.replace(check_of("detection.match_template"), allowed=EVERY_ID)
     for seed in SEEDS:
         assert not evaluate("detection.match_template", wrong, hidden=True, seed=seed, check=allowing).passed
 

@@ -1,12 +1,6 @@
-"""The Chapter 7 checks are worth their points: the reference and correct alternatives pass,
-every mistake of every bank fails and is named, the comparators say what is wrong, and the
-guard catches what it should.
-
-Mistake functions of the banks are built on the reference implementations (they run under
-the reference provider when the grader compares outputs). To grade a mistake *as a candidate*
-the tests therefore allow every reference building block (``allowed=`` all Ch. 7 ids); the
-guard itself is tested separately below on the checks as registered.
-"""
+"""The Chapter 7 checks are worth their points (the tests every chapter owes:
+``checks_harness.ChapterChecks``; a mistake may call every Ch. 7 id), the comparators say what
+is wrong, and the guard catches what it should on the checks as registered."""
 from __future__ import annotations
 
 import numpy as np
@@ -17,18 +11,26 @@ from cvkit import registry
 from cvkit.camera.checks import FloatClose, Parts
 from cvkit.grading import evaluate
 
-try:
-    from . import alternatives_ch07 as alt
-    from . import checks_harness as harness
-except ImportError:  # tests/ is not a package: pytest puts it on sys.path
-    import alternatives_ch07 as alt
-    import checks_harness as harness
+import alternatives_ch07 as alt
+import checks_harness as harness
+from checks_harness import SEEDS, hidden_cases
 
-SEEDS = (101, 202, 303)
 CH07 = [f"camera.{name}" for name in cvkit.camera.__all__]
-_check = harness.check_of
-_hidden = harness.hidden_cases
-MISTAKES = harness.mistakes_of(CH07)
+
+
+def _reprs(case):
+    """The values of a case's arguments as text (arrays, lists and tuples through ``tolist``)."""
+    return tuple(repr(np.asarray(v, dtype=object).tolist()) if isinstance(v, (np.ndarray, list, tuple)) else repr(v)
+                 for v in list(case.args) + list(case.kwargs.values()))
+
+
+class TestChapter07(harness.ChapterChecks):
+    IDS = CH07
+    ALTERNATIVES = alt.ALTERNATIVES
+    EXTRA_ALTERNATIVES = alt.EXTRA_ALTERNATIVES
+
+    def fingerprint(self, case):
+        return _reprs(case)
 
 
 # --------------------------------------------------------------------------------------------
@@ -46,22 +48,6 @@ def test_every_catalog_id_of_the_chapter_is_registered_with_its_section():
         assert record.section == section and record.reference is getattr(cvkit.camera, name)
 
 
-@pytest.mark.parametrize("algorithm_id", CH07)
-def test_check_is_complete(algorithm_id):
-    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14), min_mistakes=4)
-
-
-def _reprs(case):
-    """The values of a case's arguments as text (arrays, lists and tuples through ``tolist``)."""
-    return tuple(repr(np.asarray(v, dtype=object).tolist()) if isinstance(v, (np.ndarray, list, tuple)) else repr(v)
-                 for v in list(case.args) + list(case.kwargs.values()))
-
-
-@pytest.mark.parametrize("algorithm_id", CH07)
-def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
-    harness.assert_hidden_cases_reproducible(_check(algorithm_id), _reprs)
-
-
 def _arrays(case):
     return [np.asarray(v) for v in case.args if isinstance(v, np.ndarray)]
 
@@ -70,7 +56,7 @@ def _arrays(case):
 def test_hidden_cases_include_awkward_inputs(algorithm_id):
     """Integer dtypes and single points wherever points or matrices go in."""
     for seed in SEEDS:
-        cases = _hidden(algorithm_id, seed)
+        cases = hidden_cases(algorithm_id, seed)
         if algorithm_id in ("camera.intrinsic_matrix", "camera.rotation_matrix"):
             assert any(all(isinstance(a, (int, np.integer)) for a in c.args) for c in cases)
             continue
@@ -83,7 +69,7 @@ def test_hidden_cases_include_awkward_inputs(algorithm_id):
 @pytest.mark.parametrize("algorithm_id", ["camera.distort", "camera.undistort_points", "camera.project_full"])
 def test_hidden_cases_use_every_number_of_coefficients(algorithm_id):
     for seed in SEEDS:
-        cases = _hidden(algorithm_id, seed)
+        cases = hidden_cases(algorithm_id, seed)
         index = 4 if algorithm_id == "camera.project_full" else 1
         lengths = {np.size(c.args[index]) for c in cases if len(c.args) > index}
         assert lengths == {1, 2, 3}
@@ -93,7 +79,7 @@ def test_hidden_cases_use_every_number_of_coefficients(algorithm_id):
 
 def test_hidden_cases_of_decompose_use_both_signs_and_extreme_scales():
     for seed in SEEDS:
-        dets = [np.linalg.det(np.asarray(c.args[0], dtype=float)[:, :3]) for c in _hidden("camera.decompose_projection", seed)]
+        dets = [np.linalg.det(np.asarray(c.args[0], dtype=float)[:, :3]) for c in hidden_cases("camera.decompose_projection", seed)]
         assert any(d > 0 for d in dets) and any(d < 0 for d in dets)
         scales = [abs(d) ** (1 / 3) for d in dets]
         assert min(scales) < 1e-3 and max(scales) > 1e7
@@ -101,42 +87,12 @@ def test_hidden_cases_of_decompose_use_both_signs_and_extreme_scales():
 
 def test_hidden_cases_of_project_include_infinity_and_homogeneous_input():
     for seed in SEEDS:
-        cases = _hidden("camera.project", seed)
+        cases = hidden_cases("camera.project", seed)
         outputs = [cvkit.camera.project(*c.args) for c in cases]
         assert any(np.asarray(c.args[1]).shape[1] == 4 and np.any(np.asarray(c.args[1])[:, 3] == 0) for c in cases)
         assert any(not np.all(np.isfinite(o)) for o in outputs)
         dets = [np.linalg.det(np.asarray(c.args[0], dtype=float)[:, :3]) for c in cases]
         assert any(d < 0 for d in dets)
-
-
-# --------------------------------------------------------------------------------------------
-# right answers pass, wrong ones fail and are named
-# --------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("algorithm_id", CH07)
-def test_reference_passes(algorithm_id):
-    harness.assert_reference_passes(algorithm_id, SEEDS)
-
-
-@pytest.mark.parametrize("algorithm_id", CH07)
-def test_stub_scores_zero(algorithm_id):
-    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
-
-
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
-def test_mistake_fails_and_is_named(algorithm_id, name):
-    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=CH07)
-
-
-ALTERNATIVE_IDS = list(alt.ALTERNATIVES.items()) + list(alt.EXTRA_ALTERNATIVES)
-
-
-@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS, ids=harness.function_ids(ALTERNATIVE_IDS))
-def test_correct_alternative_passes(algorithm_id, function):
-    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
-
-
-def test_every_algorithm_has_an_alternative():
-    assert set(alt.ALTERNATIVES) == set(CH07)
 
 
 # --------------------------------------------------------------------------------------------
@@ -193,9 +149,7 @@ def test_opencv_is_forbidden_and_named():
                                    np.array([k[0], k[1], p[0], p[1], k[2]], dtype=float))
         return out[:, 0]
 
-    report = evaluate("camera.project_full", project_full)
-    assert report.score == 0.0
-    assert all("cv2" in c.message for c in report.cases), report.text()
+    harness.assert_scores_zero("camera.project_full", project_full, "cv2", every_case=True)
 
 
 def test_calling_the_reference_is_forbidden_but_building_blocks_are_allowed():
@@ -227,9 +181,7 @@ def test_modifying_the_input_fails():
         points_h[..., :-1] /= points_h[..., -1:]   # in place: the caller's array changes
         return np.asarray(points_h[..., :-1], dtype=float)
 
-    report = evaluate("camera.from_homogeneous", from_homogeneous)
-    assert report.score == 0.0
-    assert "modified its input" in report.cases[0].message
+    harness.assert_scores_zero("camera.from_homogeneous", from_homogeneous, "modified its input")
 
 
 def test_integer_output_is_refused_and_named():

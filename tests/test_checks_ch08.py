@@ -1,12 +1,7 @@
-"""The Chapter 8 checks are worth their points: the reference and correct alternatives pass,
-every mistake of every bank fails and is named, the comparators say what is wrong, and the
-guard catches what it should.
-
-Mistake functions of the banks are built on the reference implementations (they run under
-the reference provider when the grader compares outputs). To grade a mistake *as a candidate*
-the tests therefore allow every reference building block; the guard itself is tested
-separately below on the checks as registered.
-"""
+"""The Chapter 8 checks are worth their points (the tests every chapter owes:
+``checks_harness.ChapterChecks``), the corner steps are graded by what they are for, the
+comparators say what is wrong, and the guard catches what it should on the checks as
+registered."""
 from __future__ import annotations
 
 import copy
@@ -22,21 +17,41 @@ from cvkit.calibration.checks import CalibrationClose, CornersClose, HomographyC
 from cvkit.grading import Case, evaluate
 from cvkit.warp.checks import WarpClose
 
-try:
-    from . import alternatives_ch08 as alt
-    from . import checks_harness as harness
-except ImportError:  # tests/ is not a package: pytest puts it on sys.path
-    import alternatives_ch08 as alt
-    import checks_harness as harness
+import alternatives_ch08 as alt
+import checks_harness as harness
+from checks_harness import SEEDS, check_of, hidden_cases, reference_of
 
-SEEDS = (101, 202, 303)
 CH08 = [f"calibration.{name}" for name in cvkit.calibration.__all__] + [f"warp.{name}" for name in cvkit.warp.__all__]
 BLOCKS = tuple(CH08) + tuple(f"camera.{n}" for n in ("distort", "undistort_points", "project_full", "rotation_matrix")) + (
     "filters.gaussian",)
-_check = harness.check_of
-_reference = harness.reference_of
-_hidden = harness.hidden_cases
-MISTAKES = harness.mistakes_of(CH08)
+
+
+def _reprs(case):
+    """The values of a case's arguments as text (dicts sorted by key; arrays, lists and tuples
+    through ``tolist``)."""
+    out = []
+    for value in list(case.args) + list(case.kwargs.values()):
+        if isinstance(value, dict):
+            out.append(repr(sorted((k, np.asarray(v).tolist()) for k, v in value.items())))
+        elif isinstance(value, (np.ndarray, list, tuple)):
+            out.append(repr(np.asarray(value, dtype=object).tolist()))
+        else:
+            out.append(repr(value))
+    return tuple(out)
+
+
+class TestChapter08(harness.ChapterChecks):
+    IDS = CH08
+    MISTAKES_MAY_CALL = BLOCKS
+    ALTERNATIVES = alt.ALTERNATIVES
+
+    def fingerprint(self, case):
+        return _reprs(case)
+
+    def reference_check(self, algorithm_id):
+        # graded through a Check.call adapter, the reference counts as calling itself
+        spec = check_of(algorithm_id)
+        return harness.allowing_itself(spec, algorithm_id) if spec.call else None
 
 
 # --------------------------------------------------------------------------------------------
@@ -62,47 +77,23 @@ def test_every_catalog_id_of_the_chapter_is_registered_with_its_section():
         assert record.reference is getattr(getattr(cvkit, module), name)
 
 
-@pytest.mark.parametrize("algorithm_id", CH08)
-def test_check_is_complete(algorithm_id):
-    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14), min_mistakes=4)
-
-
-def _reprs(case):
-    """The values of a case's arguments as text (dicts sorted by key; arrays, lists and tuples
-    through ``tolist``)."""
-    out = []
-    for value in list(case.args) + list(case.kwargs.values()):
-        if isinstance(value, dict):
-            out.append(repr(sorted((k, np.asarray(v).tolist()) for k, v in value.items())))
-        elif isinstance(value, (np.ndarray, list, tuple)):
-            out.append(repr(np.asarray(value, dtype=object).tolist()))
-        else:
-            out.append(repr(value))
-    return tuple(out)
-
-
-@pytest.mark.parametrize("algorithm_id", CH08)
-def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
-    harness.assert_hidden_cases_reproducible(_check(algorithm_id), _reprs)
-
-
 def test_hidden_cases_are_small():
     """A student's plain version must finish fast: few views and points, small images."""
     for seed in SEEDS:
-        for case in _hidden("calibration.calibrate", seed):
+        for case in hidden_cases("calibration.calibrate", seed):
             world, images = case.args
             assert len(images) <= 5 and len(world) <= 24
-        for case in _hidden("calibration.find_chessboard_corners", seed):
+        for case in hidden_cases("calibration.find_chessboard_corners", seed):
             assert np.asarray(case.args[0]).shape[0] * np.asarray(case.args[0]).shape[1] <= 130 * 170
         for algorithm_id in ("warp.warp_homography", "warp.undistort_image", "warp.bilinear_sample"):
-            for case in _hidden(algorithm_id, seed):
+            for case in hidden_cases(algorithm_id, seed):
                 assert np.asarray(case.args[0]).size <= 30 * 30 * 3
 
 
 def test_hidden_cases_separate_the_dlt_mistakes():
     """Noisy, clustered pixel coordinates in the thousands; four points; normalize=False."""
     for seed in SEEDS:
-        cases = _hidden("calibration.homography_dlt", seed)
+        cases = hidden_cases("calibration.homography_dlt", seed)
         assert any(np.asarray(c.args[1], dtype=float).min() > 1000 for c in cases)
         assert any(len(c.args[0]) == 4 for c in cases)
         assert any(c.kwargs.get("normalize") is False for c in cases)
@@ -111,56 +102,27 @@ def test_hidden_cases_separate_the_dlt_mistakes():
 
 def test_hidden_cases_cover_the_awkward_inputs():
     for seed in SEEDS:
-        rng_cases = _hidden("calibration.intrinsics_from_homographies", seed)
+        rng_cases = hidden_cases("calibration.intrinsics_from_homographies", seed)
         assert any(len(c.args[0]) == 3 for c in rng_cases)                       # the minimum
         assert any(abs(np.asarray(c.args[0][0], dtype=float)).max() < 1e-3 for c in rng_cases)  # tiny scales
-        eh = _hidden("calibration.extrinsics_from_homography", seed)
+        eh = hidden_cases("calibration.extrinsics_from_homography", seed)
         dets = [np.linalg.det(np.asarray(c.args[1], dtype=float)) for c in eh]
         assert any(d < 0 for d in dets) and any(d > 0 for d in dets)             # both signs of H
-        corners = _hidden("calibration.find_chessboard_corners", seed)
-        expected = [_reference("calibration.find_chessboard_corners")(*c.args) for c in corners]
+        corners = hidden_cases("calibration.find_chessboard_corners", seed)
+        expected = [reference_of("calibration.find_chessboard_corners")(*c.args) for c in corners]
         assert sum(e is None for e in expected) >= 3 and sum(e is not None for e in expected) >= 8
         kinds = {np.asarray(c.args[0]).dtype.kind for c in corners}
         assert {"u", "f"} <= kinds and any(np.ndim(c.args[0]) == 3 for c in corners)
-        samples = _hidden("warp.bilinear_sample", seed)
+        samples = hidden_cases("warp.bilinear_sample", seed)
         assert any(np.asarray(c.args[0]).dtype == np.uint8 for c in samples)
         assert any(np.isnan(np.asarray(c.args[1], dtype=float)).any() for c in samples)
-        warps = _hidden("warp.undistort_image", seed)
+        warps = hidden_cases("warp.undistort_image", seed)
         assert {len(np.atleast_1d(c.args[2])) for c in warps} == {1, 2, 3}
 
 
 # --------------------------------------------------------------------------------------------
-# right answers pass, wrong ones fail and are named
+# the harness itself, and alternatives over many draws
 # --------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("algorithm_id", CH08)
-def test_reference_passes(algorithm_id):
-    spec = _check(algorithm_id)
-    # Through a Check.call adapter the guard sees the adapter as the candidate's code, so the
-    # reference graded as a candidate counts as "calling the reference": allow it here.
-    check = harness.allowing_itself(spec, algorithm_id) if spec.call else None
-    harness.assert_reference_passes(algorithm_id, SEEDS, check=check)
-
-
-@pytest.mark.parametrize("algorithm_id", CH08)
-def test_stub_scores_zero(algorithm_id):
-    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
-
-
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
-def test_mistake_fails_and_is_named(algorithm_id, name):
-    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=BLOCKS)
-
-
-@pytest.mark.parametrize(("algorithm_id", "function"), list(alt.ALTERNATIVES.items()),
-                         ids=list(alt.ALTERNATIVES))
-def test_correct_alternative_passes(algorithm_id, function):
-    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
-
-
-def test_every_algorithm_has_an_alternative():
-    assert set(alt.ALTERNATIVES) == set(CH08)
-
-
 def test_the_harness_keeps_a_draw_as_the_same_cases():
     """The tests reuse slow draws of hidden cases (checks_harness._Draws): a kept draw is the
     same cases as a fresh one, and each use gets its own copy."""
@@ -189,7 +151,7 @@ def test_alternative_detector_passes_many_seeds():
 # the reference's passes although its output differs; a wrong one fails
 # --------------------------------------------------------------------------------------------
 def _cases(algorithm_id, seed):
-    spec = _check(algorithm_id)
+    spec = check_of(algorithm_id)
     return spec.public_cases() if seed is None else spec.hidden_cases(np.random.default_rng(seed))
 
 
@@ -197,8 +159,8 @@ def test_a_harris_corner_detector_passes_corner_candidates():
     """Harris peaks moved to the most X-like pixel and refined by a saddle fit: sub-pixel points,
     other pixels and another order than the reference's, yet every inner corner is found."""
     harness.assert_passes_everywhere("calibration.corner_candidates", alt.corner_candidates_harris, SEEDS)
-    reference = _reference("calibration.corner_candidates")
-    compare = _check("calibration.corner_candidates").compare
+    reference = reference_of("calibration.corner_candidates")
+    compare = check_of("calibration.corner_candidates").compare
     differ = 0
     for seed in (None,) + SEEDS:
         for case in _cases("calibration.corner_candidates", seed):
@@ -220,7 +182,7 @@ def test_a_detector_that_keeps_every_harris_peak_fails_corner_candidates():
 
 
 def test_corner_candidates_are_judged_against_the_rendered_corners():
-    compare = _check("calibration.corner_candidates").compare
+    compare = check_of("calibration.corner_candidates").compare
     case = _cases("calibration.corner_candidates", None)[0]
     corners, lines = case.truth
     count = case.args[1]
@@ -243,8 +205,8 @@ def test_a_grid_grown_another_way_passes_grow_grid():
     directions: the same board, so it passes, though its answers differ from the reference's
     where the seed is a stray (not graded)."""
     harness.assert_passes_everywhere("calibration.grow_grid", alt.grow_grid_wide, SEEDS)
-    reference = _reference("calibration.grow_grid")
-    compare = _check("calibration.grow_grid").compare
+    reference = reference_of("calibration.grow_grid")
+    compare = check_of("calibration.grow_grid").compare
     differ = sum(compare._same(alt.grow_grid_wide(*case.args), reference(*case.args)) is not None
                  for seed in (None,) + SEEDS for case in _cases("calibration.grow_grid", seed))
     assert differ >= 1
@@ -262,8 +224,8 @@ def test_a_gradient_orthogonality_refinement_passes_refine_corners():
     from the reference's by more than the former tolerance (0.01 px on average), yet they are
     as close to the corners the renderer drew."""
     harness.assert_passes_everywhere("calibration.refine_corners", alt.refine_corners_subpix, SEEDS)
-    reference = _reference("calibration.refine_corners")
-    compare = _check("calibration.refine_corners").compare
+    reference = reference_of("calibration.refine_corners")
+    compare = check_of("calibration.refine_corners").compare
     former = PointsClose(mean=0.01, maximum=0.05)
     differ = sum(former(alt.refine_corners_subpix(*case.args), reference(*case.args), case) is not None
                  for seed in (None,) + SEEDS for case in _cases("calibration.refine_corners", seed))
@@ -278,7 +240,7 @@ def test_a_gradient_orthogonality_refinement_passes_refine_corners():
 
 
 def test_find_chessboard_corners_is_judged_against_the_rendered_corners():
-    compare = _check("calibration.find_chessboard_corners").compare
+    compare = check_of("calibration.find_chessboard_corners").compare
     case = _cases("calibration.find_chessboard_corners", None)[0]
     truth = case.truth
     rng = np.random.default_rng(1)
@@ -294,7 +256,7 @@ def test_find_chessboard_corners_is_judged_against_the_rendered_corners():
 
 
 def test_grow_grid_is_judged_by_the_board_not_the_reference():
-    compare = _check("calibration.grow_grid").compare
+    compare = check_of("calibration.grow_grid").compare
     case = next(c for c in _cases("calibration.grow_grid", None) if not isinstance(c.truth, str))
     labels, positions, step = case.truth
     points = np.asarray(case.args[0], dtype=np.float64)
@@ -311,7 +273,7 @@ def test_grow_grid_is_judged_by_the_board_not_the_reference():
 
 
 def reference_grid(case):
-    return _reference("calibration.grow_grid")(*case.args)
+    return reference_of("calibration.grow_grid")(*case.args)
 
 
 # --------------------------------------------------------------------------------------------
@@ -406,9 +368,9 @@ def test_optimiser_cases_cross_the_wire_as_plain_data():
     from cvkit.grading.runtime.problems import least_squares_call
     from cvkit.grading import wire
 
-    spec = _check("calibration.levenberg_marquardt")
+    spec = check_of("calibration.levenberg_marquardt")
     assert spec.call is least_squares_call
-    for case in spec.public_cases() + _hidden("calibration.levenberg_marquardt", 11):
+    for case in spec.public_cases() + hidden_cases("calibration.levenberg_marquardt", 11):
         args, kwargs = wire.loads(wire.dumps(case.args)), wire.loads(wire.dumps(case.kwargs))
         assert type(args[0]) is dict
         x, info = least_squares_call(cvkit.calibration.levenberg_marquardt, *args, **kwargs)
@@ -418,7 +380,7 @@ def test_optimiser_cases_cross_the_wire_as_plain_data():
 
 
 def test_problems_are_data_copies_and_rebuild_from_plain_dicts():
-    for case in _hidden("calibration.levenberg_marquardt", 5):
+    for case in hidden_cases("calibration.levenberg_marquardt", 5):
         problem = case.args[0]
         assert isinstance(problem, Residuals) and isinstance(problem, dict)
         x = np.asarray(case.args[1], dtype=float)
@@ -447,9 +409,7 @@ def test_opencv_is_forbidden_and_named():
         H, _ = cv2.findHomography(np.asarray(src, dtype=float), np.asarray(dst, dtype=float), 0)
         return H / H[2, 2]
 
-    report = evaluate("calibration.homography_dlt", homography_dlt)
-    assert report.score == 0.0
-    assert all("cv2" in c.message for c in report.cases), report.text()
+    harness.assert_scores_zero("calibration.homography_dlt", homography_dlt, "cv2", every_case=True)
 
 
 def test_scipy_optimize_is_forbidden():

@@ -1,11 +1,7 @@
-"""The Chapter 9–10 checks (``cvkit.learn``) are worth their points: the reference and correct
-alternatives pass, every mistake of every bank fails the public AND the hidden cases and is
-named, the random algorithms are judged by their results (another correct run with other
-draws passes), and the guard catches what it should.
-
-Mistake functions are built on the reference implementations; to grade a mistake *as a
-candidate* the tests allow every reference building block (``allowed=`` all learn ids).
-"""
+"""The Chapter 9–10 checks (``cvkit.learn``) are worth their points (the tests every chapter
+owes: ``checks_harness.ChapterChecks``; a mistake may call every learn id), the random
+algorithms are judged by their results (another correct run with other draws passes), and the
+guard catches what it should."""
 from __future__ import annotations
 
 import dataclasses
@@ -18,50 +14,45 @@ from cvkit import registry
 from cvkit.grading import evaluate
 from cvkit.learn import checks
 
-try:
-    from . import alternatives_ch09 as alt
-    from . import checks_harness as harness
-    from . import measured_harness
-except ImportError:  # tests/ is not a package: pytest puts it on sys.path
-    import alternatives_ch09 as alt
-    import checks_harness as harness
-    import measured_harness
+import alternatives_ch09 as alt
+import checks_harness as harness
+import measured_harness
+from checks_harness import SEEDS, check_of, reference_of
 
-SEEDS = (101, 202, 303)
 LEARN = [
     "learn.linear_scores", "learn.softmax", "learn.cross_entropy", "learn.linear_loss_and_grad",
     "learn.numerical_gradient", "learn.sgd_train", "learn.top_k_accuracy", "learn.knn_predict",
     "learn.kmeans", "learn.bovw_histogram",
 ]
-TRIVIAL = {"learn.linear_scores"}
-_check = harness.check_of
-_reference = harness.reference_of
-MISTAKES = harness.mistakes_of(LEARN)
 #: the measured exercise (§9.8.5): graded by the accuracy it reaches, not value by value
 MEASURED = ["learn.train_digit_classifier"]
+
+
+class TestChapter09(harness.ChapterChecks):
+    IDS = LEARN
+    TRIVIAL = frozenset({"learn.linear_scores"})
+    ALTERNATIVES = alt.ALTERNATIVES
+    EXTRA_ALTERNATIVES = list(alt.EXTRA_ALTERNATIVES.items())
+
+    def fingerprint(self, case):
+        return harness.describe_and_arrays(case)
+
+    def reference_check(self, algorithm_id):
+        # graded through the check's ``call`` adapter, the guard sees the adapter (not the
+        # candidate) as the student's code: the reference may call only itself
+        spec = check_of(algorithm_id)
+        return spec if spec.call is None else harness.allowing(spec, (algorithm_id,))
 
 
 # --------------------------------------------------------------------------------------------
 # the shape of every check
 # --------------------------------------------------------------------------------------------
 def test_every_learn_id_is_registered_with_its_check():
-    ids = sorted(a.id for a in registry.algorithms() if a.module == "learn")
-    assert ids == sorted(LEARN + MEASURED)
+    harness.assert_ids_are_the_module(LEARN + MEASURED, "learn")
     for aid in LEARN + MEASURED:
         name = aid.split(".")[1]
         assert registry.get(aid).check is getattr(checks, name)
         assert registry.get(aid).reference is getattr(cvkit.learn, name)
-
-
-@pytest.mark.parametrize("algorithm_id", LEARN)
-def test_check_is_complete(algorithm_id):
-    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14),
-                                     min_mistakes=3 if algorithm_id in TRIVIAL else 4)
-
-
-@pytest.mark.parametrize("algorithm_id", LEARN)
-def test_hidden_cases_are_reproducible(algorithm_id):
-    harness.assert_hidden_cases_reproducible(_check(algorithm_id), harness.describe_and_arrays)
 
 
 def test_the_issue_s_separating_inputs_are_in_the_hidden_cases():
@@ -85,52 +76,20 @@ def test_the_issue_s_separating_inputs_are_in_the_hidden_cases():
 
 
 # --------------------------------------------------------------------------------------------
-# right answers pass, wrong ones fail and are named
+# random algorithms are judged by their results
 # --------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("algorithm_id", LEARN)
-def test_reference_passes(algorithm_id):
-    spec = _check(algorithm_id)
-    if spec.call is not None:
-        # graded through the check's ``call`` adapter, the guard sees the adapter (not the
-        # candidate) as the student's code, so the reference must be allowed to grade itself
-        spec = harness.allowing(spec, (algorithm_id,))
-    harness.assert_reference_passes(algorithm_id, SEEDS, check=spec)
-
-
-@pytest.mark.parametrize("algorithm_id", LEARN)
-def test_stub_scores_zero(algorithm_id):
-    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
-
-
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
-def test_mistake_fails_and_is_named(algorithm_id, name):
-    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=LEARN)
-
-
-ALTERNATIVE_IDS = list(alt.ALTERNATIVES.items()) + list(alt.EXTRA_ALTERNATIVES.items())
-
-
-@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS, ids=harness.function_ids(ALTERNATIVE_IDS))
-def test_correct_alternative_passes(algorithm_id, function):
-    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
-
-
-def test_every_algorithm_has_an_alternative():
-    assert set(alt.ALTERNATIVES) == set(LEARN)
-
-
 @pytest.mark.parametrize("algorithm_id", ["learn.sgd_train", "learn.kmeans"])
 def test_random_algorithms_are_judged_by_results_not_draws(algorithm_id):
     """The reference run with another seed than the case's (other shuffles, other seeding) and
     the alternative (other sampling scheme) pass on many hidden draws."""
-    reference = _reference(algorithm_id)
+    reference = reference_of(algorithm_id)
 
     def other_draws(*args, **kwargs):
         kwargs = dict(kwargs)
         kwargs["rng"] = np.random.default_rng(None if kwargs.get("rng") is None else int(kwargs["rng"]) + 12345)
         return reference(*args, **kwargs)
 
-    allowing = dataclasses.replace(_check(algorithm_id), allowed=(algorithm_id,))
+    allowing = dataclasses.replace(check_of(algorithm_id), allowed=(algorithm_id,))
     for seed in range(10):
         for candidate in (other_draws, alt.ALTERNATIVES[algorithm_id]):
             report = evaluate(algorithm_id, candidate, hidden=True, seed=5000 + seed, check=allowing)
@@ -197,9 +156,7 @@ def test_calling_the_reference_is_forbidden_and_named():
     def softmax(scores):
         return cvkit.learn.softmax(scores)
 
-    report = evaluate("learn.softmax", softmax)
-    assert report.score == 0.0
-    assert "'learn.softmax'" in report.cases[0].message
+    harness.assert_scores_zero("learn.softmax", softmax, "'learn.softmax'")
 
 
 def test_sklearn_is_forbidden_and_named():
@@ -209,9 +166,7 @@ def test_sklearn_is_forbidden_and_named():
         p = 2 if metric == "l2" else 1
         return KNeighborsClassifier(k, p=p).fit(X_train, y_train).predict(X_test)
 
-    report = evaluate("learn.knn_predict", knn_predict)
-    assert report.score == 0.0
-    assert all("sklearn" in c.message for c in report.cases), report.text()
+    harness.assert_scores_zero("learn.knn_predict", knn_predict, "sklearn", every_case=True)
 
 
 def test_building_blocks_may_be_called_in_the_loss_and_in_sgd():

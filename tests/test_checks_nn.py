@@ -1,10 +1,6 @@
-"""The Chapter 10–11 checks (``cvkit.nn``) are worth their points: the reference and correct
-alternatives pass, every mistake of every bank fails and is named, a stub scores 0, and the
-special comparators (nested caches, integers, dropout statistics) say what is wrong.
-
-Mistake functions are built on the reference layers; to grade a mistake *as a candidate* the
-tests allow every reference building block (``allowed=`` all ``nn`` ids).
-"""
+"""The Chapter 10–11 checks (``cvkit.nn``) are worth their points (the tests every chapter owes:
+``checks_harness.ChapterChecks``; a mistake may call every ``nn`` id), and the special
+comparators (nested caches, integers, dropout statistics) say what is wrong."""
 from __future__ import annotations
 
 import dataclasses
@@ -17,14 +13,10 @@ from cvkit import registry
 from cvkit.grading import evaluate
 from cvkit.grading.runtime.wire import dumps
 
-try:
-    from . import alternatives_nn as alt
-    from . import checks_harness as harness
-except ImportError:  # tests/ is not a package: pytest puts it on sys.path
-    import alternatives_nn as alt
-    import checks_harness as harness
+import alternatives_nn as alt
+import checks_harness as harness
+from checks_harness import SEEDS, check_of, reference_of
 
-SEEDS = (101, 202, 303)
 NN = [
     "nn.relu_forward", "nn.relu_backward", "nn.sigmoid_forward", "nn.sigmoid_backward",
     "nn.leaky_relu_forward", "nn.leaky_relu_backward", "nn.linear_forward", "nn.linear_backward",
@@ -34,67 +26,29 @@ NN = [
     "nn.dropout_forward", "nn.dropout_backward", "nn.residual_block_forward", "nn.residual_block_backward",
     "nn.architecture_spec", "nn.count_parameters", "nn.count_flops",
 ]
-_check = harness.check_of
-_reference = harness.reference_of
-MISTAKES = harness.mistakes_of(NN)
+
+
+class TestChapterNN(harness.ChapterChecks):
+    IDS = NN
+    MIN_MISTAKES = 3
+    MAX_NAME_LENGTH = 75
+    ALTERNATIVES = alt.ALTERNATIVES
+    EXTRA_ALTERNATIVES = list(alt.EXTRA_ALTERNATIVES.items())
+
+    def fingerprint(self, case):
+        """A case's arguments as sent to the isolated grading worker: the cases are plain data
+        that can travel there."""
+        return (dumps((case.args, case.kwargs)),)
+
+    def reference_check(self, algorithm_id):
+        # with a ``call`` the guard sees the call wrapper (not the candidate) as the student's code,
+        # so grading the reference itself would be reported as a call into the reference
+        return harness.allowing_itself(check_of(algorithm_id), algorithm_id)
 
 
 def test_every_catalog_id_is_checked():
     ids = {a.id for a in registry.algorithms() if a.id.startswith("nn.")}
     assert ids == set(NN)
-
-
-# --------------------------------------------------------------------------------------------
-# the shape of every check
-# --------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("algorithm_id", NN)
-def test_check_is_complete(algorithm_id):
-    harness.assert_check_is_complete(_check(algorithm_id), SEEDS, public=(1, 6), hidden=(8, 14), min_mistakes=3,
-                                     max_name_length=75)
-
-
-def _wire_fingerprint(case):
-    """A case's arguments as sent to the isolated grading worker."""
-    return (dumps((case.args, case.kwargs)),)
-
-
-@pytest.mark.parametrize("algorithm_id", NN)
-def test_hidden_cases_are_reproducible_and_depend_on_the_seed(algorithm_id):
-    """... and are plain data that can travel to the isolated grading worker."""
-    harness.assert_hidden_cases_reproducible(_check(algorithm_id), _wire_fingerprint)
-
-
-# --------------------------------------------------------------------------------------------
-# right answers pass, wrong ones fail and are named
-# --------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("algorithm_id", NN)
-def test_reference_passes(algorithm_id):
-    # with a ``call`` the guard sees the call wrapper (not the candidate) as the student's code,
-    # so grading the reference itself would be reported as a call into the reference
-    check = harness.allowing_itself(_check(algorithm_id), algorithm_id)
-    harness.assert_reference_passes(algorithm_id, SEEDS, check=check)
-
-
-@pytest.mark.parametrize("algorithm_id", NN)
-def test_stub_scores_zero(algorithm_id):
-    harness.assert_stub_scores_zero(algorithm_id, SEEDS)
-
-
-@pytest.mark.parametrize(("algorithm_id", "name"), MISTAKES, ids=harness.pair_ids(MISTAKES))
-def test_mistake_fails_and_is_named(algorithm_id, name):
-    harness.assert_mistake_fails_and_is_named(algorithm_id, name, SEEDS, allowed=NN)
-
-
-ALTERNATIVE_IDS = list(alt.ALTERNATIVES.items()) + list(alt.EXTRA_ALTERNATIVES.items())
-
-
-@pytest.mark.parametrize(("algorithm_id", "function"), ALTERNATIVE_IDS, ids=harness.function_ids(ALTERNATIVE_IDS))
-def test_correct_alternative_passes(algorithm_id, function):
-    harness.assert_passes_everywhere(algorithm_id, function, SEEDS)
-
-
-def test_every_algorithm_has_an_alternative():
-    assert set(alt.ALTERNATIVES) == set(NN)
 
 
 # --------------------------------------------------------------------------------------------
@@ -129,9 +83,7 @@ def test_a_backward_may_only_read_the_catalog_entries_of_the_cache():
     def relu_backward(dout, cache):
         return dout * cache["mask"]       # an entry its own forward stored, not in the catalog
 
-    report = evaluate("nn.relu_backward", relu_backward)
-    assert report.score == 0.0
-    assert "KeyError" in report.cases[0].message
+    harness.assert_scores_zero("nn.relu_backward", relu_backward, "KeyError")
 
 
 def test_a_backward_that_writes_into_the_cache_is_caught():
@@ -140,9 +92,7 @@ def test_a_backward_that_writes_into_the_cache_is_caught():
         cache["x"][0, 0, 0, 0] += 1.0     # modifies the grader's input
         return alt.maxpool2d_backward(dout, cache)
 
-    report = evaluate("nn.maxpool2d_backward", maxpool2d_backward)
-    assert report.score == 0.0
-    assert "modified its input" in report.cases[0].message
+    harness.assert_scores_zero("nn.maxpool2d_backward", maxpool2d_backward, "modified its input")
 
 
 def test_dropout_from_the_global_generator_fails_the_seeded_check():
@@ -159,9 +109,9 @@ def test_dropout_from_the_global_generator_fails_the_seeded_check():
 
 
 def test_dropout_statistics_say_what_is_off():
-    report = evaluate("nn.dropout_forward", _check("nn.dropout_forward").mistake(
+    report = evaluate("nn.dropout_forward", check_of("nn.dropout_forward").mistake(
         "kept units multiplied by p_keep instead of divided").function,
-        check=dataclasses.replace(_check("nn.dropout_forward"), allowed=tuple(NN)))
+        check=dataclasses.replace(check_of("nn.dropout_forward"), allowed=tuple(NN)))
     message = report.cases[0].message
     assert "scale of the kept units" in message and "expected 1.25" in message
 
@@ -176,9 +126,7 @@ def test_conv2d_by_scipy_signal_is_forbidden():
                          for f in range(w.shape[0])] for n in range(x.shape[0])])
         return out[:, :, ::stride, ::stride], {"x": x, "w": w, "b": b, "stride": stride, "padding": padding}
 
-    report = evaluate("nn.conv2d_forward", conv2d_forward)
-    assert report.score == 0.0
-    assert "scipy.signal" in report.cases[0].message
+    harness.assert_scores_zero("nn.conv2d_forward", conv2d_forward, "scipy.signal")
 
 
 def test_the_residual_block_may_use_the_reference_layers():
@@ -208,9 +156,9 @@ def test_the_residual_block_may_use_the_reference_layers():
         assert report.passed, report.text()
 
 
-@pytest.mark.parametrize("algorithm_id", [i for i in NN if _check(i).call is not None])
+@pytest.mark.parametrize("algorithm_id", [i for i in NN if check_of(i).call is not None])
 def test_what_crosses_to_the_grader_is_plain_data(algorithm_id):
-    spec = _check(algorithm_id)
+    spec = check_of(algorithm_id)
     for case in spec.public_cases():
-        value = spec.call(_reference(algorithm_id), *case.args, **case.kwargs)
+        value = spec.call(reference_of(algorithm_id), *case.args, **case.kwargs)
         dumps(value)  # raises WireError for anything but plain data

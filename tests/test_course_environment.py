@@ -6,8 +6,6 @@ the submissions — never once per student, and never for what a student's own c
 cell they added, their answer, a file of their own folder)."""
 import contextlib
 import io
-import json
-import shutil
 from pathlib import Path
 
 import pytest
@@ -16,9 +14,8 @@ from cvkit.cli import main
 from cvkit.course import Course
 from cvkit.course.jobs import environment_problems
 
-from test_course_plan import LOOP, SETUP, SOLUTION, _cell
-
-ROOT = Path(__file__).resolve().parent.parent
+from course_helpers import SETUP, TEMPORAL_MEAN, exercise_cells, new_cell, new_notebook, submitted, write_project
+from course_helpers import TEMPORAL_MEAN_LOOP as LOOP  # a right answer
 ASSIGNMENT = "ch97_environment"
 MISSING = "cvkit_course_needs_this_package"  # no such package anywhere
 PLAN = f'[[assignment]]\nid = "{ASSIGNMENT}"\ndue = "2030-01-01 00:00:00 UTC"\n'
@@ -31,34 +28,17 @@ STUDENT_MODULE = "cvkit_a_students_own_typo"
 
 
 def source_notebook():
-    cells = [
-        _cell("# A chapter that needs more than the course installed", cell_type="markdown"),
-        _cell(SETUP, "setup"),
-        _cell(DEMO_IMPORT),
-        _cell(DEMO_KIT_FILE),
-        _cell(DEMO_OWN_FILE),
-        _cell(SOLUTION, "temporal_mean_answer", solution=True),
-        _cell('check("filters.temporal_mean", temporal_mean)', "temporal_mean_visible", grade=True, points=1),
-        _cell('### BEGIN HIDDEN TESTS\ncheck("filters.temporal_mean", temporal_mean, hidden=True, points=2)\n'
-              '### END HIDDEN TESTS', "temporal_mean_hidden", grade=True, points=2),
-    ]
-    for index, cell in enumerate(cells):
-        cell["id"] = f"cell-{index}"
-    return {"cells": cells, "metadata": {"kernelspec": {"name": "python3", "display_name": "Python 3",
-                                                        "language": "python"}},
-            "nbformat": 4, "nbformat_minor": 5}
+    return new_notebook([
+        new_cell("# A chapter that needs more than the course installed", cell_type="markdown"),
+        new_cell(SETUP, "setup"), new_cell(DEMO_IMPORT), new_cell(DEMO_KIT_FILE), new_cell(DEMO_OWN_FILE),
+        *exercise_cells("filters.temporal_mean", "temporal_mean", TEMPORAL_MEAN),
+    ], ids=True)
 
 
 def submission(answer, added=None):
-    nb = source_notebook()
-    for cell in nb["cells"]:
-        meta = cell["metadata"].get("nbgrader", {})
-        if meta.get("grade_id") == "temporal_mean_hidden":
-            cell["source"] = ""
-        if meta.get("solution"):
-            cell["source"] = answer
+    nb = submitted(source_notebook(), {"temporal_mean_answer": answer})
     if added is not None:  # a cell of the student's own, after the set-up cell
-        nb["cells"].insert(2, dict(_cell(added), id="students-own"))
+        nb["cells"].insert(2, dict(new_cell(added), id="students-own"))
     return {f"{ASSIGNMENT}.ipynb": nb}
 
 
@@ -66,12 +46,8 @@ def submission(answer, added=None):
 def graded(tmp_path_factory):
     """ada (right answer), bob (right answer, plus a cell of his own importing a typo) and cyd
     (an answer importing a typo), graded once by ``cvkit course grade``."""
-    project = tmp_path_factory.mktemp("project")
-    (project / "autograders").mkdir()
-    shutil.copy(ROOT / "autograders" / "nbgrader_config.py", project / "autograders" / "nbgrader_config.py")
-    (project / "autograders" / "plan.toml").write_text(PLAN)
-    (project / "lectures" / ASSIGNMENT).mkdir(parents=True)
-    (project / "lectures" / ASSIGNMENT / f"{ASSIGNMENT}.ipynb").write_text(json.dumps(source_notebook()))
+    project = write_project(tmp_path_factory.mktemp("project"), PLAN,
+                            {f"{ASSIGNMENT}/{ASSIGNMENT}.ipynb": source_notebook()})
     folder = tmp_path_factory.mktemp("shared") / "course"
     course = Course(folder, project=project)
     course.build([ASSIGNMENT])

@@ -30,7 +30,9 @@ from cvkit.course import Course
 from cvkit.course.plan import LatePolicy, parse_due, read_plan
 from cvkit.course import nbgrader_plugins
 
-ROOT = Path(__file__).resolve().parent.parent
+from course_helpers import ROOT, SETUP, TEMPORAL_MEAN, exercise_cells, new_cell, new_notebook, submitted, write_project
+from course_helpers import TEMPORAL_MEAN_LOOP as LOOP  # a right answer
+
 ASSIGNMENT = "ch99_tiny"
 GONE = "ch98_gone"  # has a source folder, but is not in the plan
 DUE = dt.datetime(2030, 1, 1)
@@ -42,68 +44,24 @@ due = "2030-01-01 00:00:00 UTC"
 policy = "per_hour"
 points_per_hour = 0.5
 """
-
-
-def _cell(source, grade_id=None, *, solution=False, grade=False, points=None, cell_type="code"):
-    meta = {}
-    if grade_id:
-        meta["nbgrader"] = {"grade_id": grade_id, "solution": solution, "grade": grade, "locked": not solution,
-                            "schema_version": 3, **({"points": points} if points is not None else {})}
-    cell = {"cell_type": cell_type, "source": source, "metadata": meta}
-    if cell_type == "code":
-        cell.update(outputs=[], execution_count=None)
-    return cell
-
-
-SETUP = "import numpy as np\nimport cvkit\nfrom cvkit.grading import check\nfrom cvkit.registry import student"
-SOLUTION = ('@student("filters.temporal_mean")\ndef temporal_mean(frames):\n'
-            '    ### BEGIN SOLUTION\n    return np.asarray(frames, dtype=float).mean(axis=0)\n    ### END SOLUTION')
-LOOP = ('@student("filters.temporal_mean")\ndef temporal_mean(frames):\n'
-        '    stack = np.asarray(frames, dtype=float)\n    total = np.zeros(stack.shape[1:])\n'
-        '    for frame in stack:\n        total = total + frame\n    return total / len(stack)')
 RENAMED = LOOP.replace("stack", "movie").replace("total", "running").replace("frame", "image")
 FLAGGED = LOOP.replace("    return total", "    _ = globals()\n    return total")
 
 
 def source_notebook():
-    cells_ = [
-        _cell("# A tiny chapter", cell_type="markdown"),
-        _cell(SETUP, "setup"),
-        _cell(SOLUTION, "temporal_mean_answer", solution=True),
-        _cell('check("filters.temporal_mean", temporal_mean)', "temporal_mean_visible", grade=True, points=1),
-        _cell('### BEGIN HIDDEN TESTS\ncheck("filters.temporal_mean", temporal_mean, hidden=True, points=2)\n'
-              '### END HIDDEN TESTS', "temporal_mean_hidden", grade=True, points=2),
-    ]
-    for index, cell in enumerate(cells_):
-        cell["id"] = f"cell-{index}"
-    return {"cells": cells_, "metadata": {"kernelspec": {"name": "python3", "display_name": "Python 3",
-                                                         "language": "python"}},
-            "nbformat": 4, "nbformat_minor": 5}
+    return new_notebook([new_cell("# A tiny chapter", cell_type="markdown"), new_cell(SETUP, "setup"),
+                         *exercise_cells("filters.temporal_mean", "temporal_mean", TEMPORAL_MEAN)], ids=True)
 
 
 def submission(answer):
-    nb = source_notebook()
-    for cell in nb["cells"]:
-        meta = cell["metadata"].get("nbgrader", {})
-        if meta.get("grade_id") == "temporal_mean_hidden":
-            cell["source"] = ""
-        if meta.get("solution"):
-            cell["source"] = answer
-    return {f"{ASSIGNMENT}.ipynb": nb}
+    return {f"{ASSIGNMENT}.ipynb": submitted(source_notebook(), {"temporal_mean_answer": answer})}
 
 
 @pytest.fixture(scope="module")
 def project(tmp_path_factory):
     """A project with the real course configuration, a planned chapter and an unplanned one."""
-    folder = tmp_path_factory.mktemp("project")
-    (folder / "autograders").mkdir()
-    shutil.copy(ROOT / "autograders" / "nbgrader_config.py", folder / "autograders" / "nbgrader_config.py")
-    (folder / "autograders" / "plan.toml").write_text(PLAN)
-    for chapter in (ASSIGNMENT, GONE):
-        (folder / "lectures" / chapter).mkdir(parents=True)
-        (folder / "lectures" / chapter / f"{ASSIGNMENT}.ipynb").write_text(json.dumps(source_notebook()))
-    folder.chmod(0o755)
-    return folder
+    notebooks = {f"{chapter}/{ASSIGNMENT}.ipynb": source_notebook() for chapter in (ASSIGNMENT, GONE)}
+    return write_project(tmp_path_factory.mktemp("project"), PLAN, notebooks)
 
 
 def _run(*args):

@@ -19,77 +19,42 @@ import pytest
 
 from cvkit.course import Course
 
+from course_helpers import TEMPORAL_MEAN, cell_grades, exercise_cells, new_cell, new_notebook, submitted, write_project
+
 pytestmark = pytest.mark.slow
-ROOT = Path(__file__).resolve().parent.parent
 ASSIGNMENT = "ch99_tiny"
-
-
-def _cell(source, grade_id=None, *, solution=False, grade=False, points=None, cell_type="code"):
-    meta = {}
-    if grade_id:
-        meta["nbgrader"] = {"grade_id": grade_id, "solution": solution, "grade": grade, "locked": not solution,
-                            "schema_version": 3}
-        if points is not None:
-            meta["nbgrader"]["points"] = points
-    cell = {"cell_type": cell_type, "source": source, "metadata": meta}
-    if cell_type == "code":
-        cell.update(outputs=[], execution_count=None)
-    return cell
 
 
 KERNEL = ('@student("filters.mean_kernel")\ndef mean_kernel(size):\n'
           '    ### BEGIN SOLUTION\n    return np.full((size, size), 1.0 / (size * size))\n    ### END SOLUTION')
-TEMPORAL = ('@student("filters.temporal_mean")\ndef temporal_mean(frames):\n'
-            '    ### BEGIN SOLUTION\n    return np.asarray(frames, dtype=float).mean(axis=0)\n    ### END SOLUTION')
+TEMPORAL = TEMPORAL_MEAN  # (the released solution)
 
 
 def source_notebook():
-    cells = [
-        _cell("# A tiny chapter", cell_type="markdown"),
-        _cell("import numpy as np\nimport cvkit\nfrom cvkit import filters\nfrom cvkit.grading import check\n"
-              "from cvkit.registry import student", "setup"),
-        _cell(KERNEL, "mean_kernel_answer", solution=True),
-        _cell('check("filters.mean_kernel", mean_kernel)', "mean_kernel_visible", grade=True, points=1),
-        _cell('### BEGIN HIDDEN TESTS\ncheck("filters.mean_kernel", mean_kernel, hidden=True, points=2)\n'
-              '### END HIDDEN TESTS', "mean_kernel_hidden", grade=True, points=2),
-        _cell(TEMPORAL, "temporal_mean_answer", solution=True),
-        _cell('check("filters.temporal_mean", temporal_mean)', "temporal_mean_visible", grade=True, points=1),
-        _cell('### BEGIN HIDDEN TESTS\ncheck("filters.temporal_mean", temporal_mean, hidden=True, points=2)\n'
-              '### END HIDDEN TESTS', "temporal_mean_hidden", grade=True, points=2),
-    ]
-    return {"cells": cells, "metadata": {"kernelspec": {"name": "python3", "display_name": "Python 3",
-                                                        "language": "python"}},
-            "nbformat": 4, "nbformat_minor": 5}
+    return new_notebook([
+        new_cell("# A tiny chapter", cell_type="markdown"),
+        new_cell("import numpy as np\nimport cvkit\nfrom cvkit import filters\nfrom cvkit.grading import check\n"
+                 "from cvkit.registry import student", "setup"),
+        *exercise_cells("filters.mean_kernel", "mean_kernel", KERNEL),
+        *exercise_cells("filters.temporal_mean", "temporal_mean", TEMPORAL),
+    ])
 
 
 @pytest.fixture(scope="module")
 def project(tmp_path_factory):
     """A project with the real course configuration and one tiny chapter."""
-    folder = tmp_path_factory.mktemp("project")
-    (folder / "autograders").mkdir()
-    shutil.copy(ROOT / "autograders" / "nbgrader_config.py", folder / "autograders" / "nbgrader_config.py")
-    (folder / "autograders" / "plan.toml").write_text(f'[[assignment]]\nid = "{ASSIGNMENT}"\n')
-    (folder / "lectures" / ASSIGNMENT).mkdir(parents=True)
-    (folder / "lectures" / ASSIGNMENT / f"{ASSIGNMENT}.ipynb").write_text(json.dumps(source_notebook()))
-    folder.chmod(0o755)
-    return folder
+    return write_project(tmp_path_factory.mktemp("project"), f'[[assignment]]\nid = "{ASSIGNMENT}"\n',
+                         {f"{ASSIGNMENT}/{ASSIGNMENT}.ipynb": source_notebook()})
 
 
 def _answers(kernel=None, temporal=None):
-    """A submission: the release notebook with the answer cells replaced."""
-    nb = source_notebook()
-    for cell in nb["cells"]:
-        meta = cell["metadata"].get("nbgrader", {})
-        if meta.get("grade_id") == "mean_kernel_hidden" or meta.get("grade_id") == "temporal_mean_hidden":
-            cell["source"] = ""
-        if meta.get("solution"):
-            source = cell["source"]
-            replacement = {"mean_kernel_answer": kernel, "temporal_mean_answer": temporal}[meta["grade_id"]]
-            if replacement is not None:
-                cell["source"] = replacement
-            else:
-                cell["source"] = "\n".join(l for l in source.splitlines() if "### " not in l)
-    return nb
+    """A submission: the release notebook with the answer cells replaced (where ``None``: by the
+    solution without its markers)."""
+    def solved(solution):
+        return "\n".join(line for line in solution.splitlines() if "### " not in line)
+
+    return submitted(source_notebook(), {"mean_kernel_answer": solved(KERNEL) if kernel is None else kernel,
+                                         "temporal_mean_answer": solved(TEMPORAL) if temporal is None else temporal})
 
 
 WRONG_KERNEL = '@student("filters.mean_kernel")\ndef mean_kernel(size):\n    return np.ones((size, size))'
@@ -108,17 +73,6 @@ def make_course(project, folder, db_url=None, salt="scaling-salt", students=STUD
     for student, nb in students.items():
         course.submit(student, ASSIGNMENT, {f"{ASSIGNMENT}.ipynb": nb})
     return course
-
-
-def cell_grades(course):
-    from nbgrader.api import Gradebook
-
-    out = {}
-    with Gradebook(course.db_url) as gb:
-        for student, assignment in course.submissions():
-            submission = gb.find_submission(assignment, student)
-            out[student] = {g.name: g.score for nb in submission.notebooks for g in nb.grades}
-    return out
 
 
 EXPECTED = {
@@ -269,7 +223,7 @@ def test_attacks_from_the_kernel_change_nothing(project, tmp_path):
     gradebook = course.root / "gradebook.db"
     victim = course.root / "submitted" / "ada" / ASSIGNMENT / f"{ASSIGNMENT}.ipynb"
     # a demo-looking cell that tries to delete the gradebook and another student's work
-    vandal["cells"].insert(2, _cell(
+    vandal["cells"].insert(2, new_cell(
         "import os\n"
         f"for path in ({str(gradebook)!r}, {str(victim)!r}):\n"
         "    try:\n        os.remove(path)\n    except OSError as exc:\n        print('blocked:', exc)\n"))

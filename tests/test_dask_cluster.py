@@ -37,8 +37,8 @@ from pathlib import Path
 
 import pytest
 
-from test_course_scaling import (ASSIGNMENT, EXPECTED, ROOT, STUDENTS, assert_expected, cell_grades, make_course,
-                                 source_notebook)
+from course_helpers import ROOT, cell_grades
+from test_course_scaling import ASSIGNMENT, EXPECTED, STUDENTS, assert_expected, make_course, source_notebook
 
 # where the test process's Python is out of other users' reach (a pyenv Python in /root), their
 # processes run the same environment on the system's Python of that minor version: Dask warns

@@ -23,8 +23,9 @@ import warnings
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
+from input_helpers import FAST
 
 import cvkit
 from cvkit import data, detection, edges, registry
@@ -350,7 +351,6 @@ def test_ght_uses_the_registry_for_canny():
 # --------------------------------------------------------------------------------------------
 # bad input (hypothesis)
 # --------------------------------------------------------------------------------------------
-FAST = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 @FAST

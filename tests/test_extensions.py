@@ -10,10 +10,10 @@ import datetime as dt
 import io
 import json
 import re
-import shutil
 
 import pytest
 import test_course_scaling as tiny
+from course_helpers import write_project
 
 from cvkit.cli import main
 from cvkit.course import Course
@@ -48,11 +48,8 @@ until = "2027-03-02 00:59:00 Europe/Berlin"
 
 @pytest.fixture(scope="module")
 def graded(tmp_path_factory):
-    project = tmp_path_factory.mktemp("project")
-    (project / "autograders").mkdir()
-    shutil.copy(tiny.ROOT / "autograders" / "nbgrader_config.py", project / "autograders" / "nbgrader_config.py")
-    (project / "lectures" / tiny.ASSIGNMENT).mkdir(parents=True)
-    (project / "lectures" / tiny.ASSIGNMENT / f"{tiny.ASSIGNMENT}.ipynb").write_text(json.dumps(tiny.source_notebook()))
+    project = write_project(tmp_path_factory.mktemp("project"), None,
+                            {f"{tiny.ASSIGNMENT}/{tiny.ASSIGNMENT}.ipynb": tiny.source_notebook()})
     course = Course(tmp_path_factory.mktemp("course"), project=project)
     (course.root / "plan.toml").write_text(PLAN)
     (course.root / ".grading_salt").write_text("extension-salt")

@@ -14,7 +14,6 @@ import csv
 import json
 import os
 import re
-import shutil
 import sys
 from pathlib import Path
 
@@ -22,6 +21,7 @@ import nbformat
 import numpy as np
 import pytest
 from bs4 import BeautifulSoup
+from browser_helpers import offline_page
 from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook, new_output, new_raw_cell
 
 import cvkit.filters  # noqa: F401  (registers filters.pad)
@@ -545,39 +545,16 @@ def test_nbgrader_feedback_loads_mathjax_from_its_folder(feedback_page):
 def test_feedback_page_in_a_browser_offline(feedback_page):
     """Chromium opens the page from disk with every non-file request refused: no dialog, no
     attempt to reach the network, and MathJax typesets the formulas."""
-    sync_api = pytest.importorskip("playwright.sync_api")
-    chromium = shutil.which("chromium") or ("/usr/bin/chromium" if Path("/usr/bin/chromium").exists() else None)
-    if chromium is None:
-        pytest.skip("Debian's chromium is not installed (tests/test_browser.py installs it)")
-    with sync_api.sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=chromium, headless=True,
-                                             args=["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage"])
-        try:
-            page = browser.new_page()
-            dialogs, remote = [], []
-            page.on("dialog", lambda dialog: (dialogs.append(dialog.message), dialog.dismiss()))
-
-            def route(request_route):
-                url = request_route.request.url
-                if url.startswith(("file://", "data:", "about:")):
-                    request_route.continue_()
-                else:
-                    remote.append(url)
-                    request_route.abort()
-
-            page.route("**/*", route)
-            page.goto(feedback_page.as_uri())
-            page.wait_for_function("window.MathJax && window.MathJax.isReady === true", timeout=30_000)
-            page.evaluate("() => new Promise(done => MathJax.Hub.Queue(done))")
-            assert page.locator(".MathJax, .MathJax_Display").count() >= 2
-            assert page.locator(".MathJax_Error, .merror").count() == 0
-            page.wait_for_timeout(300)
-            assert not dialogs and not remote, (dialogs, remote)
-            assert page.locator("section.cvkit-report img").count() == 3
-            assert page.evaluate("() => [...document.querySelectorAll('section.cvkit-report img')]"
-                                 ".every(img => img.complete && img.naturalWidth > 0)")
-        finally:
-            browser.close()
+    with offline_page(feedback_page) as (page, remote, dialogs):
+        page.wait_for_function("window.MathJax && window.MathJax.isReady === true", timeout=30_000)
+        page.evaluate("() => new Promise(done => MathJax.Hub.Queue(done))")
+        assert page.locator(".MathJax, .MathJax_Display").count() >= 2
+        assert page.locator(".MathJax_Error, .merror").count() == 0
+        page.wait_for_timeout(300)
+        assert not dialogs and not remote, (dialogs, remote)
+        assert page.locator("section.cvkit-report img").count() == 3
+        assert page.evaluate("() => [...document.querySelectorAll('section.cvkit-report img')]"
+                             ".every(img => img.complete && img.naturalWidth > 0)")
 
 
 # ---------------------------------------------------------------------------- CSV

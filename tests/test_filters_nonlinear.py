@@ -23,8 +23,9 @@ import math
 import numpy as np
 import pytest
 import scipy.ndimage as ndi
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
+from input_helpers import FAST
 
 from cvkit import registry
 from cvkit.filters import bilateral, median, nl_means
@@ -370,7 +371,6 @@ CALLS = {
     "bilateral": lambda image=_GOOD, **kw: bilateral(_image(image), **{"sigma_space": 1.0, "sigma_range": 0.1, **kw}),
     "nl_means": lambda image=_GOOD, **kw: nl_means(_image(image), **{"h": 0.1, "patch_size": 3, "search_size": 5, **kw}),
 }
-FAST = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 not_a_number = st.one_of(st.text(max_size=3), st.none(), st.booleans(), st.lists(st.integers(), max_size=2), st.just(1j))
 not_an_int = st.one_of(not_a_number, st.floats(allow_nan=False, allow_infinity=False))

@@ -20,13 +20,13 @@ import contextlib
 import csv
 import io
 import json
-import shutil
 
 import pytest
 import test_written_answers as written
 from test_course_scaling import postgres  # noqa: F401  (a PostgreSQL server of our own, a fixture)
 
 import test_course_scaling as tiny
+from course_helpers import write_project
 from cvkit.cli import main
 from cvkit.course import Course
 
@@ -92,15 +92,8 @@ def _exercises(course: Course, student: str) -> dict:
 
 @pytest.fixture(scope="module")
 def project(tmp_path_factory):
-    root = tmp_path_factory.mktemp("project")
-    (root / "autograders").mkdir()
-    shutil.copy(tiny.ROOT / "autograders" / "nbgrader_config.py", root / "autograders" / "nbgrader_config.py")
-    (root / "autograders" / "plan.toml").write_text(f'[[assignment]]\nid = "{tiny.ASSIGNMENT}"\n')
-    (root / "lectures" / tiny.ASSIGNMENT).mkdir(parents=True)
-    (root / "lectures" / tiny.ASSIGNMENT / f"{tiny.ASSIGNMENT}.ipynb").write_text(
-        json.dumps(written._source_notebook()))
-    root.chmod(0o755)
-    return root
+    return write_project(tmp_path_factory.mktemp("project"), f'[[assignment]]\nid = "{tiny.ASSIGNMENT}"\n',
+                         {f"{tiny.ASSIGNMENT}/{tiny.ASSIGNMENT}.ipynb": written._source_notebook()})
 
 
 def _semester(course: Course) -> dict:

@@ -52,6 +52,8 @@ import uuid
 from pathlib import Path
 
 import pytest
+from course_helpers import SETUP, TEMPORAL_MEAN, exercise_cells, new_cell, new_notebook, write_project
+from course_helpers import TEMPORAL_MEAN_LOOP as RIGHT  # a right answer
 from user_helpers import make_user, remove_user, runuser
 
 pytestmark = pytest.mark.slow
@@ -73,45 +75,19 @@ due = "2031-01-01 00:00:00 UTC"
 policy = "per_hour"
 points_per_hour = 1
 """
-SETUP = "import numpy as np\nimport cvkit\nfrom cvkit.grading import check\nfrom cvkit.registry import student"
-SOLUTION = ('@student("filters.temporal_mean")\ndef temporal_mean(frames):\n'
-            '    ### BEGIN SOLUTION\n    return np.asarray(frames, dtype=float).mean(axis=0)\n    ### END SOLUTION')
-RIGHT = ('@student("filters.temporal_mean")\ndef temporal_mean(frames):\n'
-         '    stack = np.asarray(frames, dtype=float)\n    total = np.zeros(stack.shape[1:])\n'
-         '    for frame in stack:\n        total = total + frame\n    return total / len(stack)')
 SUMMED = RIGHT.replace("return total / len(stack)", "return total")  # the bank's "sum, not mean"
 MISTAKE = "sum, not mean"
 WRITTEN = "why_mean"  # a written answer, marked by a teaching assistant in the shared formgrader
 
 
-def _cell(source, grade_id=None, *, solution=False, grade=False, points=None, cell_type="code"):
-    meta = {}
-    if grade_id:
-        meta["nbgrader"] = {"grade_id": grade_id, "solution": solution, "grade": grade, "locked": not solution,
-                            "schema_version": 3, **({"points": points} if points is not None else {})}
-    cell = {"cell_type": cell_type, "source": source, "metadata": meta}
-    if cell_type == "code":
-        cell.update(outputs=[], execution_count=None)
-    return cell
-
-
 def source_notebook():
-    cells = [
-        _cell("# A tiny chapter", cell_type="markdown"),
-        _cell(SETUP, "setup"),
-        _cell(SOLUTION, "temporal_mean_answer", solution=True),
-        _cell('check("filters.temporal_mean", temporal_mean)', "temporal_mean_visible", grade=True, points=1),
-        _cell('### BEGIN HIDDEN TESTS\ncheck("filters.temporal_mean", temporal_mean, hidden=True, points=2)\n'
-              '### END HIDDEN TESTS', "temporal_mean_hidden", grade=True, points=2),
-        _cell("**Question.** Why does averaging frames reduce noise?", cell_type="markdown"),
-        _cell("**Model answer.** Independent noise averages out: its standard deviation falls as 1/√N.",
-              WRITTEN, solution=True, grade=True, points=1, cell_type="markdown"),
-    ]
-    for index, cell in enumerate(cells):
-        cell["id"] = f"cell-{index}"
-    return {"cells": cells, "metadata": {"kernelspec": {"name": "python3", "display_name": "Python 3",
-                                                        "language": "python"}},
-            "nbformat": 4, "nbformat_minor": 5}
+    return new_notebook([
+        new_cell("# A tiny chapter", cell_type="markdown"), new_cell(SETUP, "setup"),
+        *exercise_cells("filters.temporal_mean", "temporal_mean", TEMPORAL_MEAN),
+        new_cell("**Question.** Why does averaging frames reduce noise?", cell_type="markdown"),
+        new_cell("**Model answer.** Independent noise averages out: its standard deviation falls as 1/√N.",
+                 WRITTEN, solution=True, grade=True, points=1, cell_type="markdown"),
+    ], ids=True)
 
 
 def answered(notebook: dict, answer: str) -> dict:
@@ -163,12 +139,7 @@ def place():
     """A folder every account can reach (pytest's own tmp tree is root's only), removed after."""
     folder = Path(tempfile.mkdtemp(prefix="cvkit-hub-"))
     folder.chmod(0o755)
-    project = folder / "project"
-    (project / "autograders").mkdir(parents=True)
-    shutil.copy(ROOT / "autograders" / "nbgrader_config.py", project / "autograders" / "nbgrader_config.py")
-    (project / "autograders" / "plan.toml").write_text(PLAN)
-    (project / "lectures" / ASSIGNMENT).mkdir(parents=True)
-    (project / "lectures" / ASSIGNMENT / NOTEBOOK).write_text(json.dumps(source_notebook()))
+    project = write_project(folder / "project", PLAN, {f"{ASSIGNMENT}/{NOTEBOOK}": source_notebook()})
     for path in [project, *project.rglob("*")]:
         path.chmod(0o755 if path.is_dir() else 0o644)
     if not os.stat(ROOT).st_mode & 0o005 or not os.access(sys.executable, os.X_OK):

@@ -7,12 +7,11 @@ from __future__ import annotations
 
 import csv
 import re
-import shutil
-from pathlib import Path
 
 import pytest
-from browser_helpers import contrast
-from test_course_scaling import ASSIGNMENT, STUDENTS, cell_grades, make_course
+from browser_helpers import contrast, offline_page
+from course_helpers import cell_grades
+from test_course_scaling import ASSIGNMENT, STUDENTS, make_course
 from test_course_scaling import project  # noqa: F401  (the tiny chapter's project, a fixture)
 
 from cvkit.course import item_analysis
@@ -108,44 +107,21 @@ def test_an_empty_course_writes_a_page_saying_so(tmp_path):
 def test_page_in_a_browser_offline(graded):
     """Chromium opens the page from disk with every non-file request refused: the plots load,
     nothing tries to reach the network, and every text keeps a WCAG AA contrast (4.5:1)."""
-    sync_api = pytest.importorskip("playwright.sync_api")
-    chromium = shutil.which("chromium") or ("/usr/bin/chromium" if Path("/usr/bin/chromium").exists() else None)
-    if chromium is None:
-        pytest.skip("Debian's chromium is not installed (tests/test_browser.py installs it)")
     page_path = graded.root / "exports" / item_analysis.HTML_NAME
-    with sync_api.sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=chromium, headless=True,
-                                             args=["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage"])
-        try:
-            page = browser.new_page()
-            remote, dialogs = [], []
-            page.on("dialog", lambda dialog: (dialogs.append(dialog.message), dialog.dismiss()))
-
-            def route(request_route):
-                url = request_route.request.url
-                if url.startswith(("file://", "data:", "about:")):
-                    request_route.continue_()
-                else:
-                    remote.append(url)
-                    request_route.abort()
-
-            page.route("**/*", route)
-            page.goto(page_path.as_uri())
-            assert page.locator("h1").inner_text() == "Item analysis"
-            images = page.locator("figure img")
-            assert images.count() >= 2
-            assert page.evaluate("() => [...document.querySelectorAll('img')]"
-                                 ".every(img => img.complete && img.naturalWidth > 100 && img.alt.length > 20)")
-            assert page.locator("script").count() == 0
-            assert page.locator(".warning").count() >= 1
-            assert MISTAKE in page.locator("table").nth(1).inner_text()
-            for selector in ("h1", "h2", "p", "td", "th", "figcaption", ".warning", "summary", "dd"):
-                for i in range(min(page.locator(selector).count(), 8)):
-                    ratio = contrast(page, page.locator(selector).nth(i))
-                    assert ratio >= 4.5, (selector, i, ratio)
-            assert not remote and not dialogs, (remote, dialogs)
-        finally:
-            browser.close()
+    with offline_page(page_path) as (page, remote, dialogs):
+        assert page.locator("h1").inner_text() == "Item analysis"
+        images = page.locator("figure img")
+        assert images.count() >= 2
+        assert page.evaluate("() => [...document.querySelectorAll('img')]"
+                             ".every(img => img.complete && img.naturalWidth > 100 && img.alt.length > 20)")
+        assert page.locator("script").count() == 0
+        assert page.locator(".warning").count() >= 1
+        assert MISTAKE in page.locator("table").nth(1).inner_text()
+        for selector in ("h1", "h2", "p", "td", "th", "figcaption", ".warning", "summary", "dd"):
+            for i in range(min(page.locator(selector).count(), 8)):
+                ratio = contrast(page, page.locator(selector).nth(i))
+                assert ratio >= 4.5, (selector, i, ratio)
+        assert not remote and not dialogs, (remote, dialogs)
 
 
 def test_class_notes_are_off_by_default_and_written_when_asked(graded):

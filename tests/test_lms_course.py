@@ -9,7 +9,6 @@ import copy
 import csv
 import datetime as dt
 import json
-import shutil
 
 import pytest
 
@@ -17,14 +16,15 @@ from cvkit.cli import main
 from cvkit.course import Course
 from lms_formats import parse_canvas, parse_moodle
 from lti_platform import Platform, new_key
-from test_course_scaling import ROOT, _answers, _cell, source_notebook
+from course_helpers import new_cell, write_project
+from test_course_scaling import _answers, source_notebook
 
 pytestmark = pytest.mark.slow
 TINY, SPARE = "ch99_tiny", "ch98_spare"
 UTC = dt.timezone.utc
 DUE = dt.datetime(2027, 1, 10, 12, 0, tzinfo=UTC)
-WRITTEN = _cell("Why does a mean filter blur?\n\nYOUR ANSWER HERE", "why_blur", solution=True, grade=True, points=2,
-                cell_type="markdown")
+WRITTEN = new_cell("Why does a mean filter blur?\n\nYOUR ANSWER HERE", "why_blur", solution=True, grade=True, points=2,
+                   cell_type="markdown")
 
 
 def notebook():
@@ -43,16 +43,10 @@ def answers(written: str | None = None):
 
 @pytest.fixture(scope="module")
 def graded(tmp_path_factory):
-    project = tmp_path_factory.mktemp("project")
-    (project / "autograders").mkdir()
-    shutil.copy(ROOT / "autograders" / "nbgrader_config.py", project / "autograders" / "nbgrader_config.py")
-    (project / "autograders" / "plan.toml").write_text(
-        f'[[assignment]]\nid = "{TINY}"\ntitle = "Tiny chapter"\ndue = "2027-01-10 12:00:00 UTC"\n\n'
-        f'[[assignment]]\nid = "{SPARE}"\n\n[late]\npolicy = "per_hour"\npoints_per_hour = 1\n')
-    for chapter in (TINY, SPARE):
-        (project / "lectures" / chapter).mkdir(parents=True)
-        (project / "lectures" / chapter / f"{chapter}.ipynb").write_text(json.dumps(notebook()))
-    project.chmod(0o755)
+    plan = (f'[[assignment]]\nid = "{TINY}"\ntitle = "Tiny chapter"\ndue = "2027-01-10 12:00:00 UTC"\n\n'
+            f'[[assignment]]\nid = "{SPARE}"\n\n[late]\npolicy = "per_hour"\npoints_per_hour = 1\n')
+    project = write_project(tmp_path_factory.mktemp("project"), plan,
+                            {f"{chapter}/{chapter}.ipynb": notebook() for chapter in (TINY, SPARE)})
     course = Course(tmp_path_factory.mktemp("course") / "course", project=project)
     (course.root / ".grading_salt").write_text("lms-salt")
     course.build([TINY, SPARE])

@@ -11,8 +11,9 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
+from input_helpers import FAST, raises_naming
 
 from cvkit import noise, registry
 
@@ -166,14 +167,7 @@ def test_registered():
 # --------------------------------------------------------------------------------------------
 # bad input (hypothesis)
 # --------------------------------------------------------------------------------------------
-FAST = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 good = np.zeros((5, 6))
-
-
-def _raises(exc, name, fn, *args, **kwargs):
-    with pytest.raises(exc) as info:
-        fn(*args, **kwargs)
-    assert name in str(info.value), f"message {str(info.value)!r} does not name {name!r}"
 
 
 CALLS = [
@@ -192,7 +186,7 @@ CALLS = [
     which=st.integers(0, 1),
 )
 def test_bad_image_shape(shape, which):
-    _raises(ValueError, "image", CALLS[which], np.zeros(shape))
+    raises_naming(ValueError, "image", CALLS[which], np.zeros(shape))
 
 
 @FAST
@@ -201,7 +195,7 @@ def test_bad_image_shape(shape, which):
     which=st.integers(0, 1),
 )
 def test_bad_image_type(value, which):
-    _raises(TypeError, "image", CALLS[which], value)
+    raises_naming(TypeError, "image", CALLS[which], value)
 
 
 @FAST
@@ -209,19 +203,19 @@ def test_bad_image_type(value, which):
 def test_non_finite_image(bad, which):
     image = np.zeros((4, 4))
     image[1, 2] = bad
-    _raises(ValueError, "image", CALLS[which], image)
+    raises_naming(ValueError, "image", CALLS[which], image)
 
 
 @FAST
 @given(sigma=st.one_of(st.floats(max_value=-1e-300, allow_nan=False), st.just(np.nan), st.just(np.inf)))
 def test_bad_sigma(sigma):
-    _raises(ValueError, "sigma", noise.add_gaussian, good, sigma)
+    raises_naming(ValueError, "sigma", noise.add_gaussian, good, sigma)
 
 
 @FAST
 @given(sigma=st.one_of(st.text(max_size=3), st.none(), st.booleans(), st.just(1j)))
 def test_bad_sigma_type(sigma):
-    _raises(TypeError, "sigma", noise.add_gaussian, good, sigma)
+    raises_naming(TypeError, "sigma", noise.add_gaussian, good, sigma)
 
 
 @FAST
@@ -233,24 +227,24 @@ def test_bad_sigma_type(sigma):
     )
 )
 def test_bad_amount(amount):
-    _raises(ValueError, "amount", noise.add_salt_and_pepper, good, amount)
+    raises_naming(ValueError, "amount", noise.add_salt_and_pepper, good, amount)
 
 
 @FAST
 @given(name=st.sampled_from(["low", "high"]), value=st.sampled_from([np.nan, np.inf, "a", None]))
 def test_bad_levels(name, value):
     exc = ValueError if isinstance(value, float) else TypeError
-    _raises(exc, name, noise.add_salt_and_pepper, good, 0.1, **{name: value})
+    raises_naming(exc, name, noise.add_salt_and_pepper, good, 0.1, **{name: value})
 
 
 @FAST
 @given(rng=st.one_of(st.text(max_size=3), st.floats(), st.just(np.random.RandomState(0)), st.booleans()))
 def test_bad_rng(rng):
-    _raises(TypeError, "rng", noise.add_gaussian, good, 1.0, rng=rng)
-    _raises(TypeError, "rng", noise.add_salt_and_pepper, good, 0.5, rng=rng)
+    raises_naming(TypeError, "rng", noise.add_gaussian, good, 1.0, rng=rng)
+    raises_naming(TypeError, "rng", noise.add_salt_and_pepper, good, 0.5, rng=rng)
 
 
 @pytest.mark.parametrize("rng", [-1, np.int64(-7)])
 def test_negative_seed_is_named(rng):
-    _raises(ValueError, "rng", noise.add_gaussian, good, 1.0, rng=rng)
-    _raises(ValueError, "rng", noise.add_salt_and_pepper, good, 0.5, rng=rng)
+    raises_naming(ValueError, "rng", noise.add_gaussian, good, 1.0, rng=rng)
+    raises_naming(ValueError, "rng", noise.add_salt_and_pepper, good, 0.5, rng=rng)

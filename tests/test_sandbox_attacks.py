@@ -22,7 +22,8 @@ from cvkit.course import Course
 from cvkit.sandbox import isolation, session as sandbox
 from cvkit.grading.runtime.wire import BoxCall
 
-from test_course_scaling import ASSIGNMENT, ROOT, _answers, _cell, cell_grades, make_course
+from course_helpers import ROOT, cell_grades, new_cell
+from test_course_scaling import ASSIGNMENT, _answers, make_course
 from test_course_scaling import project  # noqa: F401  (the tiny chapter's project, a fixture)
 
 pytestmark = pytest.mark.slow
@@ -154,7 +155,7 @@ def graded(bubblewrap, project, tmp_path_factory):
         submissions[student] = _answers(kernel=answer)
     for student, source in ADDED_CELLS.items():
         nb = _answers()
-        nb["cells"].insert(2, _cell(source))
+        nb["cells"].insert(2, new_cell(source))
         submissions[student] = nb
     for student, nb in submissions.items():
         course.submit(student, ASSIGNMENT, {name: nb})
@@ -313,7 +314,7 @@ def test_plain_nbgrader_autograde_runs_the_notebook_in_the_sandbox(graded):
     nbgrader's Execute with the grader's rights."""
     course, _, _ = graded
     spy = _answers()
-    spy["cells"].insert(2, _cell(f"import os\nprint('uid', os.getuid(), 'sees-course', os.path.exists({str(course.root)!r}))"))
+    spy["cells"].insert(2, new_cell(f"import os\nprint('uid', os.getuid(), 'sees-course', os.path.exists({str(course.root)!r}))"))
     course.submit("spy", ASSIGNMENT, {f"{ASSIGNMENT}.ipynb": spy})
     done = course.nbgrader("autograde", ASSIGNMENT, "--student", "spy", "--force")
     assert done.returncode == 0, done.stderr[-2000:]

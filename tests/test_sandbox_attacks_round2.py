@@ -31,7 +31,7 @@ from cvkit.grading.runtime.wire import BoxCall
 from cvkit.course import trusted
 from cvkit.course.trusted import grade_notebook, submission_version
 
-from test_course_scaling import ROOT, _cell
+from course_helpers import cell_grades, exercise_cells, new_cell, new_notebook, submitted, write_project
 
 pytestmark = pytest.mark.slow
 
@@ -65,32 +65,20 @@ IDS = {"median": "filters.median", "add_gaussian": "noise.add_gaussian", "mean_k
 
 
 def source_notebook():
-    cells = [_cell("# Round 2", cell_type="markdown"),
-             _cell("import numpy as np\nimport cvkit\nfrom cvkit import data, filters, noise\n"
-                   "from cvkit.grading import check\nfrom cvkit.registry import student", "setup")]
+    cells = [new_cell("# Round 2", cell_type="markdown"),
+             new_cell("import numpy as np\nimport cvkit\nfrom cvkit import data, filters, noise\n"
+                      "from cvkit.grading import check\nfrom cvkit.registry import student", "setup")]
     for name, answer in ANSWERS.items():
-        body = "\n".join(["### BEGIN SOLUTION", answer, "### END SOLUTION"])
-        cells += [_cell(body, f"{name}_answer", solution=True),
-                  _cell(f'check("{IDS[name]}", {name})', f"{name}_visible", grade=True, points=1),
-                  _cell(f'### BEGIN HIDDEN TESTS\ncheck("{IDS[name]}", {name}, hidden=True, points=2)\n'
-                        "### END HIDDEN TESTS", f"{name}_hidden", grade=True, points=2)]
-    return {"cells": cells, "metadata": {"kernelspec": {"name": "python3", "display_name": "Python 3",
-                                                        "language": "python"}},
-            "nbformat": 4, "nbformat_minor": 5}
+        cells += exercise_cells(IDS[name], name, "\n".join(["### BEGIN SOLUTION", answer, "### END SOLUTION"]))
+    return new_notebook(cells)
 
 
 def submission(added=None, **answers):
     """The release notebook with answers (the honest ones unless given) and ``added`` cells
     inserted after the setup cell."""
-    nb = source_notebook()
-    for cell in nb["cells"]:
-        grade_id = cell["metadata"].get("nbgrader", {}).get("grade_id", "")
-        if grade_id.endswith("_hidden"):
-            cell["source"] = ""
-        if grade_id.endswith("_answer"):
-            cell["source"] = answers.get(grade_id[:-len("_answer")], ANSWERS[grade_id[:-len("_answer")]])
+    nb = submitted(source_notebook(), {f"{name}_answer": answers.get(name, answer) for name, answer in ANSWERS.items()})
     for offset, source in enumerate(added or []):
-        nb["cells"].insert(2 + offset, _cell(source))
+        nb["cells"].insert(2 + offset, new_cell(source))
     return nb
 
 
@@ -207,14 +195,8 @@ def bubblewrap():
 
 @pytest.fixture(scope="module")
 def project(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("project-round2")
-    (folder / "autograders").mkdir()
-    shutil.copy(ROOT / "autograders" / "nbgrader_config.py", folder / "autograders" / "nbgrader_config.py")
-    (folder / "autograders" / "plan.toml").write_text(f'[[assignment]]\nid = "{ASSIGNMENT}"\n')
-    (folder / "lectures" / ASSIGNMENT).mkdir(parents=True)
-    (folder / "lectures" / ASSIGNMENT / f"{ASSIGNMENT}.ipynb").write_text(json.dumps(source_notebook()))
-    folder.chmod(0o755)
-    return folder
+    return write_project(tmp_path_factory.mktemp("project-round2"), f'[[assignment]]\nid = "{ASSIGNMENT}"\n',
+                         {f"{ASSIGNMENT}/{ASSIGNMENT}.ipynb": source_notebook()})
 
 
 @pytest.fixture(scope="module")
@@ -259,17 +241,6 @@ def graded(bubblewrap, project, tmp_path_factory):
     return course, results, calls_here
 
 
-def _grades(course):
-    from nbgrader.api import Gradebook
-
-    out = {}
-    with Gradebook(course.db_url) as gb:
-        for student, assignment in course.submissions():
-            submission_ = gb.find_submission(assignment, student)
-            out[student] = {g.name: g.score for nb in submission_.notebooks for g in nb.grades}
-    return out
-
-
 def _flags(course, student):
     return [f for e in course.scores(ASSIGNMENT)[student] for f in e.flags]
 
@@ -289,7 +260,7 @@ def test_every_attack_gets_exactly_what_it_deserves(graded):
     assert sorted(not_graded) == sorted(f"{student}/{ASSIGNMENT}" for student in REFUSED)
     for student, why in REFUSED.items():
         assert why in not_graded[f"{student}/{ASSIGNMENT}"]
-    grades = _grades(course)
+    grades = cell_grades(course)
     assert len(grades) + len(REFUSED) == 40
     for student in ("ada", "bea", "extra_notebook", *HONEST_CLASSMATES):
         assert grades[student] == pytest.approx(FULL), student
@@ -508,7 +479,7 @@ def test_error_outputs_of_the_executed_notebook_are_capped():
 
 
 def test_the_execution_driver_is_closed_to_the_kernel(bubblewrap):
-    nb = {"cells": [_cell(DRIVER_MEMORY)], "metadata": source_notebook()["metadata"], "nbformat": 4,
+    nb = {"cells": [new_cell(DRIVER_MEMORY)], "metadata": source_notebook()["metadata"], "nbformat": 4,
           "nbformat_minor": 5}
     text, log = execute_in_sandbox({"n.ipynb": json.dumps(nb).encode()}, "n.ipynb")
     assert text is not None, log

@@ -15,8 +15,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.ndimage
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
+from input_helpers import FAST
 
 from cvkit import calibration, camera, data, warp
 
@@ -211,7 +212,6 @@ def test_birds_eye_view_of_a_rendered_plane_is_metric():
 # --------------------------------------------------------------------------------------------
 # bad input (hypothesis)
 # --------------------------------------------------------------------------------------------
-FAST = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 @FAST

@@ -5,11 +5,11 @@ exports say "to mark"; the student's answer reaches the feedback page cleaned of
 could run, and the page shows no mark scheme."""
 import csv
 import json
-import shutil
 
 import pytest
 
 import test_course_scaling as tiny
+from course_helpers import write_project
 from cvkit.course import Course
 
 pytestmark = pytest.mark.slow
@@ -36,13 +36,8 @@ def _source_notebook():
 
 @pytest.fixture(scope="module")
 def graded(tmp_path_factory):
-    project = tmp_path_factory.mktemp("project")
-    (project / "autograders").mkdir()
-    shutil.copy(tiny.ROOT / "autograders" / "nbgrader_config.py", project / "autograders" / "nbgrader_config.py")
-    (project / "autograders" / "plan.toml").write_text(f'[[assignment]]\nid = "{tiny.ASSIGNMENT}"\n')
-    (project / "lectures" / tiny.ASSIGNMENT).mkdir(parents=True)
-    (project / "lectures" / tiny.ASSIGNMENT / f"{tiny.ASSIGNMENT}.ipynb").write_text(json.dumps(_source_notebook()))
-    project.chmod(0o755)
+    project = write_project(tmp_path_factory.mktemp("project"), f'[[assignment]]\nid = "{tiny.ASSIGNMENT}"\n',
+                            {f"{tiny.ASSIGNMENT}/{tiny.ASSIGNMENT}.ipynb": _source_notebook()})
     course = Course(project / "course", project=project)
     (course.root / ".grading_salt").write_text("written-salt")
     course.build([tiny.ASSIGNMENT])
