@@ -47,39 +47,44 @@ def grading_sandbox():
 # few tests and so came last in pytest-xdist's own order by test count) would keep one worker
 # running while the other sits idle. Files not listed follow in their collection order.
 LONGEST_FILES = {
-    "tests/test_hidden_cases_reference.py": 490,
-    "tests/test_fresh_clone.py": 375,  # two demos (150 s each) + Run All of every released chapter (70 s), 2026-12-06
-    "tests/test_browser.py": 160,
-    "tests/test_notebooks.py": 150,
-    "tests/test_release.py": 145,
-    "tests/test_sandbox_attacks_round2.py": 120,
-    "tests/test_sandbox_attacks.py": 115,
-    "tests/test_course_scaling.py": 100,
-    "tests/test_leaderboard.py": 100,  # grades a tiny measured chapter: 6 reference CNNs trained, 90 s loaded (2026-12-06)
-    "tests/test_hub_round_trip.py": 100,
-    "tests/test_checks_ch08.py": 95,
-    "tests/test_course.py": 75,
-    "tests/test_lms_course.py": 50,  # grades a tiny course once (40-50 s on 2 shared cores, 2026-12-06)
-    "tests/test_checks_ch05.py": 70,
-    "tests/test_visible_probes.py": 60,  # 4 variants of every reference, hidden and visible, 2026-12-06
-    "tests/test_dask_cluster.py": 60,  # measured 55-75 s on 2 shared cores (2026-12-06)
-    "tests/test_allowed_helpers.py": 55,
-    "tests/test_trusted.py": 50,
-    "tests/test_checks_ch09.py": 45,
-    "tests/test_course_plan.py": 45,
-    "tests/test_item_analysis.py": 40,  # grades a tiny course, then Chromium: 15-41 s on 2 shared cores (2026-12-06)
-    "tests/test_similarity_clusters.py": 30,  # 60 and 300 simulated students: 25 s CPU, 54-65 s loaded (2026-12-06)
-    "tests/test_course_package.py": 35,
-    "tests/test_hand_marks.py": 35,
-    "tests/test_checks_ch03.py": 30,
-    "tests/test_parse_count.py": 35,  # builds and grades one chapter in-process (25-36 s loaded, 2026-12-06)
+    "tests/library/test_hidden_cases_reference.py": 490,
+    # two demos (150 s each) + Run All of every released chapter (70 s), 2026-12-06
+    "tests/system/test_fresh_clone.py": 375,
+    "tests/system/test_browser.py": 160,
+    "tests/lectures/test_notebooks.py": 150,
+    "tests/lectures/test_release.py": 145,
+    "tests/sandbox/test_sandbox_attacks_round2.py": 120,
+    "tests/sandbox/test_sandbox_attacks.py": 115,
+    "tests/course/test_course_scaling.py": 100,
+    # grades a tiny measured chapter: 6 reference CNNs trained, 90 s loaded (2026-12-06)
+    "tests/course/test_leaderboard.py": 100,
+    "tests/system/test_hub_round_trip.py": 100,
+    "tests/library/test_checks_ch08.py": 95,
+    "tests/course/test_course.py": 75,
+    "tests/course/test_lms_course.py": 50,  # grades a tiny course once (40-50 s on 2 shared cores, 2026-12-06)
+    "tests/library/test_checks_ch05.py": 70,
+    "tests/grading/test_visible_probes.py": 60,  # 4 variants of every reference, hidden and visible, 2026-12-06
+    "tests/course/test_dask_cluster.py": 60,  # measured 55-75 s on 2 shared cores (2026-12-06)
+    "tests/sandbox/test_allowed_helpers.py": 55,
+    "tests/sandbox/test_trusted.py": 50,
+    "tests/library/test_checks_ch09.py": 45,
+    "tests/course/test_course_plan.py": 45,
+    # grades a tiny course, then Chromium: 15-41 s on 2 shared cores (2026-12-06)
+    "tests/course/test_item_analysis.py": 40,
+    # 60 and 300 simulated students: 25 s CPU, 54-65 s loaded (2026-12-06)
+    "tests/course/test_similarity_clusters.py": 30,
+    "tests/course/test_course_package.py": 35,
+    "tests/course/test_hand_marks.py": 35,
+    "tests/library/test_checks_ch03.py": 30,
+    "tests/course/test_parse_count.py": 35,  # builds and grades one chapter in-process (25-36 s loaded, 2026-12-06)
 }
 
 
 #: Files that mostly wait (time limits running out, servers and subprocesses starting) rather than
 #: compute. They are handed out right after the longest file, the sweep, whose own worker
 #: processes keep both cores busy meanwhile; at the end of the run their waits left a core idle.
-MOSTLY_WAITING = ("tests/test_guard.py", "tests/test_execute.py", "tests/test_written_answers.py")
+MOSTLY_WAITING = ("tests/sandbox/test_guard.py", "tests/sandbox/test_execute.py",
+                  "tests/course/test_written_answers.py")
 
 
 def _rank(path: str) -> tuple[int, float]:
