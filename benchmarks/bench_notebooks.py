@@ -4,8 +4,8 @@ student and chapter, before the trusted checks), and its released version under 
     python benchmarks/bench_notebooks.py [--chapters ch03_filtering,ch12_training] [--check]
 
 Each notebook runs in a fresh kernel (nbclient) from the lecture folder, as
-``tests/test_notebooks.py`` runs it; the release is made with nbgrader's own preprocessors as in
-``tests/test_release.py``. Goal: every chapter well under a minute (``--check`` exits 1 when one
+``tests/lectures/test_notebooks.py`` runs it; the release is made with nbgrader's own preprocessors as in
+``tests/lectures/test_release.py``. Goal: every chapter well under a minute (``--check`` exits 1 when one
 takes 60 s or more). Timings are noisy on a loaded machine: rerun to confirm.
 """
 from __future__ import annotations
@@ -18,7 +18,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "lectures")]
 
 GOAL_SECONDS = 60.0
 

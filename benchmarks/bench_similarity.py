@@ -1,6 +1,6 @@
 """The similarity report at class scale (issue #37, item 5): time and page size.
 
-A simulated class (``tests/simulated_class.py``) answers Chapter 3's 13 exercises from three
+A simulated class (``tests/course/simulated_class.py``) answers Chapter 3's 13 exercises from three
 common sources (the instructor's solution, cvkit's reference, an independent version), each
 student changing names, swapping independent statements and adding comments; three students
 answer on their own. The answers go to :func:`cvkit.course.similarity.similar_pairs` directly
@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "tests" / "course"))
 
 
 def run(students: int, distinct: bool, seed: int) -> dict:

@@ -7,7 +7,7 @@ one place: build (nbgrader's ``generate_assignment``), submit, grade in parallel
 :mod:`.writer`), the feedback pages (:mod:`.feedback`), the results and exports
 (:mod:`.results`, :mod:`.exports`) and the samples (:mod:`.samples`). It is the top of the
 course: the commands import it; the course's own modules work on the state and never import it
-(``tests/test_architecture.py``).
+(``tests/system/test_architecture.py``).
 """
 from __future__ import annotations
 

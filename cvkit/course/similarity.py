@@ -111,14 +111,14 @@ natural solution, so matching ones say nothing.
 Threshold
 ---------
 :data:`THRESHOLD` (0.6) was chosen on the course's own material
-(``tests/test_similarity.py``): copies with renamed variables and reordered statements of
+(``tests/course/test_similarity.py``): copies with renamed variables and reordered statements of
 Chapter 3's solutions score 0.75 to 1.0; independent correct solutions (the notebooks'
 solutions, cvkit's references and the loop/FFT/integral-image versions of
-``tests/alternatives_ch03.py``, among themselves; a loop and a vectorized Gaussian kernel)
+``tests/library/alternatives_ch03.py``, among themselves; a loop and a vectorized Gaussian kernel)
 score at most 0.41. Over all 140 exercises of the course, the notebooks' solutions against
 cvkit's references (written by the same authors, so not quite independent) score at most 0.58.
 Added code is measured the same way and with the same threshold
-(``tests/test_similarity_added_cells.py``): a helper copied with renamed variables and two
+(``tests/course/test_similarity_added_cells.py``): a helper copied with renamed variables and two
 statements swapped, called from two answer cells that share nothing, scores 0.68 with the
 pulled-in code and 0.91 among the added cells; the instructor's solution pasted into a helper
 scores 0.97 against the solution; two honest students' own helpers score 0. The independent
@@ -130,7 +130,7 @@ Groups
 A real class's correct answers come from a few common sources (the textbook, a popular version,
 each other), so the pairs above the threshold grow with the square of the class: a simulated
 class of 60 students answering Chapter 3's 13 exercises from three sources
-(``tests/simulated_class.py``) gives 7,163 pairs, and a page of one side-by-side view per pair
+(``tests/course/simulated_class.py``) gives 7,163 pairs, and a page of one side-by-side view per pair
 was 23.8 MB (a class of 300: 191,763 pairs, about 640 MB). The report is made of **groups**
 instead (:func:`groups`): per exercise, the connected components of the graph whose edges are
 the pairs at or above the threshold (single linkage, found by union-find over the pairs
@@ -148,7 +148,7 @@ students, else its central answer (the student whose similarities to the others 
 most) and its student least like the central answer (the spread); then the textbook text, in a
 textbook group. The page and the CSV grow with the number of students in groups, not with the
 pairs: the simulated class of 60 gives 39 groups and a page of 0.24 MB, a class of 300 a page of
-0.47 MB (``tests/test_similarity_clusters.py``). Measuring, grouping and writing take 2 s of CPU
+0.47 MB (``tests/course/test_similarity_clusters.py``). Measuring, grouping and writing take 2 s of CPU
 for the class of 60 and 10 to 14 s for the class of 300, most of it tokenizing the answers
 (``benchmarks/bench_similarity.py``; figures in ``benchmarks/README.md``).
 """

@@ -16,7 +16,7 @@ submodule (its ``__all__``) is available here.
 from __future__ import annotations
 
 # Written out (not gathered at import time) so that type checkers see every name; a test
-# (tests/test_bounds_a.py) keeps this list equal to the submodules' ``__all__``.
+# (tests/library/test_bounds_a.py) keeps this list equal to the submodules' ``__all__``.
 from ._chessboard import ChessboardViews, render_chessboard, random_board_poses, chessboard_views
 from ._digits import digits, held_out_digits
 from ._files import read_idx, mnist, read_cifar_batch, cifar10, CIFAR10_CLASSES

@@ -347,7 +347,7 @@ def _project(points: np.ndarray, A: np.ndarray, R: np.ndarray, t: np.ndarray, k:
     """:func:`cvkit.camera.project_full` without its argument checks (the pose sampler projects
     thousands of candidate poses whose camera, rotation and translation it has made itself, and
     whose ``k`` and ``p`` :func:`_distortion` has checked): the reference's lens, bit for bit
-    the same numbers (``tests/test_calibration.py``)."""
+    the same numbers (``tests/library/test_calibration.py``)."""
     from ..camera import project_checked
 
     return project_checked(points, A, R, t, np.array(k, dtype=np.float64), np.array(p, dtype=np.float64))

@@ -187,7 +187,7 @@ class Check:
         :func:`instance_call` to grade a class by building it and calling one of its methods.
     rules : tuple of str, optional
         The rules of the exercise's statement about inputs and side effects, each of which some
-        case (visible or hidden) exercises (``tests/test_statement_rules.py`` proves it), from
+        case (visible or hidden) exercises (``tests/grading/test_statement_rules.py`` proves it), from
         :data:`RULES`: ``"integer"`` (integer arrays are valid input), ``"narrow integer"``
         (integer input in a dtype that overflows when squared or multiplied: int16),
         ``"uint8"``, ``"single point"`` (one point of shape ``(d,)`` besides ``(N, d)``),

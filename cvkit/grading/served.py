@@ -26,7 +26,7 @@ DATA_TRANSFORMS = ("noisy_stack", "resize_half", "with_gaussian_noise", "with_im
 #: every loader the sandbox holds a stand-in for (a refused one says so by name)
 DATA_LOADERS = DATA_SOURCES + DATA_TRANSFORMS
 #: data sources that would be, by themselves, the answer of some exercise: data source →
-#: algorithm ids in which it is not served. Empty: ``tests/test_allowed_helpers.py`` calls
+#: algorithm ids in which it is not served. Empty: ``tests/sandbox/test_allowed_helpers.py`` calls
 #: every served helper of every check as the whole answer, and none passes.
 ANSWERING_SOURCES: dict[str, tuple[str, ...]] = {}
 

@@ -10,5 +10,5 @@
   student's own outputs on the feedback page.
 - :mod:`.startup`: start-up time saved in the processes started here.
 
-Nothing here knows nbgrader, grade ids or courses (``tests/test_architecture.py``).
+Nothing here knows nbgrader, grade ids or courses (``tests/system/test_architecture.py``).
 """
