@@ -42,7 +42,9 @@ from ..edges import sobel as _sobel
 from ..edges.checks import Angles
 from ..filters import gaussian as _gaussian
 from ..filters import pad as _pad
-from ..grading import Case, Check, Comparator, Mismatch, Mistake, close, instance_call
+from ..grading import Case, Check, Comparator, Measure, Mismatch, Mistake, close, instance_call, mistake
+from ..grading.casekit import seed as _seed
+from ..grading.measured import MeasuredCase, Scale
 from ..grading.casekit import BORDERS, variant
 from ..grading.casekit import distinct as _distinct
 from ..grading.casekit import sigma as _sigma
@@ -54,6 +56,7 @@ from ._corners import SHIFTS
 from ._corners import harris as _harris
 from ._corners import structure_tensor as _structure_tensor
 from ._matching import nearest_two
+from ._measured import BUDGET_SECONDS, COUNT_SCALE, PRECISION_SCALE, TOLERANCE, correct_matches, sift_matches, warped_pair
 from ._scale_space import NEIGHBOURS_26, _strict_extrema, derivatives_3d, double_size
 from ._scale_space import dog_extrema as _dog_extrema
 from ._scale_space import dog_pyramid as _dog_pyramid
@@ -68,7 +71,8 @@ __all__ = [
     "PointSets", "IndexRows", "Keypoints", "NeighbourSearch",
     "moravec", "structure_tensor", "harris", "peaks", "gaussian_pyramid", "dog_pyramid", "log_blobs",
     "dog_extrema", "refine_extremum", "is_edge_like", "orientations", "sift_descriptor", "sift",
-    "match_ratio", "KDTree", "BORDERS",
+    "match_ratio", "KDTree", "BORDERS", "match_features", "CorrectMatches", "MATCH_COUNT_SCALE",
+    "MATCH_PRECISION_SCALE",
 ]
 
 
@@ -1932,4 +1936,111 @@ KDTree = Check(
     ],
     call=instance_call,
     arg_names=("points", "method", "q"),
+)
+
+
+# --------------------------------------------------------------------------------------------
+# §5.14.1 the measured exercise: matching under a known warp, graded by its correct matches
+# --------------------------------------------------------------------------------------------
+#: the published scales of ``features.match_features``: correct matches, and their share
+MATCH_COUNT_SCALE = Scale(COUNT_SCALE, percent=False)
+MATCH_PRECISION_SCALE = Scale(PRECISION_SCALE)
+#: what a candidate's matcher may call: SIFT, its building blocks and the ratio test (the grade is about
+#: the matches; a student's own broken block then costs its points once)
+_SIFT_BLOCKS = ("filters.pad", "filters.gaussian_kernel", "filters.gaussian", "filters.correlate",
+                "features.gaussian_pyramid", "features.dog_pyramid", "features.dog_extrema",
+                "features.refine_extremum", "features.is_edge_like", "features.orientations",
+                "features.sift_descriptor", "features.sift", "features.match_ratio")
+
+
+def _warped_case(seed: int, label: str, where: bool) -> MeasuredCase:
+    """A case of :func:`warped_pair`; its label describes the picture and the warp only when
+    ``where`` (the public case): a hidden pair's warp stays unknown, even in the feedback."""
+    image1, image2, H, what = warped_pair(seed)
+    return MeasuredCase((image1, image2), {}, f"{label}: {what}" if where else label, truth=H)
+
+
+def _warp_public() -> list[Case]:
+    return [_warped_case(2026, "a picture and a warped copy", True)]
+
+
+def _warp_hidden(rng: np.random.Generator) -> list[Case]:
+    return [_warped_case(_seed(rng), f"your own warped pair {k + 1} of 2 (picture, crop and warp drawn from your "
+                                     f"seed)", False) for k in range(2)]
+
+
+def _match_credit(got, case) -> float:
+    correct, returned = correct_matches(got, case.truth)
+    precision = correct / returned if returned else 0.0
+    return min(MATCH_COUNT_SCALE.credit(correct), MATCH_PRECISION_SCALE.credit(precision))
+
+
+class CorrectMatches(Comparator):
+    """Passes when the matches ``(points1, points2)`` include at least the top of
+    :data:`MATCH_COUNT_SCALE` correct ones (the homography ``case.truth`` maps the first point
+    within :data:`~cvkit.features._measured.TOLERANCE` px of the second) at a precision at the
+    top of :data:`MATCH_PRECISION_SCALE`; the case earns the smaller of the two scales' shares."""
+
+    def describe(self) -> str:
+        return (f"at least {MATCH_COUNT_SCALE.top:g} correct matches (error < {TOLERANCE:g} px) at a precision of "
+                f"{MATCH_PRECISION_SCALE.show(MATCH_PRECISION_SCALE.top)} or more")
+
+    def __call__(self, got, expected, case=None):
+        if not isinstance(got, (tuple, list)) or len(got) != 2:
+            return Mismatch("return a pair (points1, points2) of (M, 2) arrays of (x, y), one row per match")
+        shapes = [np.shape(part) for part in got]
+        if any(len(s) != 2 or s[1] != 2 for s in shapes if s != (0,)) or shapes[0][:1] != shapes[1][:1]:
+            return Mismatch(f"points1 and points2 must be (M, 2) arrays of (x, y) with the same M, got shapes "
+                            f"{shapes[0]} and {shapes[1]}")
+        correct, returned = correct_matches(got, case.truth)
+        precision = correct / returned if returned else 0.0
+        if correct >= MATCH_COUNT_SCALE.top and precision >= MATCH_PRECISION_SCALE.top:
+            return None
+        theirs = correct_matches(expected, case.truth)
+        words = []
+        if precision < MATCH_PRECISION_SCALE.top:
+            words.append(MATCH_PRECISION_SCALE.shortfall(precision, "precision", f" ({correct} correct of {returned})"))
+        if correct < MATCH_COUNT_SCALE.top:
+            words.append(MATCH_COUNT_SCALE.shortfall(correct, "correct matches (error < 2 px)", ""))
+        words = [" ".join(words) + f" The case earns the smaller share: {_match_credit(got, case):.2f}. The reference "
+                                   f"found {theirs[0]} correct of {theirs[1]}."]
+        if correct <= 1 and returned >= 10:
+            words.append(" Almost none is right: are the points (x, y) = (column, row), and is each point of image "
+                         "2 the one its index pair (i, j) names?")
+        elif precision < MATCH_PRECISION_SCALE.top:
+            words.append(" Too many wrong matches: keep a match only when its nearest neighbour is clearly closer than "
+                         "the second nearest (Lowe's ratio test).")
+        return Mismatch("".join(words))
+
+
+@mistake("no ratio test: every nearest neighbour kept",
+         "A point of image 1 that image 2 does not show still has a nearest neighbour: keep a match only when "
+         "d1 ≤ 0.8·d2 (Lowe's ratio test)")
+def _match_nearest_only(image1, image2):
+    return sift_matches(image1, image2, ratio=None, mutual=False)
+
+
+@mistake("points returned as (row, col)",
+         "Points are (x, y) = (column, row): SIFT's keypoints already are, keep their first two columns in that order")
+def _match_row_col(image1, image2):
+    return sift_matches(image1, image2, swap_xy=True)
+
+
+@mistake("point of image 2 taken at image 1's index",
+         "A match (i, j) pairs keypoint i of image 1 with keypoint j of image 2: points2 = keys2[j], not keys2[i]")
+def _match_same_index(image1, image2):
+    return sift_matches(image1, image2, same_index=True)
+
+
+match_features = Check(
+    public=_warp_public,
+    hidden=_warp_hidden,
+    compare=CorrectMatches(),
+    mistakes=[_match_nearest_only, _match_row_col, _match_same_index],
+    allowed=_SIFT_BLOCKS,
+    arg_names=("image1", "image2"),
+    output_names=("points1", "points2"),
+    time_limit=BUDGET_SECONDS,
+    credit=_match_credit,
+    measure=Measure("correct matches", lambda got, case: correct_matches(got, case.truth)[0]),
 )

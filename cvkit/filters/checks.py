@@ -23,12 +23,16 @@ from functools import partial
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from ..grading import Case, Check, Mistake, close, mistake
+from ..grading import Case, Check, Comparator, Measure, Mismatch, Mistake, close, mistake
+from ..grading.casekit import seed as _seed
+from ..grading.measured import MeasuredCase, Scale
 from ..grading.casekit import BORDERS, border_mistakes, border_zero, random_image, reflect_swapped, variant
 from ..grading.casekit import distinct as _distinct
 from ..grading.casekit import sigma as _sigma
 from ..grading.casekit import size as _size
 from ..grading.casekit import uniform as _u
+from ._denoise import BUDGET_SECONDS, PSNR_GAP_SCALE, denoise_unregistered, noisy_crop
+from ._denoise import psnr as denoise_psnr
 from ._linear import convolve as _convolve
 from ._linear import correlate as _correlate
 from ._linear import gaussian as _gaussian
@@ -42,7 +46,7 @@ from ._padding import pad as _pad
 
 __all__ = [
     "pad", "correlate", "convolve", "mean_kernel", "mean", "gaussian_kernel", "gaussian",
-    "median", "bilateral", "nl_means", "temporal_mean", "BORDERS",
+    "median", "bilateral", "nl_means", "temporal_mean", "BORDERS", "denoise", "PsnrGap", "DENOISE_SCALE",
 ]
 
 #: padding copies values: exact
@@ -937,4 +941,116 @@ temporal_mean = Check(
     hidden=_tm_hidden,
     compare=close(rtol=1e-9, atol=1e-12, kind="f", scaled=True),
     mistakes=[_tm_floor, _tm_uint8_overflow, _tm_median, _tm_wrong_axis, _tm_sum],
+)
+
+
+# --------------------------------------------------------------------------------------------
+# §3.14 the measured exercise: a denoiser, graded by its PSNR on noise it has not seen
+# --------------------------------------------------------------------------------------------
+#: the published scale of ``filters.denoise`` (PSNR gap to the reference in dB → share of the points)
+DENOISE_SCALE = Scale(PSNR_GAP_SCALE, percent=False)
+
+
+def _noisy_case(rng: np.random.Generator, label: str, where: bool) -> MeasuredCase:
+    """A case of :func:`noisy_crop`; its label names the picture and the crop only when ``where``
+    (the public case): a hidden crop's place stays unknown, even in the feedback."""
+    noisy, sigma, clean, place = noisy_crop(rng)
+    return MeasuredCase((noisy, sigma), {}, f"{label}: {place + ', ' if where else ''}σ = {sigma:g}", truth=clean)
+
+
+def _denoise_public() -> list[Case]:
+    return [_noisy_case(np.random.default_rng(2026), "a noisy crop of a cvkit.data image", True)]
+
+
+def _denoise_hidden(rng: np.random.Generator) -> list[Case]:
+    return [_noisy_case(np.random.default_rng(_seed(rng)), f"your own noisy crop {k + 1} of 3", False)
+            for k in range(3)]
+
+
+def _reference_psnr(case: MeasuredCase) -> float:
+    """PSNR of the reference denoiser on the case (computed once per case)."""
+    cached = case.__dict__.get("_cvkit_reference_psnr")
+    if cached is None:
+        noisy, sigma = case.args
+        cached = case.__dict__["_cvkit_reference_psnr"] = denoise_psnr(case.truth, denoise_unregistered(noisy, sigma))
+    return cached
+
+
+def _psnr_gap(got, case) -> float:
+    """PSNR of ``got`` minus the reference's, on the case's clean crop (−inf for a wrong shape)."""
+    try:
+        out = np.asarray(got, dtype=np.float64)
+    except (TypeError, ValueError):
+        return float("-inf")
+    if out.shape != np.shape(case.truth) or not np.all(np.isfinite(out)):
+        return float("-inf")
+    return denoise_psnr(case.truth, out) - _reference_psnr(case)
+
+
+class PsnrGap(Comparator):
+    """Passes when the denoised image's PSNR is within the top of :data:`DENOISE_SCALE` of the
+    reference denoiser's PSNR on the same noisy crop (``case.truth`` is the clean crop); the
+    case's credit follows the scale below it."""
+
+    def describe(self) -> str:
+        return f"PSNR at most {-DENOISE_SCALE.top:g} dB below the reference denoiser's"
+
+    def __call__(self, got, expected, case=None):
+        truth = np.asarray(case.truth)
+        try:
+            out = np.asarray(got, dtype=np.float64)
+        except (TypeError, ValueError) as error:
+            return Mismatch(f"your output could not be read as an image ({error})")
+        if out.shape != truth.shape:
+            return Mismatch(f"shape mismatch: expected {truth.shape} (the shape of the noisy image), got {out.shape}")
+        if not np.all(np.isfinite(out)):
+            return Mismatch("your image holds nan or inf values")
+        gap = _psnr_gap(out, case)
+        if gap >= DENOISE_SCALE.top:
+            return None
+        noisy = np.asarray(case.args[0], dtype=np.float64)
+        mine, noise_only = denoise_psnr(truth, out), denoise_psnr(truth, noisy)
+        if mine < noise_only + 1.0:
+            advice = ("Your image is hardly better than the noisy one: with the course's mean patch distance, h of "
+                      "about σ averages the noise away (a sum over the patch needs h times the patch side).")
+        elif np.std(out - noisy) > 1.5 * float(case.args[1]):
+            advice = ("Your image differs from the noisy one by more than the noise: the filter removes detail too "
+                      "(h or the smoothing too strong).")
+        else:
+            advice = "Tune the parameters on noisy crops of your own, with σ in the range of the statement."
+        words = DENOISE_SCALE.shortfall(gap, "your PSNR minus the reference's (dB)",
+                                        f" (yours {mine:.2f} dB, the reference denoiser's {_reference_psnr(case):.2f} dB, "
+                                        f"the noisy input's {noise_only:.2f} dB)")
+        return Mismatch(words + " " + advice)
+
+
+@mistake("h far too large (6σ): the detail is averaged away with the noise",
+         "Keep h close to σ (the course's patch distance is a mean: two noisy copies of a patch are at about 2σ²)")
+def _denoise_h_too_large(noisy, sigma):
+    return denoise_unregistered(np.asarray(noisy, dtype=np.float64), sigma, h_factor=6.0)
+
+
+@mistake("patch distance summed over the patch, h still ≈ σ",
+         "Divide the sum of squared differences by the number of values in the patch, or scale h with the patch side")
+def _denoise_summed(noisy, sigma):
+    return denoise_unregistered(np.asarray(noisy, dtype=np.float64), sigma, summed=True)
+
+
+@mistake("σ taken as the variance (h = σ²)",
+         "sigma is the noise's standard deviation, in grey levels: h ≈ σ, not σ²")
+def _denoise_variance(noisy, sigma):
+    return denoise_unregistered(np.asarray(noisy, dtype=np.float64), sigma ** 2, h_factor=1.1)
+
+
+denoise = Check(
+    public=_denoise_public,
+    hidden=_denoise_hidden,
+    compare=PsnrGap(),
+    mistakes=[_denoise_h_too_large, _denoise_summed, _denoise_variance],
+    allowed=("filters.pad",),   # not nl_means: nl_means(noisy, sigma) alone is near the reference
+    arg_names=("noisy", "sigma"),
+    output_names=("denoised",),
+    time_limit=BUDGET_SECONDS,
+    credit=lambda got, case: DENOISE_SCALE.credit(_psnr_gap(got, case)),
+    measure=Measure("PSNR minus the reference's", _psnr_gap, "dB"),
 )

@@ -23,14 +23,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..grading import Case, Check, Comparator, Mismatch, Mistake
+from ..grading import Case, Check, Comparator, Mismatch, Mistake, mistake
+from ..grading.checks import Measure
 from ..grading.casekit import argument, variant
+from ..grading.casekit import seed as _seed
+from ..grading.compare import as_numeric
+from ..grading.measured import MeasuredCase, Scale
 from ..grading.casekit import size as _size
 from ..grading.casekit import uniform as _u
 from ._matching import _window_is_flat
 from ._matching import cost_volume
+from ._measured import GOOD_PIXEL_SCALE, BUDGET_SECONDS, PAIR_MAX_DISPARITY, bad_pixel_rate, match_pair, synthetic_pair
 
-__all__ = ["block_matching", "DisparityMaps"]
+__all__ = ["block_matching", "DisparityMaps", "dense_disparity", "BadPixelRate", "DISPARITY_SCALE"]
 
 _NAMES = ("left", "right", "max_disparity", "block_size", "cost")
 _DEFAULTS = {"block_size": 7, "cost": "sad"}
@@ -343,3 +348,95 @@ block_matching = Check(
     arg_names=_NAMES,
 )
 
+
+
+# --------------------------------------------------------------------------------------------
+# §2.6 the measured exercise: a dense disparity map, graded by its bad-pixel rate
+# --------------------------------------------------------------------------------------------
+#: the published scale of ``stereo.dense_disparity`` (share of good pixels → share of the points)
+DISPARITY_SCALE = Scale(GOOD_PIXEL_SCALE)
+
+
+def _measured_pair(seed: int, label: str) -> MeasuredCase:
+    left, right, truth = synthetic_pair(seed)
+    return MeasuredCase((left, right, PAIR_MAX_DISPARITY), {}, label, truth=truth)
+
+
+def _dense_public() -> list[Case]:
+    return [_measured_pair(2026, "a synthetic pair (planes in front of a slanted background, noise, the right "
+                                 "camera brighter or darker)")]
+
+
+def _dense_hidden(rng: np.random.Generator) -> list[Case]:
+    return [_measured_pair(_seed(rng), f"your own synthetic pair {k + 1} of 3 (scene, texture, gain and noise "
+                                       f"drawn from your seed)") for k in range(3)]
+
+
+def good_pixels(got, case) -> float:
+    """The share of the pixels with a ground truth where ``got`` is within 1 px (0 for a map of
+    the wrong shape): 1 − the bad-pixel rate."""
+    return 1.0 - bad_pixel_rate(got, case.truth) if np.shape(got) == np.shape(case.truth) else 0.0
+
+
+class BadPixelRate(Comparator):
+    """Passes when the disparity map's share of good pixels (error ≤ 1 px, on the pixels with a
+    ground truth: ``case.truth``) reaches the top of :data:`DISPARITY_SCALE`; the case's credit
+    follows the scale below it. ``expected`` (the reference's map) only serves for comparison in
+    the message."""
+
+    def describe(self) -> str:
+        return f"at least {DISPARITY_SCALE.show(DISPARITY_SCALE.top)} of the pixels within 1 px of the true disparity"
+
+    def __call__(self, got, expected, case=None):
+        truth = np.asarray(case.truth)
+        array, problem = as_numeric(got, "your disparity map")
+        if array is None:
+            return Mismatch(problem or "your disparity map is not an array")
+        disparity = array.astype(np.float64)
+        if disparity.shape != truth.shape:
+            return Mismatch(f"shape mismatch: expected {truth.shape} (one disparity per left pixel), got {disparity.shape}")
+        good = good_pixels(disparity, case)
+        if good >= DISPARITY_SCALE.top:
+            return None
+        known = np.isfinite(truth)
+        words = DISPARITY_SCALE.shortfall(good, "share of good pixels (error ≤ 1 px)",
+                                          f" on {int(known.sum())} pixels with a ground truth")
+        words += f" The reference reached {100 * good_pixels(expected, case):.2f} % on the same pair."
+        if good < DISPARITY_SCALE.bottom:
+            words += (" Check the direction of the search (x − d), and that the cost ignores the two cameras' gain "
+                      "and offset; windows too small for the noise give scattered errors.")
+        return Mismatch(words)
+
+
+@mistake("disparity searched in the wrong direction (x + d)",
+         "The left pixel (x, y) matches the right pixel (x − d, y): scene points appear further left in the right view")
+def _dense_flipped(left, right, max_disparity):
+    return match_pair(left, right, max_disparity, flip=True)
+
+
+@mistake("raw grey levels compared (SAD), whatever the cameras' gain",
+         "The right camera has another gain and offset: compare windows with ZNCC (or normalise each window) "
+         "instead of raw differences")
+def _dense_sad(left, right, max_disparity):
+    return match_pair(left, right, max_disparity, block=9, cost="sad", consistency=False, median=False, subpixel=False)
+
+
+@mistake("3×3 windows, plain winner-takes-all",
+         "Three by three pixels are too few to outvote the noise: use larger windows (5×5 to 9×9), check the "
+         "left-right consistency and smooth the map (a median)")
+def _dense_tiny_windows(left, right, max_disparity):
+    return match_pair(left, right, max_disparity, block=3, consistency=False, median=False, subpixel=False)
+
+
+dense_disparity = Check(
+    public=_dense_public,
+    hidden=_dense_hidden,
+    compare=BadPixelRate(),
+    mistakes=[_dense_flipped, _dense_sad, _dense_tiny_windows],
+    allowed=("stereo.block_matching",),   # the student's own, the building block of their recipe
+    arg_names=("left", "right", "max_disparity"),
+    output_names=("disparity",),
+    time_limit=BUDGET_SECONDS,
+    credit=lambda got, case: DISPARITY_SCALE.credit(good_pixels(got, case)),
+    measure=Measure("share of good pixels", lambda got, case: 100 * good_pixels(got, case), "%"),
+)

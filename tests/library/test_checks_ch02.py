@@ -167,3 +167,81 @@ def test_integer_disparities_are_required():
         return alt.block_matching(left, right, max_disparity, block_size, cost).astype(np.float64)
 
     harness.assert_scores_zero("stereo.block_matching", block_matching, "integer")
+
+# --------------------------------------------------------------------------------------------
+# the measured exercise: stereo.dense_disparity, graded by its share of good pixels
+# --------------------------------------------------------------------------------------------
+from cvkit.stereo import _measured as stereo_task  # noqa: E402
+from cvkit.stereo.checks import DISPARITY_SCALE, good_pixels  # noqa: E402
+
+try:
+    from . import measured_harness as measured
+except ImportError:  # tests/ is not a package: pytest puts it on sys.path
+    import measured_harness as measured
+
+DENSE = "stereo.dense_disparity"
+GOOD = "share of good pixels (error ≤ 1 px)"
+
+
+def test_dense_disparity_notebook_publishes_the_scale_and_budget():
+    assert DISPARITY_SCALE.corners == stereo_task.GOOD_PIXEL_SCALE and check_of(DENSE).credit is not None
+    measured.assert_notebook_publishes("ch02_image_formation", DENSE, "dense_disparity(left, right, max_disparity)",
+                                       DISPARITY_SCALE, "share of good pixels in your pairs", stereo_task.BUDGET_SECONDS)
+
+
+def test_the_reference_stays_well_below_the_top_on_forty_scenes():
+    """The claim of the reference's docstring: over 40 scenes its worst bad-pixel rate keeps a
+    margin of 3 points to the top of the scale."""
+    rates = []
+    for seed in range(40):
+        left, right, truth = stereo_task.synthetic_pair(seed)
+        rates.append(stereo_task.bad_pixel_rate(stereo_task.dense_disparity(left, right, 16), truth))
+    assert 1 - max(rates) >= DISPARITY_SCALE.top + 0.03, max(rates)
+    assert np.median(rates) <= 0.07
+
+
+def test_dense_disparity_measures_what_it_should():
+    measured.assert_measures_what_it_should(DENSE, SEEDS, good_pixels, DISPARITY_SCALE, GOOD,
+                                            alternatives=(alt.dense_disparity,))
+
+
+def _spoiled(left, right, max_disparity):
+    """The reference's map with every fifth pixel of every row set to 0: about 80 % good."""
+    disparity = stereo_task.match_pair(left, right, max_disparity)
+    disparity[:, ::5] = -10.0
+    return disparity
+
+
+def test_dense_disparity_partial_credit_follows_the_scale():
+    measured.assert_partial_credit_follows_the_scale(DENSE, _spoiled, SEEDS[0], good_pixels, DISPARITY_SCALE)
+
+
+def test_dense_disparity_pairs_differ_per_student_and_the_truth_stays_with_the_grader():
+    measured.assert_hidden_data_differ_and_truth_stays_outside(
+        DENSE, lambda a, b: np.array_equal(a.args[0], b.args[0]) and np.array_equal(a.truth, b.truth, equal_nan=True))
+    for case in check_of(DENSE).hidden_cases(np.random.default_rng(SEEDS[0])):
+        left, right, max_disparity = case.args
+        assert left.shape == right.shape == case.truth.shape == stereo_task.PAIR_SHAPE and max_disparity == 16
+        known = np.isfinite(case.truth)
+        assert 0.7 < known.mean() < 0.98                      # occluded pixels are left out
+        assert np.nanmax(case.truth) <= max_disparity and np.nanmin(case.truth) >= 0
+
+
+def test_synthetic_pair_truth_is_what_the_views_show():
+    """Where the truth is known, the left pixel's grey level is the right view's at x − d
+    (up to the gain, offset and noise), so a perfect matcher exists."""
+    left, right, truth = stereo_task.synthetic_pair(7, noise=0.0, photometric=False)
+    rows, cols = np.nonzero(np.isfinite(truth))
+    x = cols - truth[rows, cols]
+    i = np.floor(x).astype(int)
+    t = x - i
+    j = np.minimum(i + 1, right.shape[1] - 1)
+    seen = (1 - t) * right[rows, i] + t * right[rows, j]
+    assert np.median(np.abs(seen - left[rows, cols])) < 1e-9
+    assert np.mean(np.abs(seen - left[rows, cols]) < 0.02) > 0.97
+
+
+def test_a_map_of_the_wrong_shape_fails_with_a_message():
+    report = evaluate(DENSE, lambda left, right, d: np.zeros((3, 3)))
+    assert not report.passed and report.score == 0.0
+    assert "one disparity per left pixel" in report.cases[0].message

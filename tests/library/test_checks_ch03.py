@@ -158,3 +158,83 @@ def test_integer_output_is_refused():
     report = evaluate("filters.mean", mean)
     assert not report.passed
     assert any("dtype" in c.message for c in report.cases if not c.passed)
+
+
+# --------------------------------------------------------------------------------------------
+# the measured exercise: filters.denoise, graded by its PSNR against the reference's
+# --------------------------------------------------------------------------------------------
+from cvkit.filters import _denoise as denoise_task  # noqa: E402
+from cvkit.filters.checks import DENOISE_SCALE  # noqa: E402
+
+try:
+    from . import measured_harness as measured
+except ImportError:  # tests/ is not a package: pytest puts it on sys.path
+    import measured_harness as measured
+
+DENOISE = "filters.denoise"
+
+
+def _gap(output, case):
+    noisy, sigma = case.args
+    return denoise_task.psnr_gap(output, noisy, sigma, case.truth)
+
+
+def test_denoise_notebook_publishes_the_scale_and_budget():
+    assert DENOISE_SCALE.corners == denoise_task.PSNR_GAP_SCALE and check_of(DENOISE).credit is not None
+    measured.assert_notebook_publishes("ch03_filtering", DENOISE, "denoise(noisy, sigma)", DENOISE_SCALE,
+                                       "your PSNR minus the reference's (dB), per crop", denoise_task.BUDGET_SECONDS)
+
+
+def test_the_reference_denoises_every_crop_and_a_correct_variant_stays_near_it():
+    """Over 30 crops the reference gains at least 4 dB over the noisy input, and the
+    alternative (same method, other border and code) stays within 1 dB of it: the top of the
+    scale (−2 dB) leaves room for other reasonable settings."""
+    gains, gaps = [], []
+    for seed in range(30):
+        noisy, sigma, clean, _ = denoise_task.noisy_crop(seed)
+        reference = denoise_task.psnr(clean, denoise_task.denoise(noisy, sigma))
+        gains.append(reference - denoise_task.psnr(clean, noisy))
+        gaps.append(denoise_task.psnr(clean, alt.denoise(noisy, sigma)) - reference)
+    assert min(gains) > 4.0, min(gains)
+    assert min(gaps) > -1.0, min(gaps)
+
+
+def test_denoise_measures_what_it_should():
+    measured.assert_measures_what_it_should(DENOISE, SEEDS, _gap, DENOISE_SCALE, "your PSNR minus the reference's (dB)",
+                                            alternatives=(alt.denoise,))
+
+
+def _half_denoised(noisy, sigma):
+    """The reference's output with 42 % of the noisy input mixed back: between the corners."""
+    image = np.asarray(noisy, dtype=np.float64)
+    return 0.58 * denoise_task.denoise_unregistered(image, sigma) + 0.42 * image
+
+
+def test_denoise_partial_credit_follows_the_scale():
+    measured.assert_partial_credit_follows_the_scale(DENOISE, _half_denoised, SEEDS[0], _gap, DENOISE_SCALE)
+
+
+def test_denoise_crops_differ_per_student_and_the_clean_image_stays_with_the_grader():
+    measured.assert_hidden_data_differ_and_truth_stays_outside(DENOISE, measured.same_input_and_truth)
+    for case in check_of(DENOISE).hidden_cases(np.random.default_rng(SEEDS[0])):
+        noisy, sigma = case.args
+        assert noisy.shape == case.truth.shape == (denoise_task.CROP, denoise_task.CROP)
+        assert denoise_task.SIGMA_RANGE[0] <= sigma <= denoise_task.SIGMA_RANGE[1]
+        assert abs(np.std(noisy - case.truth) - sigma) < 0.1 * sigma      # the noise is what sigma says
+        assert case.truth.std() >= denoise_task.MIN_CONTRAST
+
+
+def test_a_denoised_image_of_the_wrong_shape_fails_with_a_message():
+    report = evaluate(DENOISE, lambda noisy, sigma: np.zeros((3, 3)))
+    assert not report.passed and report.score == 0.0
+    assert "the shape of the noisy image" in report.cases[0].message
+
+
+def test_the_clean_pictures_are_not_served_to_a_graded_denoiser():
+    """The crops come from cvkit.data images: a graded answer that could load them might look
+    the crop up instead of denoising it, so the sandbox serves none of them to this exercise."""
+    from cvkit.grading.served import served_helpers
+
+    served = served_helpers(DENOISE)
+    assert not {f"data.{name}" for name in denoise_task.IMAGES} & set(served)
+    assert "data.camera" in served_helpers("filters.nl_means")

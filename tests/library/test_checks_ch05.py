@@ -36,6 +36,7 @@ class _StubTree:
 
 class TestChapter05(harness.WholeModuleChecks):
     IDS = CH05
+    MEASURED = ("features.match_features",)  # §5.14.1: graded by its correct matches, tested below
     MISTAKES_MAY_CALL = EVERY_ID
     TRIVIAL = frozenset({"features.dog_pyramid"})
     ALTERNATIVES = alt.ALTERNATIVES
@@ -345,3 +346,101 @@ def _class_source(cls) -> str:
     import inspect
 
     return inspect.getsource(cls)
+
+
+# --------------------------------------------------------------------------------------------
+# the measured exercise: features.match_features, graded by its correct matches under the warp
+# --------------------------------------------------------------------------------------------
+from cvkit.features import _measured as match_task  # noqa: E402
+from cvkit.features.checks import MATCH_COUNT_SCALE, MATCH_PRECISION_SCALE  # noqa: E402
+
+try:
+    from . import measured_harness as measured
+except ImportError:  # tests/ is not a package: pytest puts it on sys.path
+    import measured_harness as measured
+
+MATCH = "features.match_features"
+MATCH_SEEDS = SEEDS[:2]
+
+
+def _correct(output, case):
+    return match_task.correct_matches(output, case.truth)[0]
+
+
+def _precision(output, case):
+    correct, returned = match_task.correct_matches(output, case.truth)
+    return correct / returned if returned else 0.0
+
+
+def test_match_features_notebook_publishes_both_scales_and_the_budget():
+    assert MATCH_COUNT_SCALE.corners == match_task.COUNT_SCALE and MATCH_PRECISION_SCALE.corners == match_task.PRECISION_SCALE
+    for scale, words in ((MATCH_COUNT_SCALE, "correct matches in a pair"),
+                         (MATCH_PRECISION_SCALE, "precision (correct / returned)")):
+        measured.assert_notebook_publishes("ch05_features", MATCH, "match_features(image1, image2)", scale, words,
+                                           match_task.BUDGET_SECONDS)
+    assert match_task.TOLERANCE == 2.0
+
+
+def test_a_case_earns_the_smaller_share_of_the_two_scales():
+    (case,) = check_of(MATCH).public_cases()
+    points1, points2 = match_task.sift_matches(*case.args)
+    good = match_task._apply(case.truth, points1)            # every match made exact
+    rng = np.random.default_rng(3)
+    for keep, junk in ((10, 0), (30, 12), (6, 30)):
+        wrong = rng.uniform(0, 190, (junk, 2))
+        answer = (np.r_[points1[:keep], wrong], np.r_[good[:keep], wrong[::-1] + 7.0])
+        correct, returned = match_task.correct_matches(answer, case.truth)
+        assert correct == len(np.unique(np.round(points1[:keep] * 2), axis=0))
+        expected = min(MATCH_COUNT_SCALE.credit(correct), MATCH_PRECISION_SCALE.credit(correct / returned))
+        assert check_of(MATCH).credit(answer, case) == pytest.approx(expected)
+    # repeating one good match earns nothing more
+    repeated = (np.repeat(points1[:1], 50, axis=0), np.repeat(good[:1], 50, axis=0))
+    assert match_task.correct_matches(repeated, case.truth) == (1, 1)
+
+
+def test_the_reference_clears_both_scales_on_thirty_pairs():
+    """The claim of the reference's docstring, on 30 pairs: a margin on both scales."""
+    counts, precisions = [], []
+    for seed in range(30):
+        image1, image2, H, _ = match_task.warped_pair(seed)
+        correct, returned = match_task.correct_matches(match_task.match_features(image1, image2), H)
+        counts.append(correct)
+        precisions.append(correct / returned)
+    assert min(counts) >= MATCH_COUNT_SCALE.top + 4, min(counts)
+    assert min(precisions) >= MATCH_PRECISION_SCALE.top + 0.1, min(precisions)
+
+
+def test_match_features_measures_what_it_should():
+    measured.assert_clears_the_top(MATCH, MATCH_SEEDS, _correct, MATCH_COUNT_SCALE)
+    measured.assert_measures_what_it_should(MATCH, MATCH_SEEDS, _precision, MATCH_PRECISION_SCALE, "precision",
+                                            alternatives=(alt.match_features,))
+
+
+def test_match_features_pairs_differ_per_student_and_the_warp_stays_with_the_grader():
+    measured.assert_hidden_data_differ_and_truth_stays_outside(MATCH, measured.same_input_and_truth)
+    for case in check_of(MATCH).hidden_cases(np.random.default_rng(SEEDS[0])):
+        image1, image2 = case.args
+        assert image1.shape == image2.shape == (match_task.SIZE, match_task.SIZE)
+        assert case.truth.shape == (3, 3) and case.truth[2, 2] == 1.0
+        # the warp is what the images show: the centre of image 1 reads the same in image 2
+        x, y = match_task._apply(case.truth, np.array([[95.5, 95.5]]))[0]
+        assert abs(image1[95, 95] - image2[int(round(y)), int(round(x))]) < 0.25
+
+
+def _half_wrong(image1, image2):
+    """The reference's matches with every third point of image 2 moved 10 px: precision 2/3."""
+    points1, points2 = match_task.sift_matches(image1, image2)
+    points2 = points2.copy()
+    points2[::3] += 10.0
+    return points1, points2
+
+
+def test_match_features_partial_credit_follows_the_scales():
+    measured.assert_partial_credit_follows_the_scale(MATCH, _half_wrong, MATCH_SEEDS[0], _precision,
+                                                     MATCH_PRECISION_SCALE)
+
+
+def test_matches_that_are_not_two_point_arrays_fail_with_a_message():
+    report = evaluate(MATCH, lambda image1, image2: np.zeros((3, 4)))
+    assert not report.passed and report.score == 0.0
+    assert "(points1, points2)" in report.cases[0].message
