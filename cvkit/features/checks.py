@@ -2033,14 +2033,14 @@ def _match_same_index(image1, image2):
 
 
 match_features = Check(
+    compare=CorrectMatches(),
+    credit=_match_credit,
     public=_warp_public,
     hidden=_warp_hidden,
-    compare=CorrectMatches(),
     mistakes=[_match_nearest_only, _match_row_col, _match_same_index],
     allowed=_SIFT_BLOCKS,
     arg_names=("image1", "image2"),
     output_names=("points1", "points2"),
     time_limit=BUDGET_SECONDS,
-    credit=_match_credit,
     measure=Measure("correct matches", lambda got, case: correct_matches(got, case.truth)[0]),
 )
