@@ -64,11 +64,12 @@ def sandbox_cost(repeats: int = 10) -> float:
     cost per notebook is twice this figure."""
     import numpy as np
 
+    from cvkit.grading.runtime import wire
     from cvkit.sandbox import isolation, session as sandbox
 
     isolation.require()
     cells = ["def f(x):\n    return x + 1"]
-    calls = [{"function": "f", "args": (np.ones(3),), "kwargs": {}, "time_limit": 5.0}]
+    calls = [wire.BoxCall(function="f", args=(np.ones(3),), time_limit=5.0)]
     timings = {}
     for sandboxed in (False, True, False, True):
         start = time.perf_counter()

@@ -404,6 +404,9 @@ class _Run:
     def prepare(cls, cells: list[str], calls: list[wire.BoxCall], blocks: tuple, sandboxed: bool,
                 cell_seconds: float, deadline: float) -> "_Run":
         """The run before its first sandbox: the calls encoded, nothing decided yet."""
+        wrong = next((call for call in calls if not isinstance(call, wire.BoxCall)), None)
+        if wrong is not None:
+            raise TypeError(f"calls: expected cvkit.grading.runtime.wire.BoxCall objects, got a {type(wrong).__name__}")
         encoded = [call.to_wire() for call in calls]
         result = SandboxResult([None] * len(calls), sandboxed=sandboxed, started=False)
         # the worker's stand-ins for cvkit's modules
