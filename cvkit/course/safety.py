@@ -929,8 +929,7 @@ def _exporter_class():
 
 def _configured_sanitizer(exporter: Any) -> bool:
     """Whether ``exporter``'s steps include :class:`SanitizeStudentContent` (by class or name)."""
-    return any(getattr(step, "__name__", type(step).__name__) == "SanitizeStudentContent"
-               or type(step).__name__ == "SanitizeStudentContent" for step in exporter._preprocessors)
+    return any(type(step).__name__ == "SanitizeStudentContent" for step in exporter._preprocessors)
 
 
 _LAZY = {"SanitizeStudentContent": _preprocessor_class, "SafeFeedbackExporter": _exporter_class}
