@@ -196,6 +196,8 @@ def execute(notebook: dict, folder: str, timeout: int | None = None) -> dict:
     import nbformat
     from nbclient import NotebookClient
 
+    from .kernel import KernelManager
+
     nb = notebook if isinstance(notebook, nbformat.NotebookNode) else \
         nbformat.reads(json.dumps(notebook), as_version=4)  # joins multi-line sources
     timeout = int(os.environ.get(CELL_TIMEOUT_VARIABLE, DEFAULT_CELL_TIMEOUT)) if timeout is None else timeout
@@ -205,7 +207,7 @@ def execute(notebook: dict, folder: str, timeout: int | None = None) -> dict:
         raise_on_iopub_timeout=True, error_on_timeout=TIMEOUT_ERROR, record_timing=False,
         shutdown_kernel="immediate",  # every output is in; a graceful shutdown only waits (~0.2 s)
         extra_arguments=PYTHON_KERNEL_ARGUMENTS if kernel.startswith("python") else [],
-        resources={"metadata": {"path": folder}},
+        resources={"metadata": {"path": folder}}, kernel_manager_class=KernelManager,
     )
     client.execute()
     return json.loads(nbformat.writes(nb))
