@@ -36,13 +36,16 @@ def scores(course: CourseState, assignment: str) -> dict[str, list[ExerciseScore
     from nbgrader.api import Gradebook, MissingEntry
 
     table: dict[str, list[ExerciseScore]] = {}
+    submitted = course.submissions([assignment])
+    if not submitted:  # nothing to read: the gradebook is not opened (an item analysis asks for every chapter)
+        return table
     not_graded = course.not_graded()
     cells = _cell_order(course, assignment)
     order: dict[str, int] = {}  # exercise name → position of its first graded cell
     for cell_id in cells:
         order.setdefault(exercise_name(cell_id), len(order))
     with Gradebook(course.db_url) as gb:
-        for student, _ in course.submissions([assignment]):
+        for student, _ in submitted:
             if f"{student}/{assignment}" in not_graded:
                 continue  # no score: listed as not graded (Course.table, the exports)
             try:
