@@ -471,7 +471,13 @@ def nl_means(image: ArrayLike, h: float, patch_size: int = 7, search_size: int =
     patch_size = check_int(patch_size, "patch_size", minimum=1, odd=True)
     search_size = check_int(search_size, "search_size", minimum=1, odd=True)
     check_border(border)
+    return _nl_means(img, h, patch_size, search_size, border)
 
+
+def _nl_means(img: np.ndarray, h: float, patch_size: int, search_size: int, border: Border) -> np.ndarray:
+    """:func:`nl_means` of arguments already checked (``img`` a float64 image from ``as_image``).
+    Not registered, so that the reference of the measured denoiser (:mod:`._denoise`), which is
+    graded as a candidate and may call no registered function, computes the same filter."""
     sr, pr = search_size // 2, patch_size // 2
     _check_weighted_mean(img.shape, sr + pr, sr, 16 + 4 * patch_size.bit_length(),
                          "search_size" if search_size >= patch_size else "patch_size",
