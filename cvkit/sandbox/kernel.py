@@ -38,7 +38,7 @@ class ReadyClient(AsyncKernelClient):
     module docstring); raises :class:`RuntimeError` as jupyter_client's does when the kernel
     dies or ``timeout`` seconds pass."""
 
-    async def wait_for_ready(self, timeout: float | None = None) -> None:  # type: ignore[override]
+    async def wait_for_ready(self, timeout: float | None = None) -> None:
         deadline = time.monotonic() + (float("inf") if timeout is None else timeout)
         while True:
             request = self.kernel_info()
