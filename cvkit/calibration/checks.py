@@ -846,22 +846,9 @@ def _cr_det(image, sigma=1.5):
     return -_chessboard_response(image, sigma)
 
 
-@mistake("image not smoothed (sigma ignored)",
-         "Smooth the grey image with filters.gaussian(grey, sigma) before taking the second differences")
-def _cr_not_smoothed(image, sigma=1.5):
-    return _cr_from(_cr_parts(image, sigma, smooth=False))
-
-
-@mistake("intensities not rescaled to [0, 1]",
-         "Rescale the grey image to [0, 1] first, (grey − min) / (max − min): then the response does not "
-         "depend on the dtype or the range of the input")
-def _cr_not_rescaled(image, sigma=1.5):
-    return _cr_from(_cr_parts(image, sigma, rescale=False))
-
-
-@mistake("grey = mean of R, G, B", "Grey is the luma 0.299 R + 0.587 G + 0.114 B, not the plain mean of the channels")
-def _cr_mean_grey(image, sigma=1.5):
-    return _cr_from(_cr_parts(image, sigma, mean_grey=True))
+def _cr_variant(image, sigma=1.5, *, rescale=True, mean_grey=False, smooth=True):
+    """The response on the grey image :func:`_cr_parts` makes with these settings."""
+    return _cr_from(_cr_parts(image, sigma, rescale=rescale, mean_grey=mean_grey, smooth=smooth))
 
 
 @mistake("I_xy without the factor 1/4",
@@ -915,7 +902,18 @@ chessboard_response = Check(
     public=_cr_public,
     hidden=_cr_hidden,
     compare=MapClose(rtol=1e-6),
-    mistakes=[_cr_det, _cr_not_smoothed, _cr_not_rescaled, _cr_mean_grey, _cr_no_quarter, _cr_gradient_twice],
+    mistakes=[
+        _cr_det,
+        Mistake("image not smoothed (sigma ignored)", variant(_cr_variant, smooth=False),
+                "Smooth the grey image with filters.gaussian(grey, sigma) before taking the second differences"),
+        Mistake("intensities not rescaled to [0, 1]", variant(_cr_variant, rescale=False),
+                "Rescale the grey image to [0, 1] first, (grey − min) / (max − min): then the response does not "
+                "depend on the dtype or the range of the input"),
+        Mistake("grey = mean of R, G, B", variant(_cr_variant, mean_grey=True),
+                "Grey is the luma 0.299 R + 0.587 G + 0.114 B, not the plain mean of the channels"),
+        _cr_no_quarter,
+        _cr_gradient_twice,
+    ],
     allowed=("filters.gaussian", "filters.correlate", "filters.convolve", "filters.gaussian_kernel"),
 )
 

@@ -1097,36 +1097,6 @@ def _pool_routed(dout, cache, rule, split=False, add=True):
     return _pool_scatter(cache, weights, dout, add=add)
 
 
-@mistake("gradient sent to every element of the window",
-         "Only the maximum influenced the output: route dout to the arg-max of each window, 0 elsewhere")
-def _pool_b_everywhere(dout, cache):
-    return _pool_routed(dout, cache, "every")
-
-
-@mistake("gradient split evenly over the window (average pooling's)",
-         "That is average pooling's gradient; max pooling routes the whole dout to the maximum")
-def _pool_b_average(dout, cache):
-    return _pool_routed(dout, cache, "every", split=True)
-
-
-@mistake("every tied maximum gets the gradient",
-         "On ties only the first maximum in row-major order (np.argmax's rule) gets dout")
-def _pool_b_all_ties(dout, cache):
-    return _pool_routed(dout, cache, "all_ties")
-
-
-@mistake("last maximum instead of the first on ties",
-         "np.argmax over the flattened window picks the first maximum in row-major order")
-def _pool_b_last(dout, cache):
-    return _pool_routed(dout, cache, "last")
-
-
-@mistake("overlapping windows overwrite instead of adding",
-         "When one element is the maximum of several windows, their gradients add up (+=)")
-def _pool_b_overwrite(dout, cache):
-    return _pool_routed(dout, cache, "first", add=False)
-
-
 def _pool_fixed_dout(shape, i):
     dout = _distinct(shape, seed=41 + i, offset=0.5 * (math.prod(shape) % 2 == 0), scale=0.5)
     dout[dout == 0] = 0.75
@@ -1142,7 +1112,19 @@ maxpool2d_backward = Check(
     public=_pool_backward_cases(_POOL_PUBLIC, None),
     hidden=lambda rng: _pool_backward_cases(_pool_hidden(rng), rng),
     compare=_TIGHT,
-    mistakes=[_pool_b_everywhere, _pool_b_average, _pool_b_all_ties, _pool_b_last, _pool_b_overwrite],
+    mistakes=[
+        Mistake("gradient sent to every element of the window", variant(_pool_routed, rule="every"),
+                "Only the maximum influenced the output: route dout to the arg-max of each window, 0 elsewhere"),
+        Mistake("gradient split evenly over the window (average pooling's)",
+                variant(_pool_routed, rule="every", split=True),
+                "That is average pooling's gradient; max pooling routes the whole dout to the maximum"),
+        Mistake("every tied maximum gets the gradient", variant(_pool_routed, rule="all_ties"),
+                "On ties only the first maximum in row-major order (np.argmax's rule) gets dout"),
+        Mistake("last maximum instead of the first on ties", variant(_pool_routed, rule="last"),
+                "np.argmax over the flattened window picks the first maximum in row-major order"),
+        Mistake("overlapping windows overwrite instead of adding", variant(_pool_routed, rule="first", add=False),
+                "When one element is the maximum of several windows, their gradients add up (+=)"),
+    ],
 )
 
 
@@ -1281,60 +1263,6 @@ def _bn_variant(x, gamma, beta, running_mean, running_var, training, momentum=0.
     return out, cache
 
 
-@mistake("running statistics used while training",
-         "In training normalise with the mean and variance of this batch (per channel over N, H, W)")
-def _bn_running_in_training(*a, **k):
-    return _bn_variant(*a, **k, norm_stats="running")
-
-
-@mistake("updated running statistics used to normalise in training",
-         "In training normalise with this batch's mean and (biased) variance; the running statistics are "
-         "updated for evaluation, not used on the batch they were just updated with")
-def _bn_updated_running_in_training(*a, **k):
-    return _bn_variant(*a, **k, norm_stats="updated")
-
-
-@mistake("unbiased variance used to normalise",
-         "Normalise with the biased batch variance (divide by n = N·H·W, np.var's default)")
-def _bn_unbiased_norm(*a, **k):
-    return _bn_variant(*a, **k, norm_ddof=1)
-
-
-@mistake("biased variance in the running average",
-         "The running variance is updated with the unbiased variance (× n/(n − 1)), as PyTorch does")
-def _bn_biased_running(*a, **k):
-    return _bn_variant(*a, **k, run_ddof=0)
-
-
-@mistake("momentum weights swapped: m·old + (1 − m)·batch",
-         "new = (1 − momentum)·old + momentum·batch: momentum is the weight of the current batch")
-def _bn_swapped_momentum(*a, **k):
-    return _bn_variant(*a, **k, swap_momentum=True)
-
-
-@mistake("statistics over all channels together",
-         "One mean and one variance per channel: reduce over axes (0, 2, 3) only")
-def _bn_all_channels(*a, **k):
-    return _bn_variant(*a, **k, all_channels=True)
-
-
-@mistake("ε added to the standard deviation", "Divide by sqrt(var + eps), with ε inside the square root")
-def _bn_eps_outside(*a, **k):
-    return _bn_variant(*a, **k, eps_outside=True)
-
-
-@mistake("running statistics not updated",
-         "In training put (1 − m)·old + m·batch into cache['running_mean'] and cache['running_var']")
-def _bn_not_updated(*a, **k):
-    return _bn_variant(*a, **k, update=False)
-
-
-@mistake("batch statistics used in evaluation",
-         "With training=False normalise with running_mean and running_var (and leave them unchanged)")
-def _bn_batch_in_eval(*a, **k):
-    return _bn_variant(*a, **k, eval_stats="batch")
-
-
 def _bn_args(rng, n, c, h, w, *, low_variance=False, kind="normal"):
     means = _round(rng.normal(0, 3, c), 2)
     scales = _round(rng.uniform(0.5, 3.0, c), 2)
@@ -1388,8 +1316,27 @@ batchnorm2d_forward = Check(
     hidden=_bn_hidden,
     compare=_forward_compare(_SUMS),
     call=call_batchnorm2d_forward,
-    mistakes=[_bn_running_in_training, _bn_updated_running_in_training, _bn_unbiased_norm, _bn_biased_running, _bn_swapped_momentum, _bn_all_channels,
-              _bn_eps_outside, _bn_not_updated, _bn_batch_in_eval],
+    mistakes=[
+        Mistake("running statistics used while training", variant(_bn_variant, norm_stats="running"),
+                "In training normalise with the mean and variance of this batch (per channel over N, H, W)"),
+        Mistake("updated running statistics used to normalise in training", variant(_bn_variant, norm_stats="updated"),
+                "In training normalise with this batch's mean and (biased) variance; the running statistics are "
+                "updated for evaluation, not used on the batch they were just updated with"),
+        Mistake("unbiased variance used to normalise", variant(_bn_variant, norm_ddof=1),
+                "Normalise with the biased batch variance (divide by n = N·H·W, np.var's default)"),
+        Mistake("biased variance in the running average", variant(_bn_variant, run_ddof=0),
+                "The running variance is updated with the unbiased variance (× n/(n − 1)), as PyTorch does"),
+        Mistake("momentum weights swapped: m·old + (1 − m)·batch", variant(_bn_variant, swap_momentum=True),
+                "new = (1 − momentum)·old + momentum·batch: momentum is the weight of the current batch"),
+        Mistake("statistics over all channels together", variant(_bn_variant, all_channels=True),
+                "One mean and one variance per channel: reduce over axes (0, 2, 3) only"),
+        Mistake("ε added to the standard deviation", variant(_bn_variant, eps_outside=True),
+                "Divide by sqrt(var + eps), with ε inside the square root"),
+        Mistake("running statistics not updated", variant(_bn_variant, update=False),
+                "In training put (1 − m)·old + m·batch into cache['running_mean'] and cache['running_var']"),
+        Mistake("batch statistics used in evaluation", variant(_bn_variant, eval_stats="batch"),
+                "With training=False normalise with running_mean and running_var (and leave them unchanged)"),
+    ],
 )
 
 
