@@ -1311,30 +1311,42 @@ _BN_PUBLIC = [
          "training, a channel of tiny variance, ε = 1e-4"),
 ]
 
+
+_bn_running_in_training = variant(_bn_variant, norm_stats="running")
+_bn_updated_running_in_training = variant(_bn_variant, norm_stats="updated")
+_bn_unbiased_norm = variant(_bn_variant, norm_ddof=1)
+_bn_biased_running = variant(_bn_variant, run_ddof=0)
+_bn_swapped_momentum = variant(_bn_variant, swap_momentum=True)
+_bn_all_channels = variant(_bn_variant, all_channels=True)
+_bn_eps_outside = variant(_bn_variant, eps_outside=True)
+_bn_not_updated = variant(_bn_variant, update=False)
+_bn_batch_in_eval = variant(_bn_variant, eval_stats="batch")
+
+
 batchnorm2d_forward = Check(
     public=_BN_PUBLIC,
     hidden=_bn_hidden,
     compare=_forward_compare(_SUMS),
     call=call_batchnorm2d_forward,
     mistakes=[
-        Mistake("running statistics used while training", variant(_bn_variant, norm_stats="running"),
+        Mistake("running statistics used while training", _bn_running_in_training,
                 "In training normalise with the mean and variance of this batch (per channel over N, H, W)"),
-        Mistake("updated running statistics used to normalise in training", variant(_bn_variant, norm_stats="updated"),
+        Mistake("updated running statistics used to normalise in training", _bn_updated_running_in_training,
                 "In training normalise with this batch's mean and (biased) variance; the running statistics are "
                 "updated for evaluation, not used on the batch they were just updated with"),
-        Mistake("unbiased variance used to normalise", variant(_bn_variant, norm_ddof=1),
+        Mistake("unbiased variance used to normalise", _bn_unbiased_norm,
                 "Normalise with the biased batch variance (divide by n = N·H·W, np.var's default)"),
-        Mistake("biased variance in the running average", variant(_bn_variant, run_ddof=0),
+        Mistake("biased variance in the running average", _bn_biased_running,
                 "The running variance is updated with the unbiased variance (× n/(n − 1)), as PyTorch does"),
-        Mistake("momentum weights swapped: m·old + (1 − m)·batch", variant(_bn_variant, swap_momentum=True),
+        Mistake("momentum weights swapped: m·old + (1 − m)·batch", _bn_swapped_momentum,
                 "new = (1 − momentum)·old + momentum·batch: momentum is the weight of the current batch"),
-        Mistake("statistics over all channels together", variant(_bn_variant, all_channels=True),
+        Mistake("statistics over all channels together", _bn_all_channels,
                 "One mean and one variance per channel: reduce over axes (0, 2, 3) only"),
-        Mistake("ε added to the standard deviation", variant(_bn_variant, eps_outside=True),
+        Mistake("ε added to the standard deviation", _bn_eps_outside,
                 "Divide by sqrt(var + eps), with ε inside the square root"),
-        Mistake("running statistics not updated", variant(_bn_variant, update=False),
+        Mistake("running statistics not updated", _bn_not_updated,
                 "In training put (1 − m)·old + m·batch into cache['running_mean'] and cache['running_var']"),
-        Mistake("batch statistics used in evaluation", variant(_bn_variant, eval_stats="batch"),
+        Mistake("batch statistics used in evaluation", _bn_batch_in_eval,
                 "With training=False normalise with running_mean and running_var (and leave them unchanged)"),
     ],
 )
