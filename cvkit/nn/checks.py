@@ -1896,23 +1896,6 @@ class SpecAccounting(Comparator):
         return self.inner(mine, spec_summary(expected, name), case)
 
 
-@mistake("VGG convolutions without bias", "VGG's convolutions have a bias (there is no batch norm in VGG-16)")
-def _spec_vgg_no_bias(name, num_classes=1000):
-    spec = _arch.architecture_spec(name, num_classes)
-    if name.startswith("vgg"):
-        for layer in spec:
-            if layer["type"] == "conv":
-                layer["bias"] = False
-    return spec
-
-
-@mistake("ResNet-50 with the stride in the first 1×1 (v1, not v1.5)",
-         "torchvision's ResNet-50 (v1.5 = ResNet-B) puts the stride 2 of a downsampling bottleneck in its 3×3 "
-         "convolution; same parameters, more FLOPs")
-def _spec_resnet50_v1(name, num_classes=1000):
-    return _arch.architecture_spec("resnet50_v1" if name == "resnet50" else name, num_classes)
-
-
 def _walk_layers(spec, fn):
     for layer in spec:
         fn(layer)
@@ -1924,34 +1907,30 @@ def _walk_layers(spec, fn):
                 _walk_layers(branch, fn)
 
 
-@mistake("projection shortcuts without batch norm",
-         "A projection shortcut is a 1×1 convolution with stride, followed by batch norm")
-def _spec_projection_no_bn(name, num_classes=1000):
-    spec = _arch.architecture_spec(name, num_classes)
+def _spec_variant(name, num_classes=1000, *, conv_bias=None, family="", replaced=None, projection_bn=True):
+    """The reference spec of ``name``, wrong in one way: for a ``name`` starting with
+    ``family``, every convolution's bias set to ``conv_bias`` (when not None); ``replaced`` =
+    (name, other) builds ``other`` in place of ``name``; no batch norm in the projection
+    shortcuts unless ``projection_bn``."""
+    if replaced is not None and name == replaced[0]:
+        spec = _arch.architecture_spec(replaced[1], num_classes)
+    else:
+        spec = _arch.architecture_spec(name, num_classes)
 
-    def strip(layer):
-        if layer["type"] == "residual":
+    def change(layer):
+        if conv_bias is not None and name.startswith(family) and layer["type"] == "conv":
+            layer["bias"] = conv_bias
+        if not projection_bn and layer["type"] == "residual":
             layer["shortcut"] = [l for l in layer["shortcut"] if l["type"] != "bn"]
-    _walk_layers(spec, strip)
+    _walk_layers(spec, change)
     return spec
 
 
-@mistake("ResNet convolutions with bias", "ResNet's convolutions have no bias (the batch norm after them has β)")
-def _spec_resnet_conv_bias(name, num_classes=1000):
-    spec = _arch.architecture_spec(name, num_classes)
-    if name.startswith("resnet"):
-        def add_bias(layer):
-            if layer["type"] == "conv":
-                layer["bias"] = True
-        _walk_layers(spec, add_bias)
-    return spec
-
-
-@mistake("Inception 3a without the 1×1 reductions (the naive module)",
-         "Put 1×1 convolutions (96 and 16 channels) before the 3×3 and 5×5 branches, and a 1×1 (32) after "
-         "the pooling")
-def _spec_inception_naive(name, num_classes=1000):
-    return _arch.architecture_spec("inception_3a_naive" if name == "inception_3a" else name, num_classes)
+_spec_vgg_no_bias = variant(_spec_variant, family="vgg", conv_bias=False)
+_spec_resnet50_v1 = variant(_spec_variant, replaced=("resnet50", "resnet50_v1"))
+_spec_projection_no_bn = variant(_spec_variant, projection_bn=False)
+_spec_resnet_conv_bias = variant(_spec_variant, family="resnet", conv_bias=True)
+_spec_inception_naive = variant(_spec_variant, replaced=("inception_3a", "inception_3a_naive"))
 
 
 _SPEC_NAMES = ("vgg16", "resnet18", "resnet50", "inception_3a")
@@ -1972,8 +1951,20 @@ architecture_spec = Check(
     public=[Case((name,), {}, name) for name in _SPEC_NAMES],
     hidden=_spec_hidden,
     compare=SpecAccounting(),
-    mistakes=[_spec_vgg_no_bias, _spec_resnet50_v1, _spec_projection_no_bn, _spec_resnet_conv_bias,
-              _spec_inception_naive],
+    mistakes=[
+        Mistake("VGG convolutions without bias", _spec_vgg_no_bias,
+                "VGG's convolutions have a bias (there is no batch norm in VGG-16)"),
+        Mistake("ResNet-50 with the stride in the first 1×1 (v1, not v1.5)", _spec_resnet50_v1,
+                "torchvision's ResNet-50 (v1.5 = ResNet-B) puts the stride 2 of a downsampling bottleneck in its 3×3 "
+                "convolution; same parameters, more FLOPs"),
+        Mistake("projection shortcuts without batch norm", _spec_projection_no_bn,
+                "A projection shortcut is a 1×1 convolution with stride, followed by batch norm"),
+        Mistake("ResNet convolutions with bias", _spec_resnet_conv_bias,
+                "ResNet's convolutions have no bias (the batch norm after them has β)"),
+        Mistake("Inception 3a without the 1×1 reductions (the naive module)", _spec_inception_naive,
+                "Put 1×1 convolutions (96 and 16 channels) before the 3×3 and 5×5 branches, and a 1×1 (32) after "
+                "the pooling"),
+    ],
 )
 
 
