@@ -11,7 +11,7 @@ through ``border`` (see :func:`cvkit.filters.pad`), which the filters obtain fro
 """
 from __future__ import annotations
 
-from typing import Literal
+from typing import Callable, Literal, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -23,6 +23,8 @@ from ..registry import algorithm, implementation
 __all__ = ["gradient", "magnitude", "direction", "prewitt", "sobel"]
 
 _docs = filler(IMAGE_BORDER)
+
+_F = TypeVar("_F", bound=Callable[..., object])
 
 SCHEMES = ("central", "forward", "backward")
 NORMS = ("l2", "l1", "max")
@@ -194,9 +196,11 @@ def direction(ix: ArrayLike, iy: ArrayLike) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 # §4.7 Prewitt and Sobel
 # --------------------------------------------------------------------------------------------
-def _smoothed_differences(image: np.ndarray, border: str, centre_weight: float) -> tuple[np.ndarray, np.ndarray]:
+def _smoothed_differences(image: ArrayLike, border: Border, centre_weight: float) -> tuple[np.ndarray, np.ndarray]:
     """Correlation with ``[1, c, 1]ᵀ ⊗ [-1, 0, 1]`` (gx) and its transpose (gy), separably."""
-    p = _padded(image, 1, border)  # (H + 2, W + 2[, 3])
+    img = as_image(image)
+    check_border(border)
+    p = _padded(img, 1, border)  # (H + 2, W + 2[, 3])
     # gx: smooth down the columns, then difference along the rows
     s = p[:-2] + p[2:]
     if centre_weight == 1.0:
@@ -214,10 +218,11 @@ def _smoothed_differences(image: np.ndarray, border: str, centre_weight: float) 
     return gx, gy
 
 
-@algorithm("edges.prewitt", section="4.7", check="cvkit.edges.checks:prewitt")
-@_docs
-def prewitt(image: ArrayLike, border: Border = "reflect101") -> tuple[np.ndarray, np.ndarray]:
-    """Prewitt derivatives ``(gx, gy)``: central differences smoothed by a box across them.
+#: the docstring of a smoothed-difference filter, whose kernels are ``[1, c, 1]ᵀ ⊗ [-1, 0, 1]``
+#: and their transpose: ``%(c)s`` is the centre weight, ``%(ramp)s`` the response to a ramp
+#: rising by 1 per pixel, ``%(step)s`` that to a unit step; the summary, the remarks that follow
+#: the kernels and the examples after the first are each filter's own.
+_SMOOTHED_DIFFERENCES_DOC = """%(summary)s
 
     Parameters
     ----------
@@ -227,75 +232,66 @@ def prewitt(image: ArrayLike, border: Border = "reflect101") -> tuple[np.ndarray
     Returns
     -------
     (gx, gy) : tuple of two float64 ndarrays, each the shape of ``image``
-        Unnormalised: a ramp rising by 1 per pixel gives 6 (divide by 6 for the slope).
+        Unnormalised: a ramp rising by 1 per pixel gives %(ramp)s (divide by %(ramp)s for the slope).
 
     Notes
     -----
     §4.7. Correlation (⋆) with
 
-    .. math:: g_x = I \\star \\begin{bmatrix} -1 & 0 & 1 \\\\ -1 & 0 & 1 \\\\ -1 & 0 & 1 \\end{bmatrix}, \\qquad
-              g_y = I \\star \\begin{bmatrix} -1 & -1 & -1 \\\\ 0 & 0 & 0 \\\\ 1 & 1 & 1 \\end{bmatrix},
+    .. math:: g_x = I \\star \\begin{bmatrix} -1 & 0 & 1 \\\\ -%(c)s & 0 & %(c)s \\\\ -1 & 0 & 1 \\end{bmatrix}, \\qquad
+              g_y = I \\star \\begin{bmatrix} -1 & -%(c)s & -1 \\\\ 0 & 0 & 0 \\\\ 1 & %(c)s & 1 \\end{bmatrix},
 
-    unscaled (a unit step gives 3), with the signs of :func:`sobel`: y points down, so ``gy``
-    is positive where the image gets brighter downwards. (The notes' listing uses the
-    opposite ``gy`` kernel, y pointing up.) Computed separably: ``[1, 1, 1]`` across the
-    derivative, then ``[-1, 0, 1]`` along it. Equals ``cv2.filter2D`` with these kernels.
+    %(remarks)s
 
     Examples
     --------
     >>> import numpy as np
-    >>> gx, gy = prewitt(np.array([[0, 0, 1, 1]] * 3))
+    >>> gx, gy = %(name)s(np.array([[0, 0, 1, 1]] * 3))
     >>> gx
-    array([[0., 3., 3., 0.],
-           [0., 3., 3., 0.],
-           [0., 3., 3., 0.]])
-    >>> bool(np.all(gy == 0))
+    array([[0., %(step)s., %(step)s., 0.],
+           [0., %(step)s., %(step)s., 0.],
+           [0., %(step)s., %(step)s., 0.]])
+    %(examples)s"""
+
+
+def _smoothed_differences_doc(centre_weight: int, summary: str, remarks: str, examples: str = "") -> Callable[[_F], _F]:
+    """The docstring of the smoothed-difference filter with centre weight ``centre_weight``
+    (:data:`_SMOOTHED_DIFFERENCES_DOC`), given its own summary, remarks and further examples
+    (each written with the indentation of a module-level function's docstring)."""
+    step = 2 + centre_weight
+
+    def fill(function: _F) -> _F:
+        function.__doc__ = _SMOOTHED_DIFFERENCES_DOC
+        return filler({**IMAGE_BORDER, "summary": summary, "remarks": remarks, "examples": examples,
+                       "name": function.__name__, "c": str(centre_weight), "ramp": str(2 * step),
+                       "step": str(step)})(function)
+
+    return fill
+
+
+@algorithm("edges.prewitt", section="4.7", check="cvkit.edges.checks:prewitt")
+@_smoothed_differences_doc(
+    1, "Prewitt derivatives ``(gx, gy)``: central differences smoothed by a box across them.",
+    """unscaled (a unit step gives 3), with the signs of :func:`sobel`: y points down, so ``gy``
+    is positive where the image gets brighter downwards. (The notes' listing uses the
+    opposite ``gy`` kernel, y pointing up.) Computed separably: ``[1, 1, 1]`` across the
+    derivative, then ``[-1, 0, 1]`` along it. Equals ``cv2.filter2D`` with these kernels.""",
+    """>>> bool(np.all(gy == 0))
     True
-    """
-    img = as_image(image)
-    check_border(border)
-    return _smoothed_differences(img, border, 1.0)
+    """)
+def prewitt(image: ArrayLike, border: Border = "reflect101") -> tuple[np.ndarray, np.ndarray]:
+    return _smoothed_differences(image, border, 1.0)
 
 
 @algorithm("edges.sobel", section="4.7", check="cvkit.edges.checks:sobel")
-@_docs
-def sobel(image: ArrayLike, border: Border = "reflect101") -> tuple[np.ndarray, np.ndarray]:
-    """Sobel derivatives ``(gx, gy)`` with OpenCV's signs and scale.
-
-    Parameters
-    ----------
-    %(image)s
-    %(border)s
-
-    Returns
-    -------
-    (gx, gy) : tuple of two float64 ndarrays, each the shape of ``image``
-        Unnormalised: a ramp rising by 1 per pixel gives 8 (divide by 8 for the slope).
-
-    Notes
-    -----
-    §4.7. Correlation (⋆) with
-
-    .. math:: g_x = I \\star \\begin{bmatrix} -1 & 0 & 1 \\\\ -2 & 0 & 2 \\\\ -1 & 0 & 1 \\end{bmatrix}, \\qquad
-              g_y = I \\star \\begin{bmatrix} -1 & -2 & -1 \\\\ 0 & 0 & 0 \\\\ 1 & 2 & 1 \\end{bmatrix},
-
-    i.e. central differences ``[-1, 0, 1]`` along the derivative smoothed by ``[1, 2, 1]``
+@_smoothed_differences_doc(
+    2, "Sobel derivatives ``(gx, gy)`` with OpenCV's signs and scale.",
+    """i.e. central differences ``[-1, 0, 1]`` along the derivative smoothed by ``[1, 2, 1]``
     across it, computed separably; not normalised (a unit step gives 4). This is
     ``cv2.Sobel(I, cv2.CV_64F, 1, 0, ksize=3)`` (``0, 1`` for gy) and
     ``scipy.ndimage.sobel(I, axis=1)`` (``axis=0``), with the corresponding border modes.
 
     The padded image comes from ``implementation("filters.pad")``, so
-    ``with cvkit.use("student"):`` runs this on the student's padding.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> gx, gy = sobel(np.array([[0, 0, 1, 1]] * 3))
-    >>> gx
-    array([[0., 4., 4., 0.],
-           [0., 4., 4., 0.],
-           [0., 4., 4., 0.]])
-    """
-    img = as_image(image)
-    check_border(border)
-    return _smoothed_differences(img, border, 2.0)
+    ``with cvkit.use("student"):`` runs this on the student's padding.""")
+def sobel(image: ArrayLike, border: Border = "reflect101") -> tuple[np.ndarray, np.ndarray]:
+    return _smoothed_differences(image, border, 2.0)
