@@ -553,21 +553,21 @@ _DERIVATIVE_PUBLIC = [
     Case((_distinct((6, 6), seed=9),), {"border": "reflect"}, "reflect"),
 ]
 
-prewitt = Check(
-    public=_DERIVATIVE_PUBLIC,
-    hidden=_derivative_hidden,
-    compare=_LINEAR,
-    mistakes=_derivative_mistakes(_prewitt, _sobel, "Sobel", 6, "Prewitt averages the three rows (columns) equally"),
-    allowed=("filters.pad",),
-)
 
-sobel = Check(
-    public=_DERIVATIVE_PUBLIC,
-    hidden=_derivative_hidden,
-    compare=_LINEAR,
-    mistakes=_derivative_mistakes(_sobel, _prewitt, "Prewitt", 8, "Sobel weighs the centre row (column) twice"),
-    allowed=("filters.pad",),
-)
+def _derivative_check(reference, other, other_name: str, scale: int, what: str) -> Check:
+    """The check of a smoothed-difference filter (Prewitt, Sobel): the same cases for both,
+    the bank of :func:`_derivative_mistakes`."""
+    return Check(
+        public=_DERIVATIVE_PUBLIC,
+        hidden=_derivative_hidden,
+        compare=_LINEAR,
+        mistakes=_derivative_mistakes(reference, other, other_name, scale, what),
+        allowed=("filters.pad",),
+    )
+
+
+prewitt = _derivative_check(_prewitt, _sobel, "Sobel", 6, "Prewitt averages the three rows (columns) equally")
+sobel = _derivative_check(_sobel, _prewitt, "Prewitt", 8, "Sobel weighs the centre row (column) twice")
 
 
 # --------------------------------------------------------------------------------------------

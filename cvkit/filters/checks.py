@@ -264,20 +264,21 @@ def _linear_hidden(rng):
     ]
 
 
-correlate = Check(
-    public=_linear_public("anchor (1, 2)"),
-    hidden=_linear_hidden,
-    compare=_LINEAR,
-    mistakes=[
-        _corr_flipped,
-        _corr_top_left,
-        _corr_even_anchor,
-        border_zero(_correlate, "Read outside the image through `border` (pad with filters.pad), not with zeros"),
-        _corr_transposed,
-        reflect_swapped(_correlate),
-    ],
-    allowed=("filters.pad",),
-)
+def _linear_check(even_anchor, mistakes) -> Check:
+    """The check of correlate or convolve: the cases of :func:`_linear_public` (``even_anchor``
+    as there) and :func:`_linear_hidden`, compared as linear filters, with the bank ``mistakes``."""
+    return Check(public=_linear_public(even_anchor), hidden=_linear_hidden, compare=_LINEAR, mistakes=mistakes,
+                 allowed=("filters.pad",))
+
+
+correlate = _linear_check("anchor (1, 2)", [
+    _corr_flipped,
+    _corr_top_left,
+    _corr_even_anchor,
+    border_zero(_correlate, "Read outside the image through `border` (pad with filters.pad), not with zeros"),
+    _corr_transposed,
+    reflect_swapped(_correlate),
+])
 
 
 # --------------------------------------------------------------------------------------------
@@ -313,20 +314,14 @@ def _conv_top_left(image, kernel, border="reflect101", output="same"):
     return _correlate_at(image, np.asarray(kernel)[::-1, ::-1], (kh - 1, kw - 1), border, output)
 
 
-convolve = Check(
-    public=_linear_public("as scipy.ndimage.convolve"),
-    hidden=_linear_hidden,
-    compare=_LINEAR,
-    mistakes=[
-        _conv_not_flipped,
-        _conv_flip_rows_only,
-        _conv_flip_cols_only,
-        _conv_anchor_not_moved,
-        _conv_top_left,
-        *border_mistakes(_convolve, "Read outside the image through `border` (pad with filters.pad), not with zeros"),
-    ],
-    allowed=("filters.pad",),
-)
+convolve = _linear_check("as scipy.ndimage.convolve", [
+    _conv_not_flipped,
+    _conv_flip_rows_only,
+    _conv_flip_cols_only,
+    _conv_anchor_not_moved,
+    _conv_top_left,
+    *border_mistakes(_convolve, "Read outside the image through `border` (pad with filters.pad), not with zeros"),
+])
 
 
 # --------------------------------------------------------------------------------------------
