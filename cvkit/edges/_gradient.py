@@ -24,6 +24,12 @@ __all__ = ["gradient", "magnitude", "direction", "prewitt", "sobel"]
 
 _docs = filler(IMAGE_BORDER)
 
+#: the whole ``Parameters`` section of an operator that takes only ``(image, border)``: the
+#: smoothed differences here and :func:`cvkit.edges.laplacian`
+IMAGE_BORDER_PARAMETERS = {
+    "image_border_parameters": "\n    ".join(("Parameters", "----------", IMAGE_BORDER["image"], IMAGE_BORDER["border"])),
+}
+
 _F = TypeVar("_F", bound=Callable[..., object])
 
 SCHEMES = ("central", "forward", "backward")
@@ -224,10 +230,7 @@ def _smoothed_differences(image: ArrayLike, border: Border, centre_weight: float
 #: the kernels and the examples after the first are each filter's own.
 _SMOOTHED_DIFFERENCES_DOC = """%(summary)s
 
-    Parameters
-    ----------
-    %(image)s
-    %(border)s
+    %(image_border_parameters)s
 
     Returns
     -------
@@ -262,7 +265,7 @@ def _smoothed_differences_doc(centre_weight: int, summary: str, remarks: str, ex
 
     def fill(function: _F) -> _F:
         function.__doc__ = _SMOOTHED_DIFFERENCES_DOC
-        return filler({**IMAGE_BORDER, "summary": summary, "remarks": remarks, "examples": examples,
+        return filler({**IMAGE_BORDER_PARAMETERS, "summary": summary, "remarks": remarks, "examples": examples,
                        "name": function.__name__, "c": str(centre_weight), "ramp": str(2 * step),
                        "step": str(step)})(function)
 

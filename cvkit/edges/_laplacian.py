@@ -16,10 +16,11 @@ from .._docstrings import IMAGE_BORDER, filler
 from .._validation import (Border, as_float_array, as_image, check_allocation, check_border, check_int,
                            check_padded, check_real)
 from ..registry import algorithm, implementation
+from ._gradient import IMAGE_BORDER_PARAMETERS
 
 __all__ = ["laplacian", "log_kernel", "log", "zero_crossings", "dog"]
 
-_docs = filler(IMAGE_BORDER)
+_docs = filler({**IMAGE_BORDER, **IMAGE_BORDER_PARAMETERS})
 
 
 @algorithm("edges.laplacian", section="4.12", check="cvkit.edges.checks:laplacian")
@@ -27,10 +28,7 @@ _docs = filler(IMAGE_BORDER)
 def laplacian(image: ArrayLike, border: Border = "reflect101") -> np.ndarray:
     """The 4-neighbour discrete Laplacian ``Ixx + Iyy``.
 
-    Parameters
-    ----------
-    %(image)s
-    %(border)s
+    %(image_border_parameters)s
 
     Returns
     -------
