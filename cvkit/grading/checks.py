@@ -146,7 +146,8 @@ class Measure:
             return None
         if not np.isfinite(value):
             return None
-        return {"name": self.name, "value": round(value, 6), "unit": self.unit,
+        # + 0.0: a value that rounds to zero is 0, never -0 (which a table would print as "-0.00")
+        return {"name": self.name, "value": round(value, 6) + 0.0, "unit": self.unit,
                 "better": "higher" if self.higher_is_better else "lower"}
 
 

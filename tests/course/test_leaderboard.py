@@ -60,6 +60,9 @@ def test_measure_is_checked_and_says_nothing_for_what_it_cannot_measure():
     assert Measure("x", lambda got, case: float("nan")).on(None, None) is None
     assert Measure("x", lambda got, case: 1 / 0).on(None, None) is None
     assert Measure("loss", lambda got, case: 0.25, higher_is_better=False).on(None, None)["better"] == "lower"
+    # a value that rounds to zero is 0, not -0 (a gap of -1e-15 dB to the reference must not print as "-0.00")
+    zero = Measure("gap", lambda got, case: -1e-15).on(None, None)["value"]
+    assert zero == 0 and str(zero) == "0.0"
 
 
 def test_the_digits_check_measures_the_accuracy_in_percent():
