@@ -82,4 +82,4 @@ class KernelManager(AsyncKernelManager):
         return ReadyClient
 
     async def _async_wait(self, pollinterval: float = KILL_POLL_SECONDS) -> None:
-        await super()._async_wait(pollinterval=KILL_POLL_SECONDS)
+        await super()._async_wait(pollinterval=min(pollinterval, KILL_POLL_SECONDS))
