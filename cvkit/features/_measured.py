@@ -14,7 +14,7 @@ The reference (:func:`match_features`): SIFT keypoints and descriptors of both i
 (``features.sift``, OpenCV's defaults), each descriptor of image 1 matched to its nearest
 neighbour in image 2 and kept when the distance ratio to the second nearest is at most 0.7,
 then only mutual nearest neighbours. Measured on the pairs of seeds 0–39
-(``tests/test_checks_ch05.py`` re-measures 30): at least 17 correct matches (median 65) at a
+(``tests/library/test_checks_ch05.py`` re-measures 30): at least 17 correct matches (median 65) at a
 precision of at least 0.87 (median 0.97), in about 0.3 s per pair on one core, against 12
 matches and 0.75 at the top of the scales. The notebook's model solution (the student's
 ``sift`` and ``match_ratio``, the ratio test both ways): at least 16 (median 65) at 0.92 or

@@ -10,7 +10,7 @@ the same noisy crop (:func:`psnr_gap`), put through the published scale :data:`P
 
 The reference (:func:`denoise`): non-local means (§3.13) with 5×5 patches, a 13×13 search
 window and ``h = 1.1·sigma``, the best of the non-local means settings tried. Measured on the
-crops of seeds 0–39 (``tests/test_checks_ch03.py`` re-measures 30): it gains 4.2 dB over the
+crops of seeds 0–39 (``tests/library/test_checks_ch03.py`` re-measures 30): it gains 4.2 dB over the
 noisy input on the worst crop, 8.8 dB on the median one, in about 0.02 s per crop. Against it,
 on the median and the worst crop: non-local means with the notebook's 7×7/21×21 and h = σ
 −0.6 and −1.1 dB, a bilateral filter (σs = 2, σr = 3σ) −1.6 and −4.3 dB, a Gaussian (σ = 1 px)

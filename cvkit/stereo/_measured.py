@@ -17,7 +17,7 @@ offset), winner-takes-all, a left-right consistency check (the right view's own
 winner-takes-all must point back within 1 px), pixels that fail it filled from their nearest
 consistent neighbours along the row with the smaller (background) disparity, a 5×5 median,
 and a parabola through the scores for the sub-pixel part. Measured on the pairs of seeds 0–59
-(``tests/test_checks_ch02.py`` re-measures 40): bad-pixel rate 5.5 % median, 8.9 % worst, in
+(``tests/library/test_checks_ch02.py`` re-measures 40): bad-pixel rate 5.5 % median, 8.9 % worst, in
 about 0.02 s per pair on one core; the top of the scale is 14 %. The notebook's model solution
 (the student's ``block_matching`` with the same steps, no sub-pixel part): 6.0 % and 10.8 %;
 plain ZNCC 5×5 winner-takes-all: 15 % and 25 %; SAD 9×9 on the raw grey levels: 83 % and 90 %.
