@@ -339,6 +339,13 @@ def _cut(rng, image, h, w):
     return image[y:y + h, x:x + w].copy(), (x, y)
 
 
+def _bank(function, entries):
+    """A bank whose wrong versions are settings of one parametrised implementation's ``kind``:
+    ``Mistake(name, variant(function, kind=kind), hint)`` for each ``(name, kind, hint)`` of
+    ``entries``, in the order the feedback tries them."""
+    return [Mistake(name, variant(function, kind=kind), hint) for name, kind, hint in entries]
+
+
 # --------------------------------------------------------------------------------------------
 # detection.match_template (§6.0.1–6.0.2)
 # --------------------------------------------------------------------------------------------
@@ -388,10 +395,6 @@ def _applies(kind: str, measure: str) -> bool:
         "sad_abs_sum": measure == "sad", "global_mean": measure == "zncc", "nan": measure in ("ncc", "zncc"),
         "same": True,
     }[kind]
-
-
-def _tmk(kind):
-    return variant(_tm, kind=kind)
 
 
 def _tm_public():
@@ -467,25 +470,25 @@ match_template = Check(
     public=_tm_public,
     hidden=_tm_hidden,
     compare=_SCORES,
-    mistakes=[
-        Mistake("NCC without normalisation (plain correlation)", _tmk("ncc_plain"),
-                "Divide Σ I·T by the product of the norms sqrt(Σ I²)·sqrt(Σ T²) of the window and the template"),
-        Mistake("ZNCC without mean removal (that is NCC)", _tmk("zncc_no_mean"),
-                "Subtract the window's mean from the window and the template's mean from the template before "
-                "correlating and normalising"),
-        Mistake("image mean subtracted instead of each window's mean", _tmk("global_mean"),
-                "ZNCC subtracts the mean of each window (it changes with the position), not the mean of the whole image"),
-        Mistake("square root taken (Euclidean distance, not SSD)", _tmk("euclid"),
-                "SSD is the sum of the squared differences itself, without a square root"),
-        Mistake("SAD as |Σ (I − T)| (absolute value of the sum)", _tmk("sad_abs_sum"),
-                "Take the absolute value of each difference, then sum: Σ |I − T|"),
-        Mistake("windows without contrast give NaN (0/0)", _tmk("nan"),
-                "Where a window (or the template) has zero norm (ncc) or zero variance (zncc) return 0, "
-                "e.g. np.where(denominator > 0, numerator / denominator, 0) under np.errstate"),
-        Mistake("output padded to the image size", _tmk("same"),
-                "Only the placements where the whole template fits: the map is (H − h + 1, W − w + 1), "
-                "S[i, j] for the top-left corner at (x=j, y=i)"),
-    ],
+    mistakes=_bank(_tm, [
+        ("NCC without normalisation (plain correlation)", "ncc_plain",
+         "Divide Σ I·T by the product of the norms sqrt(Σ I²)·sqrt(Σ T²) of the window and the template"),
+        ("ZNCC without mean removal (that is NCC)", "zncc_no_mean",
+         "Subtract the window's mean from the window and the template's mean from the template before "
+         "correlating and normalising"),
+        ("image mean subtracted instead of each window's mean", "global_mean",
+         "ZNCC subtracts the mean of each window (it changes with the position), not the mean of the whole image"),
+        ("square root taken (Euclidean distance, not SSD)", "euclid",
+         "SSD is the sum of the squared differences itself, without a square root"),
+        ("SAD as |Σ (I − T)| (absolute value of the sum)", "sad_abs_sum",
+         "Take the absolute value of each difference, then sum: Σ |I − T|"),
+        ("windows without contrast give NaN (0/0)", "nan",
+         "Where a window (or the template) has zero norm (ncc) or zero variance (zncc) return 0, "
+         "e.g. np.where(denominator > 0, numerator / denominator, 0) under np.errstate"),
+        ("output padded to the image size", "same",
+         "Only the placements where the whole template fits: the map is (H − h + 1, W − w + 1), "
+         "S[i, j] for the top-left corner at (x=j, y=i)"),
+    ]),
 )
 
 
@@ -508,10 +511,6 @@ def _bm(scores, measure, *, kind):
         return flat
     y, x = divmod(flat, s.shape[1])
     return (int(y), int(x)) if kind == "rowcol" else (int(x), int(y))
-
-
-def _bmk(kind):
-    return variant(_bm, kind=kind)
 
 
 _BM_PUBLIC = np.array([[5.0, 2.0, 9.0, 4.0, 3.0],
@@ -565,19 +564,19 @@ best_match = Check(
     ],
     hidden=_bm_hidden,
     compare=_EXACT_INT,
-    mistakes=[
-        Mistake("argmax for SSD/SAD", _bmk("argmax"),
-                "SSD and SAD are dissimilarities: the best placement has the *lowest* score (np.argmin)"),
-        Mistake("argmin for NCC/ZNCC", _bmk("argmin"),
-                "NCC and ZNCC are similarities: the best placement has the *highest* score (np.argmax)"),
-        Mistake("(row, col) returned instead of (x, y)", _bmk("rowcol"),
-                "Return (x, y) = (column, row): np.unravel_index gives (row, col), swap them"),
-        Mistake("ties go to the last position", _bmk("last"),
-                "Ties go to the first position in row-major order, as np.argmin/np.argmax on the flattened map"),
-        Mistake("flat index not converted to (x, y)", _bmk("flat"),
-                "np.argmax of a 2-D array is an index into the flattened map: convert it with "
-                "np.unravel_index (or divmod by the width) and return (x, y)"),
-    ],
+    mistakes=_bank(_bm, [
+        ("argmax for SSD/SAD", "argmax",
+         "SSD and SAD are dissimilarities: the best placement has the *lowest* score (np.argmin)"),
+        ("argmin for NCC/ZNCC", "argmin",
+         "NCC and ZNCC are similarities: the best placement has the *highest* score (np.argmax)"),
+        ("(row, col) returned instead of (x, y)", "rowcol",
+         "Return (x, y) = (column, row): np.unravel_index gives (row, col), swap them"),
+        ("ties go to the last position", "last",
+         "Ties go to the first position in row-major order, as np.argmin/np.argmax on the flattened map"),
+        ("flat index not converted to (x, y)", "flat",
+         "np.argmax of a 2-D array is an index into the flattened map: convert it with "
+         "np.unravel_index (or divmod by the width) and return (x, y)"),
+    ]),
 )
 
 
@@ -602,10 +601,6 @@ def _sm(template, threshold, *, kind):
     elif kind == "swapped":
         dirs = dirs[:, ::-1].copy()
     return {"points": pts, "directions": dirs, "shape": tpl.shape}
-
-
-def _smk(kind):
-    return variant(_sm, kind=kind)
 
 
 def _sm_template_public():
@@ -659,20 +654,20 @@ shape_model = Check(
     ],
     hidden=_sm_hidden,
     compare=ShapeModelClose(atol=1e-9),
-    mistakes=[
-        Mistake("points as (row, col) instead of (x, y)", _smk("rowcol"),
-                "Points are (x, y) = (column, row): np.nonzero gives (rows, cols), stack them as (cols, rows)"),
-        Mistake("directions not normalised", _smk("raw"),
-                "Store unit vectors: divide (gx, gy) by the magnitude sqrt(gx² + gy²)"),
-        Mistake("points measured from the template centre", _smk("centre"),
-                "Measure the points from the template's top-left pixel (x = column, y = row), not from its centre"),
-        Mistake("threshold inclusive (≥ instead of >)", _smk("inclusive"),
-                "Control points have magnitude strictly greater than the threshold"),
-        Mistake("threshold on the L1 magnitude |gx| + |gy|", _smk("l1"),
-                "Threshold the L2 magnitude sqrt(gx² + gy²)"),
-        Mistake("directions as (gy, gx)", _smk("swapped"),
-                "Each direction is (gx, gy) / |g|: the x component first"),
-    ],
+    mistakes=_bank(_sm, [
+        ("points as (row, col) instead of (x, y)", "rowcol",
+         "Points are (x, y) = (column, row): np.nonzero gives (rows, cols), stack them as (cols, rows)"),
+        ("directions not normalised", "raw",
+         "Store unit vectors: divide (gx, gy) by the magnitude sqrt(gx² + gy²)"),
+        ("points measured from the template centre", "centre",
+         "Measure the points from the template's top-left pixel (x = column, y = row), not from its centre"),
+        ("threshold inclusive (≥ instead of >)", "inclusive",
+         "Control points have magnitude strictly greater than the threshold"),
+        ("threshold on the L1 magnitude |gx| + |gy|", "l1",
+         "Threshold the L2 magnitude sqrt(gx² + gy²)"),
+        ("directions as (gy, gx)", "swapped",
+         "Each direction is (gx, gy) / |g|: the x component first"),
+    ]),
     allowed=("filters.pad", "edges.sobel"),
 )
 
@@ -713,10 +708,6 @@ def _smatch(image, model, polarity="none", *, kind):
         total = terms.sum(axis=0)
     n = h * w if kind == "pixels" else len(points)
     return total / n
-
-
-def _smatchk(kind):
-    return variant(_smatch, kind=kind)
 
 
 def _paste(background, template, x, y):
@@ -779,19 +770,19 @@ shape_match = Check(
     public=_sma_public,
     hidden=_sma_hidden,
     compare=_FLOAT,
-    mistakes=[
-        Mistake("polarity ignored (always 'none')", _smatchk("ignored"),
-                "polarity='global': |Σ cos θk| / n; polarity='local': Σ |cos θk| / n"),
-        Mistake("'global' and 'local' swapped", _smatchk("swapped"),
-                "global takes the absolute value of the *sum* (one inversion of the whole object), local of "
-                "*each term* (inversions along parts of the contour)"),
-        Mistake("image gradient not normalised (dot product, not cosine)", _smatchk("raw"),
-                "cos θk = dk · g / |g|: divide the image gradient by its magnitude (0 where it is 0)"),
-        Mistake("divided by the template's pixel count, not by n", _smatchk("pixels"),
-                "Average over the n control points: divide by len(model['points'])"),
-        Mistake("image gradient with flipped signs (kernels convolved)", _smatchk("convolved"),
-                "Use the same Sobel as the model (correlation, gx > 0 where the image gets brighter to the right)"),
-    ],
+    mistakes=_bank(_smatch, [
+        ("polarity ignored (always 'none')", "ignored",
+         "polarity='global': |Σ cos θk| / n; polarity='local': Σ |cos θk| / n"),
+        ("'global' and 'local' swapped", "swapped",
+         "global takes the absolute value of the *sum* (one inversion of the whole object), local of "
+         "*each term* (inversions along parts of the contour)"),
+        ("image gradient not normalised (dot product, not cosine)", "raw",
+         "cos θk = dk · g / |g|: divide the image gradient by its magnitude (0 where it is 0)"),
+        ("divided by the template's pixel count, not by n", "pixels",
+         "Average over the n control points: divide by len(model['points'])"),
+        ("image gradient with flipped signs (kernels convolved)", "convolved",
+         "Use the same Sobel as the model (correlation, gx > 0 where the image gets brighter to the right)"),
+    ]),
     allowed=("filters.pad", "edges.sobel"),
 )
 
@@ -830,10 +821,6 @@ def _hl(edges, theta_step=math.pi / 180, rho_step=1.0, *, kind):
         idx = idx[(idx >= 0) & (idx < rhos.size)]
         acc[:, j] = np.bincount(idx, minlength=rhos.size)
     return acc, (np.degrees(thetas) if kind == "degrees" else thetas), rhos
-
-
-def _hlk(kind):
-    return variant(_hl, kind=kind)
 
 
 def _hl_public():
@@ -888,24 +875,24 @@ hough_lines = Check(
     public=_hl_public,
     hidden=_hl_hidden,
     compare=HoughVotes(),
-    mistakes=[
-        Mistake("θ in degrees", _hlk("degrees"),
-                "Angles are radians: θk = −π/2 + k·theta_step, and np.cos/np.sin take radians"),
-        Mistake("θ in degrees inside np.cos/np.sin", _hlk("degrees_trig"),
-                "Your θ values are radians, but the votes use cos and sin of θ in degrees: "
-                "np.cos/np.sin take radians, so vote with np.cos(theta), np.sin(theta) of the θk you return"),
-        Mistake("ρ from 0 only (negative ρ wrap around)", _hlk("positive"),
-                "ρ = x cos θ + y sin θ is negative for half of the θ range: the bins go from −ceil(diag/step) to "
-                "+ceil(diag/step) (offset the index by the number of negative bins)"),
-        Mistake("ρ range ±max(H, W), not ±diagonal", _hlk("maxside"),
-                "|ρ| can reach the image diagonal hypot(H, W): use k up to ceil(hypot(H, W) / rho_step)"),
-        Mistake("ρ truncated, not rounded to the nearest bin", _hlk("trunc"),
-                "Vote into the *nearest* bin: floor(ρ / rho_step + 0.5), not int(ρ / rho_step)"),
-        Mistake("halves rounded to even (np.round)", _hlk("even"),
-                "Exact halves round up: use np.floor(ρ / rho_step + 0.5) (np.round sends 0.5 to 0 and 2.5 to 2)"),
-        Mistake("x and y swapped (row used as x)", _hlk("xy"),
-                "x is the column and y the row: ρ = col·cos θ + row·sin θ"),
-    ],
+    mistakes=_bank(_hl, [
+        ("θ in degrees", "degrees",
+         "Angles are radians: θk = −π/2 + k·theta_step, and np.cos/np.sin take radians"),
+        ("θ in degrees inside np.cos/np.sin", "degrees_trig",
+         "Your θ values are radians, but the votes use cos and sin of θ in degrees: "
+         "np.cos/np.sin take radians, so vote with np.cos(theta), np.sin(theta) of the θk you return"),
+        ("ρ from 0 only (negative ρ wrap around)", "positive",
+         "ρ = x cos θ + y sin θ is negative for half of the θ range: the bins go from −ceil(diag/step) to "
+         "+ceil(diag/step) (offset the index by the number of negative bins)"),
+        ("ρ range ±max(H, W), not ±diagonal", "maxside",
+         "|ρ| can reach the image diagonal hypot(H, W): use k up to ceil(hypot(H, W) / rho_step)"),
+        ("ρ truncated, not rounded to the nearest bin", "trunc",
+         "Vote into the *nearest* bin: floor(ρ / rho_step + 0.5), not int(ρ / rho_step)"),
+        ("halves rounded to even (np.round)", "even",
+         "Exact halves round up: use np.floor(ρ / rho_step + 0.5) (np.round sends 0.5 to 0 and 2.5 to 2)"),
+        ("x and y swapped (row used as x)", "xy",
+         "x is the column and y the row: ρ = col·cos θ + row·sin θ"),
+    ]),
 )
 
 
@@ -938,10 +925,6 @@ def _hp(accumulator, thetas, rhos, count=10, threshold=None, min_distance=5, *, 
         if reach >= 0:
             suppressed[max(0, r - reach):r + reach + 1, max(0, t - reach):t + reach + 1] = True
     return np.array(out, dtype=np.float64).reshape(-1, 2)
-
-
-def _hpk(kind):
-    return variant(_hp, kind=kind)
 
 
 _HP_ACC = np.array([
@@ -1004,17 +987,17 @@ hough_peaks = Check(
     ],
     hidden=_hp_hidden,
     compare=_FLOAT,
-    mistakes=[
-        Mistake("(θ, ρ) instead of (ρ, θ)", _hpk("thetarho"), "Each row is (ρ, θ): ρ first"),
-        Mistake("bin indices instead of (ρ, θ) values", _hpk("indices"),
-                "Return rhos[r] and thetas[t] of each peak, not the indices r and t"),
-        Mistake("min_distance ignored (no suppression)", _hpk("nosuppress"),
-                "After taking a peak, suppress every bin within min_distance of it in both indices"),
-        Mistake("suppression window one bin too small (< min_distance)", _hpk("exclusive"),
-                "Suppress the bins whose indices differ by at most min_distance (≤, inclusive)"),
-        Mistake("threshold strict (> instead of ≥)", _hpk("strict"),
-                "A bin whose votes equal the threshold is a candidate (value ≥ threshold)"),
-    ],
+    mistakes=_bank(_hp, [
+        ("(θ, ρ) instead of (ρ, θ)", "thetarho", "Each row is (ρ, θ): ρ first"),
+        ("bin indices instead of (ρ, θ) values", "indices",
+         "Return rhos[r] and thetas[t] of each peak, not the indices r and t"),
+        ("min_distance ignored (no suppression)", "nosuppress",
+         "After taking a peak, suppress every bin within min_distance of it in both indices"),
+        ("suppression window one bin too small (< min_distance)", "exclusive",
+         "Suppress the bins whose indices differ by at most min_distance (≤, inclusive)"),
+        ("threshold strict (> instead of ≥)", "strict",
+         "A bin whose votes equal the threshold is a candidate (value ≥ threshold)"),
+    ]),
 )
 
 
@@ -1046,10 +1029,6 @@ def _gb(template_edges, template_image, bins=36, reference=None, *, kind):
         r = r[:, ::-1].copy()
         ref = ref[::-1].copy()
     return {"bins": int(bins), "reference": (float(ref[0]), float(ref[1])), "table": [r[index == k] for k in range(bins)]}
-
-
-def _gbk(kind):
-    return variant(_gb, kind=kind)
 
 
 def _gb_template(h, w, offset=(0.0, 0.0), angle=0.3):
@@ -1105,20 +1084,20 @@ ght_build = Check(
     public=_gb_public,
     hidden=_gb_hidden,
     compare=RTableClose(atol=1e-9),
-    mistakes=[
-        Mistake("r vector sign reversed (p − reference)", _gbk("sign"),
-                "Store r = reference − p, the vector from the border point to the reference point (y = x + r)"),
-        Mistake("points as (row, col) instead of (x, y)", _gbk("rowcol"),
-                "Use (x, y) = (column, row) for the points, the vectors and the reference"),
-        Mistake("bins by floor (truncation) instead of rounding", _gbk("floor"),
-                "bin = round(φ / Δφ) mod bins: bin k collects the directions within Δφ/2 of k·Δφ"),
-        Mistake("halves rounded up (np.floor(q + 0.5)), not as np.round", _gbk("halfup"),
-                "Round with np.round (exact halves to even): a 45° gradient with 36 bins, φ/Δφ = 4.5, goes to bin 4"),
-        Mistake("reference at the template centre, not the barycentre", _gbk("centre"),
-                "With reference=None use the barycentre of the edge pixels: (mean x, mean y)"),
-        Mistake("direction as atan2(gx, gy)", _gbk("atan2xy"),
-                "The gradient direction is atan2(gy, gx): y component first"),
-    ],
+    mistakes=_bank(_gb, [
+        ("r vector sign reversed (p − reference)", "sign",
+         "Store r = reference − p, the vector from the border point to the reference point (y = x + r)"),
+        ("points as (row, col) instead of (x, y)", "rowcol",
+         "Use (x, y) = (column, row) for the points, the vectors and the reference"),
+        ("bins by floor (truncation) instead of rounding", "floor",
+         "bin = round(φ / Δφ) mod bins: bin k collects the directions within Δφ/2 of k·Δφ"),
+        ("halves rounded up (np.floor(q + 0.5)), not as np.round", "halfup",
+         "Round with np.round (exact halves to even): a 45° gradient with 36 bins, φ/Δφ = 4.5, goes to bin 4"),
+        ("reference at the template centre, not the barycentre", "centre",
+         "With reference=None use the barycentre of the edge pixels: (mean x, mean y)"),
+        ("direction as atan2(gx, gy)", "atan2xy",
+         "The gradient direction is atan2(gy, gx): y component first"),
+    ]),
     allowed=("filters.pad", "edges.sobel"),
 )
 
@@ -1166,10 +1145,6 @@ def _gd(image, rtable, scales=(1.0,), angles=(0.0,), edge_params=None, *, kind):
     if kind == "rowcol":
         return _ght_detect(image, rtable, scales, angles, edge_params)[0], (int(y), int(x), float(sv[i]), float(av[j]))
     return acc, (int(x), int(y), float(sv[i]), float(av[j]))
-
-
-def _gdk(kind):
-    return variant(_gd, kind=kind)
 
 
 def _gd_model(size: int, bins: int, sigma: float = 1.0, reference=None):
@@ -1235,22 +1210,22 @@ ght_detect = Check(
     public=_gd_public,
     hidden=_gd_hidden,
     compare=VotesAndBest(),
-    mistakes=[
-        Mistake("r vector sign reversed (votes at x − r)", _gdk("sign"),
-                "The reference point is at y = x + r: add the (scaled, rotated) R-table vector to the edge pixel"),
-        Mistake("scene directions quantised by floor, the model by rounding", _gdk("floor"),
-                "Quantise the scene's gradient direction exactly as ght_build did: round((φ − a) / Δφ) mod bins"),
-        Mistake("R-table row read at φ, not φ − a", _gdk("norotbin"),
-                "An object turned by a has its gradients turned by a: read the row of (φ − a)"),
-        Mistake("vectors rotated the wrong way (R(−a))", _gdk("reverse"),
-                "Rotate r by +a: (cos a·rx − sin a·ry, sin a·rx + cos a·ry), with y pointing down"),
-        Mistake("vectors divided by the scale", _gdk("divide"),
-                "A shape s times larger has s times longer vectors: r' = s·R(a)·r"),
-        Mistake("vote position halves rounded up, not as np.round", _gdk("halfup"),
-                "Round the vote position with np.round (halves to even), like the R-table's bins"),
-        Mistake("best as (y, x, ...) instead of (x, y, ...)", _gdk("rowcol"),
-                "best is (x, y, scale, angle): np.unravel_index gives (scale, angle, row, col)"),
-    ],
+    mistakes=_bank(_gd, [
+        ("r vector sign reversed (votes at x − r)", "sign",
+         "The reference point is at y = x + r: add the (scaled, rotated) R-table vector to the edge pixel"),
+        ("scene directions quantised by floor, the model by rounding", "floor",
+         "Quantise the scene's gradient direction exactly as ght_build did: round((φ − a) / Δφ) mod bins"),
+        ("R-table row read at φ, not φ − a", "norotbin",
+         "An object turned by a has its gradients turned by a: read the row of (φ − a)"),
+        ("vectors rotated the wrong way (R(−a))", "reverse",
+         "Rotate r by +a: (cos a·rx − sin a·ry, sin a·rx + cos a·ry), with y pointing down"),
+        ("vectors divided by the scale", "divide",
+         "A shape s times larger has s times longer vectors: r' = s·R(a)·r"),
+        ("vote position halves rounded up, not as np.round", "halfup",
+         "Round the vote position with np.round (halves to even), like the R-table's bins"),
+        ("best as (y, x, ...) instead of (x, y, ...)", "rowcol",
+         "best is (x, y, scale, angle): np.unravel_index gives (scale, angle, row, col)"),
+    ]),
     allowed=("filters.pad", "filters.gaussian_kernel", "filters.gaussian", "filters.correlate", "edges.sobel",
              "edges.magnitude", "edges.non_max_suppression", "edges.hysteresis", "edges.canny"),
 )
