@@ -203,6 +203,8 @@ _LINEAR = close(rtol=1e-7, atol=1e-10, kind="f", scaled=True)
 _POINTWISE = close(rtol=1e-9, atol=1e-12, kind="f", scaled=True)
 #: boolean maps computed by exact rules
 _EXACT_BOOL = close(rtol=0.0, atol=0.0, kind="b")
+#: the hint of every filter's "border ignored (always zero)" mistake (casekit.border_zero)
+_BORDER_HINT = "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"
 
 
 # --------------------------------------------------------------------------------------------
@@ -329,7 +331,7 @@ gradient = Check(
         _grad_sign,
         _grad_fwd_bwd,
         _grad_numpy,
-        *border_mistakes(_gradient, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
+        *border_mistakes(_gradient, _BORDER_HINT),
     ],
     allowed=("filters.pad",),
 )
@@ -521,7 +523,7 @@ def _derivative_mistakes(reference, other, other_name: str, scale: int, what: st
                 + ("[1, 2, 1]" if other_name == "Prewitt" else "[1, 1, 1]")),
         Mistake(f"normalised by 1/{scale}", normalised,
                 f"Do not normalise: the kernels have integer weights (a unit step gives {scale // 2})"),
-        *border_mistakes(reference, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
+        *border_mistakes(reference, _BORDER_HINT),
     ]
 
 
@@ -604,7 +606,7 @@ laplacian = Check(
         _lap_eight,
         _lap_sign,
         _lap_x_only,
-        *border_mistakes(_laplacian, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
+        *border_mistakes(_laplacian, _BORDER_HINT),
     ],
     allowed=("filters.pad",),
 )
@@ -632,6 +634,9 @@ def _lk(sigma, radius=None, *, centred=True, scale=False, sign=1.0, variance=Fal
     return sign * k
 
 
+_lkv = partial(variant, _lk)
+
+
 log_kernel = Check(
     public=[
         Case((1.4,), {}, "σ = 1.4 (3σ = 4.2: radius 5)"),
@@ -652,15 +657,13 @@ log_kernel = Check(
     ],
     compare=close(rtol=1e-7, atol=1e-13, kind="f", scaled=True),
     mistakes=[
-        Mistake("mean not subtracted (the kernel does not sum to 0)", lambda sigma, radius=None: _lk(sigma, radius, centred=False),
+        Mistake("mean not subtracted (the kernel does not sum to 0)", _lkv(centred=False),
                 "Subtract the mean of the sampled kernel so that it sums to 0 (a flat region must give 0)"),
-        Mistake("scale-normalised (multiplied by σ²)", lambda sigma, radius=None: _lk(sigma, radius, scale=True),
+        Mistake("scale-normalised (multiplied by σ²)", _lkv(scale=True),
                 "Return ∇²G itself, (x²+y²−2σ²)/(2πσ⁶)·exp(−(x²+y²)/(2σ²)), without a σ² factor"),
-        Mistake("sign flipped", lambda sigma, radius=None: _lk(sigma, radius, sign=-1.0),
-                "The LoG is negative at the centre: (x² + y² − 2σ²) is −2σ² there"),
-        Mistake("σ used as variance", lambda sigma, radius=None: _lk(sigma, radius, variance=True),
-                "σ is the standard deviation: the formula uses σ² and σ⁶"),
-        Mistake("radius floor(3σ) instead of ceil", lambda sigma, radius=None: _lk(sigma, radius, rule="floor"),
+        Mistake("sign flipped", _lkv(sign=-1.0), "The LoG is negative at the centre: (x² + y² − 2σ²) is −2σ² there"),
+        Mistake("σ used as variance", _lkv(variance=True), "σ is the standard deviation: the formula uses σ² and σ⁶"),
+        Mistake("radius floor(3σ) instead of ceil", _lkv(rule="floor"),
                 "The default radius rounds 3σ up: r = ceil(3σ), a (2r+1)×(2r+1) kernel"),
         Mistake("radius argument ignored", lambda sigma, radius=None: _lk(sigma, None),
                 "Use the given radius; only radius=None means ceil(3σ)"),
@@ -728,7 +731,7 @@ log = Check(
         _log_uncentred,
         _log_sign,
         _log_two_steps,
-        border_zero(_log, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
+        border_zero(_log, _BORDER_HINT),
         _log_scaled,
         reflect_swapped(_log),
     ],
@@ -807,7 +810,7 @@ dog = Check(
         _dog_plus_k,
         _dog_k_ignored,
         _dog_k_squared,
-        *border_mistakes(_dog, "Read outside the image through `border` (zero, replicate, reflect, reflect101), not with zeros"),
+        *border_mistakes(_dog, _BORDER_HINT),
     ],
     allowed=("filters.pad", "filters.gaussian_kernel", "filters.gaussian"),
 )
@@ -953,47 +956,19 @@ def _nms_variant(magnitude, ix, iy, interpolate=True, *, strict=False, swap_weig
     return out
 
 
-@mistake("no interpolation (nearest of four directions)",
-         "With interpolate=True compare with (1−w)·axis neighbour + w·diagonal neighbour, "
-         "w = min(|Ix|,|Iy|)/max(|Ix|,|Iy|), instead of rounding the direction")
-def _nms_nearest(magnitude, ix, iy, interpolate=True):
-    return _nms(magnitude, ix, iy, False)
+def _nms_misread(magnitude, ix, iy, interpolate=True, *, gradient=None, interpolation=None, recompute=False):
+    """The reference suppression on misread arguments: the derivatives as ``gradient(ix, iy)``
+    returns them (float arrays in), ``interpolation`` in place of ``interpolate``, or the
+    magnitude recomputed from ix and iy."""
+    if recompute:
+        magnitude = _magnitude(ix, iy)
+    if gradient is not None:
+        ix, iy = gradient(np.asarray(ix, dtype=np.float64), np.asarray(iy, dtype=np.float64))
+    return _nms(magnitude, ix, iy, interpolate if interpolation is None else interpolation)
 
 
-@mistake("interpolate=False ignored (always interpolated)",
-         "With interpolate=False round the direction to 0°, 45°, 90° or 135° and compare with those two neighbours")
-def _nms_always_interpolated(magnitude, ix, iy, interpolate=True):
-    return _nms(magnitude, ix, iy, True)
-
-
-@mistake("compared along the edge, not across it",
-         "Compare with the neighbours along the gradient (ix, iy), which crosses the edge; not along the edge")
-def _nms_along_edge(magnitude, ix, iy, interpolate=True):
-    return _nms(magnitude, -np.asarray(iy, dtype=np.float64), ix, interpolate)
-
-
-@mistake("x and y swapped in the direction",
-         "ix is the step along the columns (x), iy along the rows (y): the + neighbour is at (row + sy, col + sx)")
-def _nms_xy_swapped(magnitude, ix, iy, interpolate=True):
-    return _nms(magnitude, iy, ix, interpolate)
-
-
-@mistake("y pointing up (Iy negated)",
-         "y points down the rows: a gradient with Iy > 0 points to the row below (row + 1)")
-def _nms_y_up(magnitude, ix, iy, interpolate=True):
-    return _nms(magnitude, ix, -np.asarray(iy, dtype=np.float64), interpolate)
-
-
-@mistake("magnitude recomputed from ix and iy",
-         "Use the magnitude you are given (it may be an L1 or smoothed magnitude), do not recompute hypot(ix, iy)")
-def _nms_recomputed(magnitude, ix, iy, interpolate=True):
-    return _nms(_magnitude(ix, iy), ix, iy, interpolate)
-
-
-@mistake("strict maximum (> instead of ≥)",
-         "Keep a pixel when M ≥ both side values: a plateau of equal values keeps both pixels")
-def _nms_strict(magnitude, ix, iy, interpolate=True):
-    return _nms_variant(magnitude, ix, iy, interpolate, strict=True)
+_nmsv = partial(variant, _nms_variant)
+_misread = partial(variant, _nms_misread)
 
 
 def _gradient_field(rng, h, w, *, scale=1.0):
@@ -1089,18 +1064,24 @@ non_max_suppression = Check(
     hidden=_nms_hidden,
     compare=close(rtol=0.0, atol=0.0, kind="f"),
     mistakes=[
-        _nms_nearest,
-        _nms_always_interpolated,
-        _nms_along_edge,
-        _nms_xy_swapped,
-        _nms_y_up,
-        _nms_strict,
-        _nms_recomputed,
-        Mistake("interpolation weights swapped", lambda magnitude, ix, iy, interpolate=True:
-                _nms_variant(magnitude, ix, iy, interpolate, swap_weights=True),
+        Mistake("no interpolation (nearest of four directions)", _misread(interpolation=False),
+                "With interpolate=True compare with (1−w)·axis neighbour + w·diagonal neighbour, "
+                "w = min(|Ix|,|Iy|)/max(|Ix|,|Iy|), instead of rounding the direction"),
+        Mistake("interpolate=False ignored (always interpolated)", _misread(interpolation=True),
+                "With interpolate=False round the direction to 0°, 45°, 90° or 135° and compare with those two neighbours"),
+        Mistake("compared along the edge, not across it", _misread(gradient=lambda ix, iy: (-iy, ix)),
+                "Compare with the neighbours along the gradient (ix, iy), which crosses the edge; not along the edge"),
+        Mistake("x and y swapped in the direction", _misread(gradient=lambda ix, iy: (iy, ix)),
+                "ix is the step along the columns (x), iy along the rows (y): the + neighbour is at (row + sy, col + sx)"),
+        Mistake("y pointing up (Iy negated)", _misread(gradient=lambda ix, iy: (ix, -iy)),
+                "y points down the rows: a gradient with Iy > 0 points to the row below (row + 1)"),
+        Mistake("strict maximum (> instead of ≥)", _nmsv(strict=True),
+                "Keep a pixel when M ≥ both side values: a plateau of equal values keeps both pixels"),
+        Mistake("magnitude recomputed from ix and iy", _misread(recompute=True),
+                "Use the magnitude you are given (it may be an L1 or smoothed magnitude), do not recompute hypot(ix, iy)"),
+        Mistake("interpolation weights swapped", _nmsv(swap_weights=True),
                 "The diagonal neighbour gets weight w = min/max and the axis neighbour 1 − w"),
-        Mistake("image border suppressed", lambda magnitude, ix, iy, interpolate=True:
-                _nms_variant(magnitude, ix, iy, interpolate, border=True),
+        Mistake("image border suppressed", _nmsv(border=True),
                 "Border pixels are kept when they are maxima: neighbours outside the image count as 0"),
     ],
 )
