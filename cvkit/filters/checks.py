@@ -56,6 +56,10 @@ _EXACT = close(rtol=0.0, atol=0.0, kind="f")
 _LINEAR = close(rtol=1e-7, atol=1e-10, kind="f", scaled=True)
 #: selections and weighted means
 _NONLINEAR = close(rtol=1e-7, atol=1e-10, kind="f", scaled=True)
+#: the hint of a filter's "border ignored (always zero)" mistake (casekit.border_zero), and the
+#: linear filters' one, which says how to pad
+_BORDER_HINT = "Read outside the image through `border` (filters.pad), not with zeros"
+_PAD_HINT = "Read outside the image through `border` (pad with filters.pad), not with zeros"
 
 
 # --------------------------------------------------------------------------------------------
@@ -275,7 +279,7 @@ correlate = _linear_check("anchor (1, 2)", [
     _corr_flipped,
     _corr_top_left,
     _corr_even_anchor,
-    border_zero(_correlate, "Read outside the image through `border` (pad with filters.pad), not with zeros"),
+    border_zero(_correlate, _PAD_HINT),
     _corr_transposed,
     reflect_swapped(_correlate),
 ])
@@ -320,7 +324,7 @@ convolve = _linear_check("as scipy.ndimage.convolve", [
     _conv_flip_cols_only,
     _conv_anchor_not_moved,
     _conv_top_left,
-    *border_mistakes(_convolve, "Read outside the image through `border` (pad with filters.pad), not with zeros"),
+    *border_mistakes(_convolve, _PAD_HINT),
 ])
 
 
@@ -378,9 +382,12 @@ def _mean_by_size(image, size, border="reflect101"):
     return _mean(image, size, border) * size
 
 
-@mistake("size used as radius (window 2·size+1)", "`size` is the side of the window; its radius is size // 2")
-def _mean_size_as_radius(image, size, border="reflect101"):
-    return _mean(image, 2 * size + 1, border)
+def _size_as_radius(window_filter) -> Mistake:
+    """The mistake "size used as radius" of a window filter (``filters.mean``,
+    ``filters.median``): ``window_filter`` run with a window of side 2·size+1."""
+    return Mistake("size used as radius (window 2·size+1)",
+                   lambda image, size, border="reflect101": window_filter(image, 2 * size + 1, border),
+                   "`size` is the side of the window; its radius is size // 2")
 
 
 def _window_public():
@@ -428,8 +435,8 @@ mean = Check(
     mistakes=[
         _mean_not_divided,
         _mean_by_size,
-        _mean_size_as_radius,
-        *border_mistakes(_mean, "Read outside the image through `border` (pad with filters.pad), not with zeros"),
+        _size_as_radius(_mean),
+        *border_mistakes(_mean, _PAD_HINT),
     ],
     allowed=("filters.pad", "filters.mean_kernel"),
 )
@@ -452,6 +459,9 @@ def _gk(sigma, radius=None, *, variance=False, continuous=False, rule=None, last
     if continuous:
         return g / (sigma * math.sqrt(2 * math.pi))
     return g / g.sum()
+
+
+_gkv = partial(variant, _gk)
 
 
 def _gk_hidden(rng):
@@ -481,18 +491,16 @@ gaussian_kernel = Check(
     hidden=_gk_hidden,
     compare=close(rtol=1e-7, atol=1e-12, kind="f"),
     mistakes=[
-        Mistake("σ used as variance", lambda sigma, radius=None: _gk(sigma, radius, variance=True),
-                "The exponent is −x²/(2σ²): square σ"),
-        Mistake("normalised by 1/(σ√2π) instead of the sum",
-                lambda sigma, radius=None: _gk(sigma, radius, continuous=True),
+        Mistake("σ used as variance", _gkv(variance=True), "The exponent is −x²/(2σ²): square σ"),
+        Mistake("normalised by 1/(σ√2π) instead of the sum", _gkv(continuous=True),
                 "The sampled, truncated kernel must sum to exactly 1: divide by its sum, not by σ√(2π)"),
-        Mistake("radius round(3σ) instead of ceil", lambda sigma, radius=None: _gk(sigma, radius, rule="round"),
+        Mistake("radius round(3σ) instead of ceil", _gkv(rule="round"),
                 "The default radius rounds 3σ up: r = ceil(3σ), length 2r+1"),
-        Mistake("radius floor(3σ) instead of ceil", lambda sigma, radius=None: _gk(sigma, radius, rule="floor"),
+        Mistake("radius floor(3σ) instead of ceil", _gkv(rule="floor"),
                 "The default radius rounds 3σ up: r = ceil(3σ) (int() rounds down)"),
         Mistake("radius argument ignored", lambda sigma, radius=None: _gk(sigma, None),
                 "Use the given radius; only radius=None means ceil(3σ)"),
-        Mistake("last tap missing (arange(−r, r))", lambda sigma, radius=None: _gk(sigma, radius, last_tap=False),
+        Mistake("last tap missing (arange(−r, r))", _gkv(last_tap=False),
                 "The offsets are −r..r inclusive: np.arange(-r, r + 1), 2r+1 taps"),
     ],
 )
@@ -509,44 +517,20 @@ def _gauss_with(image, g, border, axes="both", twice=False):
     return _correlate(_correlate(image, row, border), col, border)
 
 
-@mistake("σ used as variance", "The exponent is −x²/(2σ²): square σ")
-def _g_variance(image, sigma, border="reflect101"):
-    return _gauss_with(image, _gk(sigma, variance=True), border)
+def _g_variant(image, sigma, border="reflect101", *, axes="both", twice=False, variance=False, continuous=False,
+               rule=None):
+    """The Gaussian filter with knobs for the mistakes: the passes of :func:`_gauss_with`, the
+    kernel of :func:`_gk`."""
+    return _gauss_with(image, _gk(sigma, variance=variance, continuous=continuous, rule=rule), border, axes, twice)
 
 
-@mistake("only the rows smoothed (x)",
-         "Smooth along both axes: a 1-D pass along the rows, then one along the columns (§3.9.1)")
-def _g_rows_only(image, sigma, border="reflect101"):
-    return _gauss_with(image, _gk(sigma), border, axes="x")
-
-
-@mistake("only the columns smoothed (y)",
-         "Smooth along both axes: a 1-D pass along the rows, then one along the columns (§3.9.1)")
-def _g_cols_only(image, sigma, border="reflect101"):
-    return _gauss_with(image, _gk(sigma), border, axes="y")
-
-
-@mistake("same axis smoothed twice",
-         "The second 1-D pass runs along the other axis (columns), not again along the rows")
-def _g_same_axis_twice(image, sigma, border="reflect101"):
-    return _gauss_with(image, _gk(sigma), border, axes="x", twice=True)
+_gv = partial(variant, _g_variant)
 
 
 @mistake("kernel not normalised", "Divide the kernel by its sum so that a constant image stays constant")
 def _g_unnormalised(image, sigma, border="reflect101"):
     x = np.arange(-_default_radius(sigma), _default_radius(sigma) + 1)
     return _gauss_with(image, np.exp(-x * x / (2.0 * sigma * sigma)), border)
-
-
-@mistake("normalised by 1/(σ√2π) instead of the sum",
-         "The sampled, truncated kernel must sum to exactly 1: divide by its sum")
-def _g_continuous(image, sigma, border="reflect101"):
-    return _gauss_with(image, _gk(sigma, continuous=True), border)
-
-
-@mistake("radius floor(3σ) instead of ceil", "The kernel radius rounds 3σ up: r = ceil(3σ)")
-def _g_floor(image, sigma, border="reflect101"):
-    return _gauss_with(image, _gk(sigma, rule="floor"), border)
 
 
 def _gaussian_hidden(rng):
@@ -588,14 +572,18 @@ gaussian = Check(
     hidden=_gaussian_hidden,
     compare=_LINEAR,
     mistakes=[
-        _g_variance,
-        _g_rows_only,
-        _g_cols_only,
-        _g_same_axis_twice,
+        Mistake("σ used as variance", _gv(variance=True), "The exponent is −x²/(2σ²): square σ"),
+        Mistake("only the rows smoothed (x)", _gv(axes="x"),
+                "Smooth along both axes: a 1-D pass along the rows, then one along the columns (§3.9.1)"),
+        Mistake("only the columns smoothed (y)", _gv(axes="y"),
+                "Smooth along both axes: a 1-D pass along the rows, then one along the columns (§3.9.1)"),
+        Mistake("same axis smoothed twice", _gv(axes="x", twice=True),
+                "The second 1-D pass runs along the other axis (columns), not again along the rows"),
         _g_unnormalised,
-        _g_continuous,
-        _g_floor,
-        *border_mistakes(_gaussian, "Read outside the image through `border` (filters.pad), not with zeros"),
+        Mistake("normalised by 1/(σ√2π) instead of the sum", _gv(continuous=True),
+                "The sampled, truncated kernel must sum to exactly 1: divide by its sum"),
+        Mistake("radius floor(3σ) instead of ceil", _gv(rule="floor"), "The kernel radius rounds 3σ up: r = ceil(3σ)"),
+        *border_mistakes(_gaussian, _BORDER_HINT),
     ],
     allowed=("filters.gaussian_kernel", "filters.pad"),
 )
@@ -641,10 +629,8 @@ median = Check(
     mistakes=[
         Mistake("mean instead of median", lambda image, size, border="reflect101": _mean(image, size, border),
                 "Sort the size² values of the window and take the middle one (np.median), not their mean"),
-        border_zero(_median, "Read outside the image through `border` (filters.pad), not with zeros"),
-        Mistake("size used as radius (window 2·size+1)",
-                lambda image, size, border="reflect101": _median(image, 2 * size + 1, border),
-                "`size` is the side of the window; its radius is size // 2"),
+        border_zero(_median, _BORDER_HINT),
+        _size_as_radius(_median),
         reflect_swapped(_median),
         _median_separable,
     ],
@@ -744,7 +730,7 @@ bilateral = Check(
                 "σs goes with the pixel distance ‖p−q‖², σr with the intensity difference"),
         Mistake("colour channels filtered independently", _bil(per_channel=True),
                 "For colour, one weight per neighbour from the RGB distance ‖I(q)−I(p)‖² summed over the channels"),
-        border_zero(_bilateral, "Read outside the image through `border` (filters.pad), not with zeros"),
+        border_zero(_bilateral, _BORDER_HINT),
     ],
     allowed=("filters.pad",),
 )
@@ -843,7 +829,7 @@ nl_means = Check(
                 "Divide by the sum of the weights: O(p) = Σ w(p,q) I(q) / Σ w(p,q)"),
         Mistake("colour channels weighted independently", _nlm(per_channel=True),
                 "For colour, one weight per q from the patch distance averaged over all three channels"),
-        border_zero(_nl_means, "Read outside the image through `border` (filters.pad), not with zeros"),
+        border_zero(_nl_means, _BORDER_HINT),
     ],
     allowed=("filters.pad",),
 )
