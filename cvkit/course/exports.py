@@ -237,23 +237,67 @@ def _export_exercises(course: CourseState, target: Path, assignments: list[str],
                                                          f"not graded: {reason}", "not graded", "not graded")])
 
 
-def export_similarity(course: CourseState, assignments: Iterable[str] | None = None, progress: bool = False) -> Path:
-    """See :meth:`Course.similarity`."""
+def export_similarity(course: CourseState, assignments: Iterable[str] | None = None, progress: bool = False,
+                      position: int | None = None) -> Path:
+    """See :meth:`Course.similarity` (``position``: the line of its progress bar, below the bars
+    of a grading run it goes along with)."""
     from . import similarity
 
     planned = set(course.plan().ids())
     chosen = sorted(set(assignments) if assignments is not None
                     else {a for _, a in course.submissions() if a in planned})
     pairs = []
-    with Phase("similarity", len(chosen), progress, unit="assignment") as bar:
+    with Phase("similarity", len(chosen), progress, unit="assignment", position=position) as bar:
         for assignment in chosen:
             bar.describe(f"similarity {assignment}")
-            pairs += similarity.report(course.root, course.source_dir, assignment)
+            pairs += _similar_pairs(course, assignment)
             bar.update()
     groups = similarity.groups(pairs)
     folder = course.root / "exports"
     similarity.write_html(groups, folder / "similarity.html")
     return similarity.write_csv(groups, folder / "similarity.csv")
+
+
+SIMILARITY_CACHE = "similarity"  # .cvkit/similarity/<assignment>.json: the last pairs of each assignment
+
+
+def _similar_pairs(course: CourseState, assignment: str) -> list:
+    """:func:`cvkit.course.similarity.report` of one assignment, measured again only when what it
+    compares changed. Reading the answers is cheap; measuring them (tokenizing every answer, the
+    stubs and the references) is not, and a grading run exports every assignment's report while
+    it has graded one. The pairs are kept in ``.cvkit/similarity/<assignment>.json`` with the
+    digest of everything they depend on — the answers and exercises as read, the threshold, and
+    the code that measures them (this module's and copydetect's and Pygments' versions) — and
+    reused while the digest is the same."""
+    import dataclasses
+    import hashlib
+    import json
+    from importlib.metadata import version
+
+    from . import similarity
+
+    answers, exercises = similarity.report_inputs(course.root, course.source_dir, assignment)
+    digest = hashlib.sha256(json.dumps({
+        "answers": {s: {e: [a.text, list(a.pulled)] for e, a in sorted(found.items())} for s, found in sorted(answers.items())},
+        "exercises": {e: dataclasses.asdict(x) for e, x in sorted(exercises.items())},
+        "assignment": assignment, "threshold": similarity.THRESHOLD, "min_size": similarity.MIN_SIZE,
+        "code": hashlib.sha256(Path(similarity.__file__).read_bytes()).hexdigest(),
+        "copydetect": version("copydetect"), "pygments": version("pygments"),
+    }, sort_keys=True).encode()).hexdigest()
+    path = course.root / ".cvkit" / SIMILARITY_CACHE / f"{assignment}.json"
+    try:
+        kept = json.loads(path.read_text(encoding="utf-8"))
+        if kept.get("digest") == digest:
+            return [similarity.SimilarPair(**dict(p, a_pulled=tuple(p["a_pulled"]), b_pulled=tuple(p["b_pulled"])))
+                    for p in kept["pairs"]]
+    except (OSError, ValueError, TypeError, KeyError, AttributeError):
+        pass  # none kept, or unreadable: measured again
+    pairs = similarity.similar_pairs(answers, exercises, assignment=assignment)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    scratch = path.with_suffix(".tmp")
+    scratch.write_text(json.dumps({"digest": digest, "pairs": [dataclasses.asdict(p) for p in pairs]}))  # ASCII
+    scratch.replace(path)
+    return pairs
 
 
 def similar_pairs(course: CourseState) -> list[dict[str, str]]:

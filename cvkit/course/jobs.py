@@ -173,7 +173,7 @@ def _execute(files: dict[str, bytes], prepared: dict[str, dict[str, Any]], stude
 def grade_submission(project: Any, student: str, assignment: str, files: dict[str, bytes], releases: dict[str, str],
                      sources: dict[str, str], salt: str, memory_mb: int = 3072, repair: bool = False) -> ExecutedSubmission:
     """Execute a submission (:func:`execute_submission`), then decide its checks with the
-    trusted checks (:func:`cvkit.course.nbgrader_plugins.apply_trusted_checks`, every line of
+    trusted checks (:func:`cvkit.course.trusted.apply_trusted_checks`, every line of
     student code again in the sandbox): the parallel phase of :meth:`Course.grade`, run by a
     local worker process or a Dask worker. ``sources`` are the instructor's source notebooks
     (JSON text by file name); ``salt`` is the course's grading salt, kept in this process
@@ -195,7 +195,7 @@ def grade_submission(project: Any, student: str, assignment: str, files: dict[st
     (:func:`extra_notebook_flags`)."""
     import nbformat
 
-    from .nbgrader_plugins import apply_trusted_checks
+    from .trusted import apply_trusted_checks
 
     release_notebooks = {name: json.loads(text) for name, text in releases.items()}
     submitted = {name: Submitted.parse(name, files[name], release_notebooks.get(name))

@@ -38,7 +38,7 @@ from ..grading.runtime.cells import cell_source
 if TYPE_CHECKING:
     from .state import CourseState
 
-__all__ = ["Mark", "log_changes", "remember_pages", "restore", "snapshot", "stale_pages"]
+__all__ = ["Mark", "Marks", "log_changes", "read", "remember_pages", "restore", "snapshot", "stale_pages"]
 
 PAGES_FILE = "marks_on_pages.json"
 SEEN_FILE = "marks_seen.json"
@@ -164,26 +164,41 @@ def _score(value: float | None) -> str:
     return "no score" if value is None else f"{value:g}"
 
 
-def fingerprints(course: CourseState, pairs: Iterable[tuple[str, str]]) -> dict[str, str]:
-    """``"student/assignment"`` → a digest of every mark of that submission (what its page shows)."""
+_State = tuple[float | None, float | None, bool, str | None]  # manual score, extra credit, needs a mark, comment
+#: every mark of some recorded submissions, read once: (student, assignment) → (notebook, grade id) → state
+Marks = dict[tuple[str, str], dict[tuple[str, str], _State]]
+
+
+def read(course: CourseState, pairs: Iterable[tuple[str, str]]) -> Marks:
+    """Every mark of the recorded submissions ``pairs``, in one read of the gradebook per
+    assignment; :func:`stale_pages`, :func:`remember_pages` and :func:`log_changes` of one run
+    share it (``now``). Read before the pages are written, it can only make a page look stale
+    that is not (it is then written again), never the other way round."""
     by_assignment: dict[str, list[str]] = {}
     for student, assignment in sorted(set(pairs)):
         by_assignment.setdefault(assignment, []).append(student)
-    found: dict[str, str] = {}
+    found: Marks = {}
     for assignment, students in by_assignment.items():
-        marks = _marks(course, assignment, students)
-        for student in students:  # what a grader set (a page written before any mark shows none)
-            own = sorted((key[1], key[2], state) for key, state in marks.items()
-                         if key[0] == student and (state[0] is not None or state[1] is not None or state[3]))
-            found[f"{student}/{assignment}"] = _digest([json.dumps(own, default=str)])
+        for (student, name, grade_id), state in _marks(course, assignment, students).items():
+            found.setdefault((student, assignment), {})[(name, grade_id)] = state
+    return found
+
+
+def fingerprints(course: CourseState, pairs: Iterable[tuple[str, str]], now: Marks | None = None) -> dict[str, str]:
+    """``"student/assignment"`` → a digest of every mark of that submission (what its page shows);
+    ``now``: the marks as :func:`read` gave them (read here when None)."""
+    pairs = sorted(set(pairs))
+    now = read(course, pairs) if now is None else now
+    found: dict[str, str] = {}
+    for student, assignment in pairs:  # what a grader set (a page written before any mark shows none)
+        own = sorted((name, grade_id, state) for (name, grade_id), state in now.get((student, assignment), {}).items()
+                     if state[0] is not None or state[1] is not None or state[3])
+        found[f"{student}/{assignment}"] = _digest([json.dumps(own, default=str)])
     return found
 
 
 #: the fingerprint of a submission nobody has marked
 UNMARKED = _digest([json.dumps([])])
-
-
-_State = tuple[float | None, float | None, bool, str | None]  # manual score, extra credit, needs a mark, comment
 
 
 def _marks(course: CourseState, assignment: str, students: Iterable[str]) -> dict[tuple[str, str, str], _State]:
@@ -225,30 +240,34 @@ def _save(path: Path, data: Mapping[str, Any]) -> None:
     os.replace(scratch, path)
 
 
-def stale_pages(course: CourseState, pairs: Iterable[tuple[str, str]]) -> list[tuple[str, str]]:
-    """The submissions of ``pairs`` with a feedback page whose marks changed since it was written."""
+def stale_pages(course: CourseState, pairs: Iterable[tuple[str, str]], now: Marks | None = None) -> list[tuple[str, str]]:
+    """The submissions of ``pairs`` with a feedback page whose marks changed since it was written
+    (``now``: see :func:`fingerprints`)."""
     pairs = [(s, a) for s, a in pairs if (course.root / "feedback" / s / a).is_dir()]
     written = _load(course.root / ".cvkit" / PAGES_FILE)
-    now = fingerprints(course, pairs)
-    return [(s, a) for s, a in pairs if written.get(f"{s}/{a}", UNMARKED) != now.get(f"{s}/{a}")]
+    marked = fingerprints(course, pairs, now)
+    return [(s, a) for s, a in pairs if written.get(f"{s}/{a}", UNMARKED) != marked.get(f"{s}/{a}")]
 
 
-def remember_pages(course: CourseState, pairs: Iterable[tuple[str, str]]) -> None:
-    """Record the marks the feedback pages of ``pairs`` now show (their pages were just written)."""
+def remember_pages(course: CourseState, pairs: Iterable[tuple[str, str]], now: Marks | None = None) -> None:
+    """Record the marks the feedback pages of ``pairs`` now show (their pages were just written;
+    ``now``: the marks they were written with, see :func:`fingerprints`)."""
     pairs = list(pairs)
     if not pairs:
         return
     path = course.root / ".cvkit" / PAGES_FILE
     written = _load(path)
-    written.update(fingerprints(course, pairs))
+    written.update(fingerprints(course, pairs, now))
     _save(path, written)
 
 
-def log_changes(course: CourseState, pairs: Iterable[tuple[str, str]]) -> int:
+def log_changes(course: CourseState, pairs: Iterable[tuple[str, str]], now: Marks | None = None) -> int:
     """Append to ``.cvkit/marks.log`` every mark of ``pairs`` first seen or changed since the last
     call; returns how many. Each line: time (UTC), the account that ran the command, submission,
-    cell, the score (or "no score"), extra credit, and whether the comment is new."""
+    cell, the score (or "no score"), extra credit, and whether the comment is new (``now``: see
+    :func:`fingerprints`)."""
     pairs = sorted(set(pairs))
+    now = read(course, pairs) if now is None else now
     seen_path = course.root / ".cvkit" / SEEN_FILE
     seen = _load(seen_path)
     by_assignment: dict[str, list[str]] = {}
@@ -262,7 +281,8 @@ def log_changes(course: CourseState, pairs: Iterable[tuple[str, str]]) -> int:
     when = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
     for assignment, students in sorted(by_assignment.items()):
         for (student, name, grade_id), (score, extra, needs, comment) in sorted(
-                _marks(course, assignment, students).items()):
+                ((student, name, grade_id), state) for student in students
+                for (name, grade_id), state in now.get((student, assignment), {}).items()):
             if score is None and extra is None and not comment:
                 continue
             key = f"{student}/{assignment}/{name}/{grade_id}"

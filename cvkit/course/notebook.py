@@ -107,8 +107,8 @@ def cell_outputs(folder: Path, *, trusted: bool = False) -> Iterator[tuple[str |
 
 
 def _trusted_cell(cell: Mapping[str, Any]) -> bool:
-    """A test cell whose outputs the trusted grader wrote (:func:`~cvkit.course.nbgrader_plugins.
-    apply_trusted_checks` drops every cell's ``cvkit`` metadata first, then writes ``report``)."""
+    """A test cell whose outputs the trusted grader wrote (:func:`~cvkit.course.trusted.apply_trusted_checks`
+    drops every cell's ``cvkit`` metadata first, then writes ``report``)."""
     meta = cell.get("metadata")
     found = meta.get("cvkit") if isinstance(meta, dict) else None
     return isinstance(found, dict) and isinstance(found.get("report"), dict)

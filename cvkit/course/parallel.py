@@ -17,7 +17,7 @@ import os
 import sys
 import time
 from concurrent.futures import Future
-from typing import TYPE_CHECKING, Any, Iterable
+from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from . import class_notes, exports, item_analysis, jobs, leaderboard, marks, results
 from .feedback import feedback_submissions, write_feedback
@@ -44,6 +44,22 @@ class _Batches:
         self.results: list[JobResult] = []
         self.pool: concurrent.futures.Executor | None = None
         self.feedback_steps: dict[Future[None], int] = {}  # feedback job -> its number of pages
+        self.meanwhile: list[Callable[[], None]] = []  # work of this process while the first jobs run
+
+    def while_jobs_run(self, last_chance: bool = False) -> None:
+        """Do this process's own work that needs no grade (the similarity report: it reads the
+        submissions as handed in) while the workers run the first jobs, not after the last. What
+        fails then is tried again after the grades (``last_chance``), where its error is raised:
+        it never stops the grading."""
+        tasks, self.meanwhile = self.meanwhile, []
+        for task in tasks:
+            if last_chance:
+                task()
+                continue
+            try:
+                task()
+            except Exception:  # noqa: BLE001 - tried again at the end, after every grade is recorded
+                self.meanwhile.append(task)
 
     def feedback_done(self, wait: bool = False) -> None:
         """Count the feedback pages the workers have written (``wait``: until all are)."""
@@ -86,8 +102,12 @@ class _Batches:
             course = self.course
             step = max(1, -(-len(pairs) // max(1, self.workers)))
             for chunk in (pairs[i:i + step] for i in range(0, len(pairs), step)):
-                self.feedback_steps[self.pool.submit(
-                    feedback_submissions, str(course.root), course.db_url, str(course.project), chunk)] = len(chunk)
+                try:
+                    step_done = self.pool.submit(feedback_submissions, str(course.root), course.db_url,
+                                                 str(course.project), chunk)
+                except Exception:  # noqa: BLE001 - a broken pool: the pages still missing are written at the end
+                    break
+                self.feedback_steps[step_done] = len(chunk)
         self.feedback_done()
 
 
@@ -161,6 +181,7 @@ def _on_dask(batches: _Batches, payloads: list[tuple[Any, ...]], client: Any) ->
     with client:
         submitted = {client.submit(jobs.grade_on_worker, *p, pure=False): p for p in payloads}
         batches.owners.update({future: job[1:3] for future, job in submitted.items()})
+        batches.while_jobs_run()
         pending = set(submitted)
         alone_since: float | None = None
         while pending:
@@ -196,21 +217,38 @@ def _on_local_pool(batches: _Batches, payloads: list[tuple[Any, ...]], workers: 
     import multiprocessing
 
     context = multiprocessing.get_context("spawn")  # no inherited threads or state
-    with concurrent.futures.ProcessPoolExecutor(max_workers=max(1, workers), mp_context=context) as pool:
+    pool = concurrent.futures.ProcessPoolExecutor(max_workers=max(1, workers), mp_context=context)
+    try:
         batches.pool = pool
-        # every grading job is queued at once, and the feedback pages of each recorded batch
-        # behind them: a worker is never idle while a submission waits, and the pages (short)
-        # fill the end, when the last long executions keep the other workers busy
+        # a grading job is handed to the pool when a worker is free for it, so that the feedback
+        # pages of each recorded batch (queued by drain) come before the jobs still waiting: the
+        # pages are written while grading goes on, and only the last batch's are left at the end
+        waiting = list(payloads)
         pending: set[Future[ExecutedSubmission]] = set()
-        for job in payloads:
-            future = pool.submit(grade_submission, *job)
-            batches.owners[future] = job[1:3]
-            pending.add(future)
+
+        def hand_out() -> None:
+            while waiting and len(pending) < max(1, workers):
+                job = waiting.pop(0)
+                try:
+                    future = pool.submit(grade_submission, *job)
+                except Exception as error:  # noqa: BLE001 - a broken pool: the writer grades it (drain)
+                    future = Future()
+                    future.set_exception(error)
+                batches.owners[future] = job[1:3]
+                pending.add(future)
+
+        hand_out()
+        batches.while_jobs_run()
         while pending:
             done, _ = concurrent.futures.wait(pending, return_when=concurrent.futures.FIRST_COMPLETED)
             pending.difference_update(done)
-            batches.drain(done, len(pending))
+            hand_out()  # before recording: a free worker never waits for the writer
+            batches.drain(done, len(pending) + len(waiting))
         batches.feedback_done(wait=True)
+    except BaseException:
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    pool.shutdown(wait=False)  # nothing left to do: the workers exit while this process goes on
 
 
 def _regrading(course: CourseState, jobs: list[tuple[str, str]], regrade: bool | Iterable[str]) -> list[tuple[str, str]]:
@@ -264,6 +302,7 @@ def _grade(course: CourseState, assignments: Iterable[str] | None, workers: int,
             "record": Phase("record", len(payloads), progress_bar and bool(payloads), unit="submission", position=1),
             "feedback": Phase("feedback", len(payloads), progress_bar and bool(payloads), unit="page", position=2)}
     batches = _Batches(course, size, workers, bars)
+    batches.meanwhile.append(lambda: exports.export_similarity(course, None, progress_bar, position=3))
     if client is not None:
         left, why = _on_dask(batches, payloads, client)
         if left:  # never a lost submission: the local pool grades what the cluster did not
@@ -288,22 +327,24 @@ def _grade(course: CourseState, assignments: Iterable[str] | None, workers: int,
     retried = [(r.student, r.assignment) for r in graded_now if r.ok and (r.student, r.assignment) in missing_before]
     not_graded = course.not_graded()
     graded = [(s, a) for s, a in jobs if f"{s}/{a}" not in not_graded]
+    marked = marks.read(course, graded)  # once for the three uses below
     # pages missing, of a submission graded again, or whose hand marks changed since they were written
     pages = sorted({pair for pair in retried + [(s, a) for s, a in jobs if not (course.root / "feedback" / s / a).is_dir()]
-                    if f"{pair[0]}/{pair[1]}" not in not_graded} | set(marks.stale_pages(course, graded)))
+                    if f"{pair[0]}/{pair[1]}" not in not_graded} | set(marks.stale_pages(course, graded, marked)))
     feedback = bars["feedback"]
     if pages and not feedback.enabled:
         feedback = Phase("feedback", 0, progress_bar, unit="page")
     feedback.set_total(feedback.done + len(pages))  # the estimate (a page per submission) made exact
     write_feedback(course, pages, feedback)
     feedback.close()
-    marks.remember_pages(course, [(s, a) for s, a in graded if (course.root / "feedback" / s / a).is_dir()])
-    marks.log_changes(course, graded)
-    exports.export(course, progress_bar)
-    exports.export_similarity(course, None, progress_bar)
-    item_analysis.export(course)  # exports/item_analysis.csv and .html
-    class_notes.annotate_feedback(course)  # plan.toml [class_notes]: off by default
-    leaderboard.publish(course)  # plan.toml [leaderboard]: off by default, opt-in by each student
+    marks.remember_pages(course, [(s, a) for s, a in graded if (course.root / "feedback" / s / a).is_dir()], marked)
+    marks.log_changes(course, graded, marked)
+    batches.while_jobs_run(last_chance=True)  # the similarity report, if no job ran or it failed then
+    with course.scores_read_once():  # nothing is recorded from here on
+        exports.export(course, progress_bar)
+        item_analysis.export(course)  # exports/item_analysis.csv and .html
+        class_notes.annotate_feedback(course)  # plan.toml [class_notes]: off by default
+        leaderboard.publish(course)  # plan.toml [leaderboard]: off by default, opt-in by each student
     return sorted(graded_now, key=lambda r: (r.assignment, r.student))
 
 
@@ -316,14 +357,16 @@ def refresh(course: CourseState, progress_bar: bool = False) -> list[tuple[str, 
 def _refresh(course: CourseState, progress_bar: bool) -> list[tuple[str, str]]:
     not_graded = course.not_graded()
     graded = [(s, a) for s, a in course.submissions() if f"{s}/{a}" not in not_graded and results.is_graded(course, s, a)]
-    pages = marks.stale_pages(course, graded)
+    marked = marks.read(course, graded)
+    pages = marks.stale_pages(course, graded, marked)
     bar = Phase("feedback", len(pages), progress_bar and bool(pages), unit="page")
     write_feedback(course, pages, bar)
     bar.close()
-    marks.remember_pages(course, [(s, a) for s, a in graded if (course.root / "feedback" / s / a).is_dir()])
-    marks.log_changes(course, graded)
-    exports.export(course, progress_bar)
-    item_analysis.export(course)  # the marks changed the scores
-    class_notes.annotate_feedback(course)  # the pages written again lost their notes
-    leaderboard.publish(course)  # and their leaderboard
+    marks.remember_pages(course, [(s, a) for s, a in graded if (course.root / "feedback" / s / a).is_dir()], marked)
+    marks.log_changes(course, graded, marked)
+    with course.scores_read_once():
+        exports.export(course, progress_bar)
+        item_analysis.export(course)  # the marks changed the scores
+        class_notes.annotate_feedback(course)  # the pages written again lost their notes
+        leaderboard.publish(course)  # and their leaderboard
     return pages

@@ -7,6 +7,7 @@ metadata (``metadata.cvkit.report``), the flags are in the notebook's (``metadat
 """
 from __future__ import annotations
 
+import copy
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,7 +33,17 @@ class ExerciseScore:
 
 
 def scores(course: CourseState, assignment: str) -> dict[str, list[ExerciseScore]]:
-    """See :meth:`Course.scores`."""
+    """See :meth:`Course.scores`. Within :meth:`~.state.CourseState.scores_read_once` an
+    assignment's scores are read once (each caller gets its own copy)."""
+    settled = course.settled_scores
+    if settled is None:
+        return _scores(course, assignment)
+    if assignment not in settled:
+        settled[assignment] = _scores(course, assignment)
+    return copy.deepcopy(settled[assignment])
+
+
+def _scores(course: CourseState, assignment: str) -> dict[str, list[ExerciseScore]]:
     from nbgrader.api import Gradebook, MissingEntry
 
     table: dict[str, list[ExerciseScore]] = {}
@@ -153,7 +164,7 @@ def reported_findings(folder: Path) -> dict[str, list[tuple[str, str]]]:
         a named mistake, else ``("problem", words)`` with what the first diagnosed failing
         case looks like or the first clause of the first failure (never the tolerances).
         Read from the verdicts the trusted checks store as data in the test cells' metadata
-        (:func:`cvkit.course.nbgrader_plugins.cell_report`); a notebook graded before they did
+        (:func:`cvkit.course.trusted.cell_report`); a notebook graded before they did
         (no ``metadata.cvkit.reports_in_cells``) is read from its reports' JSON outputs.
     """
     found: dict[str, list[tuple[str, str]]] = {}

@@ -1050,12 +1050,20 @@ def report(course_root: str | os.PathLike, source_dir: str | os.PathLike, assign
     The files it writes show every name printable (:func:`cvkit._text.printable`). The course's own folders (``submitted``,
     ``release``, the sources) may be links. Nothing is written.
     """
+    _check_threshold(threshold, min_size)
+    answers, exercises = report_inputs(course_root, source_dir, assignment)
+    return similar_pairs(answers, exercises, threshold=threshold, min_size=min_size, assignment=assignment)
+
+
+def report_inputs(course_root: str | os.PathLike, source_dir: str | os.PathLike,
+                  assignment: str) -> tuple[dict[str, dict[str, Answer]], dict[str, Exercise]]:
+    """What :func:`report` compares: ``({student: {exercise: Answer}}, {exercise: Exercise})``
+    read from the course folder as :func:`report` says (same arguments, same rules)."""
     for name, value in (("course_root", course_root), ("source_dir", source_dir)):
         if not isinstance(value, (str, os.PathLike)):
             raise TypeError(f"{name} must be a path, got {type(value).__name__}")
     if not isinstance(assignment, str) or not assignment or assignment in (".", "..") or re.search(r"[/\\\0]", assignment):
         raise ValueError(f"assignment must be a folder name such as 'ch03_filtering', got {assignment!r}")
-    _check_threshold(threshold, min_size)
     root, sources = Path(course_root), Path(source_dir) / assignment
     names = sorted(p.name for p in sources.glob("*.ipynb") if not p.name.startswith(".")) if sources.is_dir() else []
     submitted = root / "submitted"
@@ -1063,7 +1071,7 @@ def report(course_root: str | os.PathLike, source_dir: str | os.PathLike, assign
                       if not p.name.startswith(".") and name_problem(p.name) is None and _plain_folder(p)) \
         if submitted.is_dir() else []
     exercises: dict[str, Exercise] = {}
-    answers: dict[str, dict[str, str | Answer]] = {student: {} for student in students}
+    answers: dict[str, dict[str, Answer]] = {student: {} for student in students}
     for name in names:
         source = _read_notebook(sources / name, links=True)
         if source is None:
@@ -1078,7 +1086,7 @@ def report(course_root: str | os.PathLike, source_dir: str | os.PathLike, assign
             notebook = _read_notebook(folder / name) if _plain_folder(folder) else None
             if notebook is not None:
                 answers[student].update({prefix + key: code for key, code in _student_code(notebook, facts).items()})
-    return similar_pairs(answers, exercises, threshold=threshold, min_size=min_size, assignment=assignment)
+    return answers, exercises
 
 
 # ------------------------------------------------------------------------------- clusters

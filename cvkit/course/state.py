@@ -196,6 +196,7 @@ class CourseState:
         self._nbgrader_config: Config | None = None
         self._fingerprints: dict[str, str] = {}
         self._snapshots: dict[tuple[str, str], tuple[dict[str, bytes], list[str]]] | None = None
+        self.settled_scores: dict[str, Any] | None = None  # see scores_read_once
         self.journal = Journal(self.root, read=self.submission_snapshot)
 
     def __repr__(self) -> str:
@@ -474,15 +475,26 @@ class CourseState:
             self._snapshots.pop((student, assignment), None)
 
     @contextlib.contextmanager
-    def one_read_per_submission(self) -> Iterator[None]:
-        """Within this block, each submission folder is read once (:meth:`submission_snapshot`);
-        outside it, every call reads the folder as it is now."""
-        outer = self._snapshots
-        self._snapshots = {} if outer is None else outer
+    def _kept(self, memo: str) -> Iterator[None]:
+        """Within this block the attribute ``memo`` keeps what is read (a dict); the outermost
+        block forgets it (None: every read reads again)."""
+        outer = getattr(self, memo)
+        setattr(self, memo, {} if outer is None else outer)
         try:
             yield
         finally:
-            self._snapshots = outer
+            setattr(self, memo, outer)
+
+    def one_read_per_submission(self) -> contextlib.AbstractContextManager[None]:
+        """Within this block, each submission folder is read once (:meth:`submission_snapshot`);
+        outside it, every call reads the folder as it is now."""
+        return self._kept("_snapshots")
+
+    def scores_read_once(self) -> contextlib.AbstractContextManager[None]:
+        """Within this block the gradebook is only read (the exports, the item analysis and the
+        like, after the last grade of a run is recorded): each assignment's scores
+        (:func:`~cvkit.course.results.scores`) are read from it once, not once per reader."""
+        return self._kept("settled_scores")
 
     def submission_files(self, student: str, assignment: str) -> dict[str, bytes]:
         """The submission's regular files (links, devices and the like are refused, see

@@ -5,7 +5,9 @@ calls of its test cells (taken from the instructor's source notebook when given,
 autograde does), runs the student's code once in an isolated worker
 (:mod:`cvkit.sandbox.session`) on all the cases, and builds the reports here, comparing with
 the reference in this trusted process. :func:`scan` flags code that tries to tamper with the
-grader, for the instructor to look at.
+grader, for the instructor to look at. :func:`apply_trusted_checks` puts the verdicts into the
+notebook (the test cells' outputs and credit, which nbgrader records, and the same as data in
+``metadata.cvkit``); it needs nbformat only, so the grading workers never load nbgrader.
 """
 from __future__ import annotations
 
@@ -19,13 +21,14 @@ from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
+from nbformat.v4 import new_output
 
 from .. import registry
 from ..grading.checks import FORBIDDEN_LIBRARIES, Case, Check, call_target
 from ..grading.engine import arg_names, evaluate, hidden_seed
 from ..grading.served import served_helpers
 from ..grading.report import CaseResult, Report, cascade_report
-from ..grading.runtime.cells import is_solution, is_test_cell, nbgrader_metadata
+from ..grading.runtime.cells import cell_source, is_solution, is_test_cell, nbgrader_metadata
 from ..grading.runtime.guard import Outcome, timeout_message
 from ..grading.runtime.wire import BoxCall
 from ..sandbox.session import NOTEBOOK_SECONDS, run_calls
@@ -561,3 +564,91 @@ def hide_hidden_tests(source: str) -> str:
 
 __all__ = ["CheckCall", "NotebookGrade", "check_calls", "worker_cells", "scan", "grade_notebook",
            "hide_hidden_tests", "hidden_view", "submission_version", "Report"]
+
+
+# ------------------------------------------------------------------ the verdicts in the notebook
+def cell_report(grade_id: str, entries: list[tuple[CheckCall, Report]], points: float, credit: float,
+                flags: list[str]) -> dict[str, Any]:
+    """The trusted verdicts of one test cell as data: what :func:`apply_trusted_checks` stores in
+    the cell's ``metadata.cvkit.report`` and the course's results read (JSON-ready).
+
+    Parameters
+    ----------
+    grade_id : str
+        The test cell's grade id.
+    entries : list of (CheckCall, Report)
+        Its ``check(...)`` calls and their trusted reports, in order.
+    points, credit : float
+        The cell's points and the credit it earned.
+    flags : list of str
+        The notebook's flags (``"<grade id>: <what>"``); the cell keeps its own.
+
+    Returns
+    -------
+    dict
+        ``points``, ``credit``, ``checks`` (per call: :meth:`Report.verdict` and the graded
+        ``function``) and ``flags`` (what was flagged on this cell).
+    """
+    own = f"{grade_id}: "
+    return {
+        "points": points,
+        "credit": credit,
+        "checks": [dict(report.verdict(), function=call.function) for call, report in entries],
+        "flags": [flag[len(own):] for flag in flags if flag.startswith(own)],
+    }
+
+
+def apply_trusted_checks(nb: Any, *, student: str, salt: str, source_notebook: Any = None,
+                         memory_mb: int = 3072) -> list[str]:
+    """Decide every check of ``nb`` (a NotebookNode) outside the student's kernel and put the
+    verdicts in place: each test cell's outputs become the trusted reports and its credit
+    (an error for a failed visible test, the partial credit of a hidden one), which is what
+    nbgrader's ``SaveAutoGrades`` records. The same verdicts travel as data in the cell's
+    ``metadata.cvkit.report`` (:func:`cell_report`; any ``cvkit`` metadata a cell brought along
+    is dropped first), which the course's results read; the notebook is marked
+    ``metadata.cvkit.reports_in_cells``. Returns the flags of the static scan, which also go
+    into ``nb.metadata.cvkit``. Used by the parallel phase of :meth:`cvkit.course.Course.grade`
+    and by :class:`~cvkit.course.nbgrader_plugins.TrustedChecks` in nbgrader's own autograde."""
+    # only the trusted grader writes cvkit metadata: whatever the submission brought along
+    # (a forged report, flags, an "unsandboxed_note" that would hide the banner) is dropped
+    nb.metadata.pop("cvkit", None)
+    nb.cells = [cell for cell in nb.cells if not _is_banner(cell)]
+    grade = grade_notebook(nb, student=student, salt=salt, source_notebook=source_notebook, memory_mb=memory_mb)
+    for cell in nb.cells:
+        cell.metadata.pop("cvkit", None)  # only the trusted grader writes there
+        grade_id = cell.metadata.get("nbgrader", {}).get("grade_id")
+        if not is_test_cell(cell) or grade_id not in grade.reports:
+            continue
+        entries = grade.reports[grade_id]
+        outputs = [new_output("display_data", data=report.mime_bundle()) for _, report in entries]
+        points = float(cell.metadata["nbgrader"].get("points", 0))
+        credit, reasons = grade.credit(grade_id, points)
+        hidden = any(call.hidden for call, _ in entries)
+        if hidden:
+            outputs.append(new_output("execute_result", data={"text/plain": repr(credit)},
+                                      execution_count=cell.get("execution_count")))
+        elif credit <= 0:
+            message = "; ".join(reasons) or "failed"
+            outputs.append(new_output("error", ename="AssertionError", evalue=message,
+                                      traceback=[f"AssertionError: {message}"]))
+        cell.outputs = outputs
+        cell.metadata["cvkit"] = {"report": cell_report(grade_id, entries, points, credit, grade.flags)}
+    if not grade.sandboxed:
+        from nbformat.v4 import new_markdown_cell
+
+        nb.cells.insert(0, new_markdown_cell(UNSANDBOXED_BANNER))
+    nb.metadata["cvkit"] = dict(trusted=True, flags=grade.flags, worker_problem=grade.worker_problem,
+                                cell_errors=grade.cell_errors[:20], sandboxed=grade.sandboxed,
+                                unsandboxed_note=not grade.sandboxed, reports_in_cells=True)
+    return list(grade.flags)
+
+
+#: the first cell of a notebook graded with ``--no-sandbox`` (put there by :func:`apply_trusted_checks`)
+UNSANDBOXED_BANNER = (
+    "**⚠ Graded without the sandbox** (`cvkit course grade --no-sandbox`): your code ran with the "
+    "grader's rights on the grading machine. Ask your instructor if this is unexpected.")
+
+
+def _is_banner(cell: Any) -> bool:
+    """The banner of an earlier grading (or the student's copy of it): replaced by a fresh one."""
+    return cell.get("cell_type") == "markdown" and cell_source(cell).strip() == UNSANDBOXED_BANNER

@@ -28,7 +28,7 @@ import pytest
 from cvkit.cli import main
 from cvkit.course import Course
 from cvkit.course.plan import LatePolicy, parse_due, read_plan
-from cvkit.course import nbgrader_plugins
+from cvkit.course import nbgrader_plugins, trusted
 
 from course_helpers import ROOT, SETUP, TEMPORAL_MEAN, exercise_cells, new_cell, new_notebook, submitted, write_project
 from course_helpers import TEMPORAL_MEAN_LOOP as LOOP  # a right answer
@@ -262,11 +262,11 @@ def test_student_written_notebook_metadata_never_hides_the_unsandboxed_banner(mo
     submitted = submission(LOOP)[f"{ASSIGNMENT}.ipynb"]
     submitted["metadata"]["cvkit"] = {"unsandboxed_note": True, "flags": [], "trusted": True, "sandboxed": True}
     nb = nbformat.from_dict(submitted)
-    nbgrader_plugins.apply_trusted_checks(nb, student="ada", salt="plan-salt", source_notebook=source_notebook())
+    trusted.apply_trusted_checks(nb, student="ada", salt="plan-salt", source_notebook=source_notebook())
     assert nb.cells[0].cell_type == "markdown" and "Graded without the sandbox" in nb.cells[0].source
     assert nb.metadata["cvkit"]["sandboxed"] is False
     again = nbformat.from_dict(json.loads(nbformat.writes(nb)))  # graded twice: one banner
-    nbgrader_plugins.apply_trusted_checks(again, student="ada", salt="plan-salt", source_notebook=source_notebook())
+    trusted.apply_trusted_checks(again, student="ada", salt="plan-salt", source_notebook=source_notebook())
     assert sum("Graded without the sandbox" in c.source for c in again.cells) == 1
 
 

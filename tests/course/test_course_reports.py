@@ -8,7 +8,7 @@ import nbformat
 import pytest
 
 from cvkit.course.results import reported_findings
-from cvkit.course.nbgrader_plugins import apply_trusted_checks, cell_report
+from cvkit.course.trusted import apply_trusted_checks, cell_report
 from cvkit.grading.runtime.cells import is_solution as is_answer_cell, is_test_cell
 from cvkit.grading.report import MIME_TYPE, finding, headline
 

@@ -383,3 +383,34 @@ def test_huge_answers_are_cut_and_padding_with_repeated_lines_hides_no_copy(ch03
     assert pairs[0].a_source == huge[: similarity.MAX_ANSWER_CHARS]
     # the 20000 lines read the same once normalised, and a repeated k-gram counts once
     assert {(p.a, p.b) for p in pairs[1:]} == {("kim", SOLUTION), ("lee", SOLUTION)}
+
+
+def test_a_grading_run_measures_an_assignment_again_only_when_what_it_compares_changed(tmp_path, ch03, monkeypatch):
+    from types import SimpleNamespace
+
+    from cvkit.course import exports
+
+    course, source = _course(tmp_path, ch03)
+    state = SimpleNamespace(root=course, source_dir=source)
+    first = exports._similar_pairs(state, "ch03")
+    assert first == similarity.report(course, source, "ch03") and first  # measured, and what report says
+    assert (course / ".cvkit" / "similarity" / "ch03.json").is_file()
+
+    measured = []
+    real = similarity.similar_pairs
+    monkeypatch.setattr(similarity, "similar_pairs", lambda *a, **k: measured.append(1) or real(*a, **k))
+    assert exports._similar_pairs(state, "ch03") == first and not measured  # nothing changed: the kept pairs
+
+    bob = course / "submitted" / "bob" / "ch03" / "ch03.ipynb"
+    notebook = json.loads(bob.read_text())
+    for cell in notebook["cells"]:  # bob hands in an answer of his own
+        if cell.get("metadata", {}).get("nbgrader", {}).get("grade_id") == "add_salt_and_pepper_answer":
+            cell["source"] = KERNEL_VECTORIZED.replace("gaussian_kernel", "add_salt_and_pepper")
+    bob.write_text(json.dumps(notebook))
+    again = exports._similar_pairs(state, "ch03")
+    assert measured == [1] and again != first
+    assert again == similarity.report(course, source, "ch03")
+
+    measured.clear()
+    (course / ".cvkit" / "similarity" / "ch03.json").write_text("{not json")  # a damaged file: measured again
+    assert exports._similar_pairs(state, "ch03") == again and measured == [1]
