@@ -44,7 +44,7 @@ class _Batches:
         self.results: list[JobResult] = []
         self.pool: concurrent.futures.Executor | None = None
         self.feedback_steps: dict[Future[None], int] = {}  # feedback job -> its number of pages
-        self.meanwhile: list[Callable[[], None]] = []  # work of this process while the first jobs run
+        self.meanwhile: list[Callable[[], object]] = []  # work of this process while the first jobs run
 
     def while_jobs_run(self, last_chance: bool = False) -> None:
         """Do this process's own work that needs no grade (the similarity report: it reads the
@@ -220,14 +220,15 @@ def _on_local_pool(batches: _Batches, payloads: list[tuple[Any, ...]], workers: 
     pool = concurrent.futures.ProcessPoolExecutor(max_workers=max(1, workers), mp_context=context)
     try:
         batches.pool = pool
-        # a grading job is handed to the pool when a worker is free for it, so that the feedback
-        # pages of each recorded batch (queued by drain) come before the jobs still waiting: the
-        # pages are written while grading goes on, and only the last batch's are left at the end
+        # the grading jobs are handed to the pool a few at a time (one waiting beyond the busy
+        # workers, so that a worker never waits while the writer records), and the feedback pages
+        # of each recorded batch (queued by drain) before the next ones: the pages are written
+        # while grading goes on, and only the last batch's are left at the end
         waiting = list(payloads)
         pending: set[Future[ExecutedSubmission]] = set()
 
         def hand_out() -> None:
-            while waiting and len(pending) < max(1, workers):
+            while waiting and len(pending) < max(1, workers) + 1:
                 job = waiting.pop(0)
                 try:
                     future = pool.submit(grade_submission, *job)
@@ -242,8 +243,8 @@ def _on_local_pool(batches: _Batches, payloads: list[tuple[Any, ...]], workers: 
         while pending:
             done, _ = concurrent.futures.wait(pending, return_when=concurrent.futures.FIRST_COMPLETED)
             pending.difference_update(done)
-            hand_out()  # before recording: a free worker never waits for the writer
-            batches.drain(done, len(pending) + len(waiting))
+            batches.drain(done, len(pending) + len(waiting))  # the batch's pages queued first
+            hand_out()
         batches.feedback_done(wait=True)
     except BaseException:
         pool.shutdown(wait=True, cancel_futures=True)
