@@ -4,7 +4,7 @@
   ``check(...)`` of the test cells outside the student's kernel (:mod:`cvkit.course.trusted`)
   and replaces those cells' outputs by the trusted report and partial credit, which is what
   nbgrader then records (:func:`cvkit.course.trusted.apply_trusted_checks`, which the parallel
-  phase of ``cvkit course grade`` calls directly, without loading nbgrader in its workers).
+  phase of ``cvkit course grade`` calls directly, outside nbgrader's pipeline).
 - :class:`LatePenalty` — nbgrader's late-submission plugin with the policies of ``plan.toml``
   (``[late]``: none, zero, points per started hour).
 - :class:`HideHiddenTests` — a feedback preprocessor: students see the results of the hidden

@@ -7,7 +7,7 @@ autograde does), runs the student's code once in an isolated worker
 the reference in this trusted process. :func:`scan` flags code that tries to tamper with the
 grader, for the instructor to look at. :func:`apply_trusted_checks` puts the verdicts into the
 notebook (the test cells' outputs and credit, which nbgrader records, and the same as data in
-``metadata.cvkit``); it needs nbformat only, so the grading workers never load nbgrader.
+``metadata.cvkit``); it needs nbformat only, not nbgrader's pipeline.
 """
 from __future__ import annotations
 

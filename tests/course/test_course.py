@@ -228,3 +228,22 @@ def test_cli_table_and_regrade_is_reproducible(demo, capsys):
     assert main(["course", "table", "--course-dir", str(course.root)]) == 0
     out = capsys.readouterr().out
     assert "sample_mistakes" in out and "total" in out
+
+
+def test_scores_are_read_once_within_scores_read_once_and_each_reader_gets_its_own_copy(demo, monkeypatch):
+    from cvkit.course import results
+
+    _, course = demo
+    assignment = sorted({a for _, a in course.submissions()})[0]
+    reads = []
+    real = results._scores
+    monkeypatch.setattr(results, "_scores", lambda *a: reads.append(1) or real(*a))
+    with course.scores_read_once():
+        first = course.scores(assignment)
+        second = course.scores(assignment)
+        assert reads == [1] and first == second and first  # one read of the gradebook
+        student = next(iter(first))
+        first[student][0].mistakes.append("changed by one reader")
+        assert "changed by one reader" not in course.scores(assignment)[student][0].mistakes
+    course.scores(assignment)
+    assert reads == [1, 1]  # outside the block every call reads the gradebook as it is now
