@@ -166,6 +166,29 @@ def test_time_limit_with_vectorize_hint():
     assert not report.passed and "vectorize" in report.cases[0].message
 
 
+def test_the_candidate_runs_with_blas_on_one_thread_as_on_the_grader():
+    """The grader's sandbox runs NumPy's BLAS on one thread; a check run in a student's kernel does
+    too while the candidate runs (a time limit means the same on both), and gives the threads back."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    seen = []
+
+    def counting(image, steps=1):
+        seen.append({info["internal_api"]: info["num_threads"] for info in threadpoolctl.threadpool_info()
+                     if info["user_api"] == "blas"})
+        return _shift(image, steps)
+
+    before = {info["internal_api"]: info["num_threads"] for info in threadpoolctl.threadpool_info()
+              if info["user_api"] == "blas"}
+    with threadpoolctl.threadpool_limits(2):  # as in a kernel on a machine with several cores
+        inside = {info["internal_api"]: info["num_threads"] for info in threadpoolctl.threadpool_info()
+                  if info["user_api"] == "blas"}
+        assert evaluate("testing.shift_right", counting).passed
+        after = {info["internal_api"]: info["num_threads"] for info in threadpoolctl.threadpool_info()
+                 if info["user_api"] == "blas"}
+    assert before and seen and all(counts == {name: 1 for name in before} for counts in seen), seen
+    assert after == inside
+
+
 def test_forbidden_library_calls_are_caught():
     import scipy.ndimage
 
