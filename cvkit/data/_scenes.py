@@ -33,18 +33,33 @@ MAX_CLUTTER = 1000
 
 
 def _inside_polygon(vertices: np.ndarray) -> Inside:
-    """Even-odd rule, vectorised over the sample grid (a loop over the polygon's edges)."""
+    """Even-odd rule, vectorised over the sample grid (a loop over the polygon's edges).
+
+    On the sample grid of :func:`~cvkit.data._common.samples` (``y`` an ascending column, ``x``
+    a row) an edge is evaluated on the rows its vertical extent crosses only: the same values,
+    in a fraction of the time for a polygon much smaller than the image (the clutter of
+    :func:`part_scene`)."""
     def inside(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         hit = np.zeros(np.broadcast(x, y).shape, dtype=bool)
+        column = y[:, 0] if y.ndim == 2 and y.shape[1] == 1 and x.ndim == 2 and x.shape[0] == 1 else None
+        if column is not None and np.any(column[1:] < column[:-1]):
+            column = None
         n = len(vertices)
         for k in range(n):
             x0, y0 = vertices[k]
             x1, y1 = vertices[(k + 1) % n]
             if y0 == y1:
                 continue
-            crosses = (y0 > y) != (y1 > y)
-            x_at = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
-            hit ^= crosses & (x < x_at)
+            if column is None:
+                crosses = (y0 > y) != (y1 > y)
+                x_at = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+                hit ^= crosses & (x < x_at)
+                continue
+            # (y0 > y) != (y1 > y) holds exactly for min(y0, y1) <= y < max(y0, y1)
+            lo, hi = np.searchsorted(column, (min(y0, y1), max(y0, y1)), side="left")
+            if hi > lo:
+                rows = y[lo:hi]
+                hit[lo:hi] ^= x < x0 + (rows - y0) * (x1 - x0) / (y1 - y0)
         return hit
     return inside
 

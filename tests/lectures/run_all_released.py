@@ -9,7 +9,10 @@ Each chapter's source notebook is released as ``nbgrader generate_assignment`` d
 stopping at the first error except in cells tagged ``raises-exception``. The kernel is this
 environment's (checked: its ``sys.prefix`` is this script's). Writes ``{"prefix": the kernel's
 sys.prefix, "chapters": {chapter: [problems]}}`` to RESULT.json: no problem means the chapter ran
-to its end and only visible tests of unanswered exercises failed, each with one line.
+to its end, every code cell ran, and only visible tests of unanswered exercises failed, each with
+one line (its error, and at most one printed line). This is the suite's only *Run All* of the
+released notebooks outside the browser: the test suite's own environment holds everything a
+course's does, so a chapter that runs here runs there too.
 """
 from __future__ import annotations
 
@@ -60,17 +63,23 @@ def run_all(path: str) -> tuple[str, list[str]]:
             problems.append(f"Run All stopped at {where}: {error.ename}: {str(error.evalue)[:300]}")
         except Exception as error:  # noqa: BLE001 - a kernel that died, a timeout: the finding
             problems.append(f"Run All failed: {type(error).__name__}: {str(error)[:300]}")
-    for cell in nb.cells:
-        if cell.cell_type != "code":
+    code = [c for c in nb.cells if c.cell_type == "code" and c.source.strip()]
+    if not problems and not all(c.get("execution_count") for c in code):
+        problems.append("not every code cell ran")
+    for cell in code:
+        errors = [o for o in cell.outputs if o.output_type == "error"]
+        if not errors:
             continue
-        for output in cell.outputs:
-            if output.output_type != "error":
-                continue
-            if not _is_visible_test(cell):
-                problems.append(f"an error in a cell that is not a visible test: {output.ename}: {output.evalue[:200]}")
-            elif output.ename != "CheckFailed" or "not answered yet" not in output.evalue:
-                problems.append(f"{L.nbgrader(cell).get('grade_id')}: an unanswered exercise fails with one line, "
-                                f"got {output.ename}: {output.evalue[:200]}")
+        error = errors[0]
+        if not _is_visible_test(cell):
+            problems.append(f"an error in a cell that is not a visible test: {error.ename}: {error.evalue[:200]}")
+            continue
+        grade_id = L.nbgrader(cell).get("grade_id")
+        if error.ename != "CheckFailed" or "not answered yet" not in error.evalue:
+            problems.append(f"{grade_id}: an unanswered exercise fails with one line, got {error.ename}: {error.evalue[:200]}")
+        printed = "".join(o.get("text", "") for o in cell.outputs if o.output_type == "stream")
+        if printed.count("\n") > 1:
+            problems.append(f"{grade_id}: one line on an unanswered exercise, got: {printed[:300]}")
     return path_.parent.name, list(dict.fromkeys(problems))
 
 
