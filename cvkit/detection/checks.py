@@ -1330,6 +1330,8 @@ class LineDetection(Comparator):
     and :data:`~cvkit.detection._lines.THETA_TOLERANCE`); below it the case earns the scale's
     share. The reference's lines (``expected``) only serve for comparison."""
 
+    judges_alone = True  # the verdict is what the output achieves on the case's truth
+
     @staticmethod
     def counts(got: Any, case: Any) -> tuple[int, int, int]:
         """``(matched, returned, true)``: greedy one-to-one matching, closest pairs first;

@@ -1389,6 +1389,8 @@ class OutlineF1(Comparator):
     :data:`OUTLINE_RADIUS` pixel) reaches the top of :data:`OUTLINE_F1`; below it the case earns
     the scale's share. The reference's map (``expected``) only serves for comparison."""
 
+    judges_alone = True  # the verdict is what the output achieves on the case's truth
+
     @staticmethod
     def scores(got: Any, case: Any) -> tuple[float, float, float]:
         """``(F1, precision, recall)`` of ``got`` against the case's truth; zeros when ``got``

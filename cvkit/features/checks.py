@@ -1981,6 +1981,8 @@ class CorrectMatches(Comparator):
     within :data:`~cvkit.features._measured.TOLERANCE` px of the second) at a precision at the
     top of :data:`MATCH_PRECISION_SCALE`; the case earns the smaller of the two scales' shares."""
 
+    judges_alone = True  # the verdict is what the output achieves on the case's truth
+
     def describe(self) -> str:
         return (f"at least {MATCH_COUNT_SCALE.top:g} correct matches (error < {TOLERANCE:g} px) at a precision of "
                 f"{MATCH_PRECISION_SCALE.show(MATCH_PRECISION_SCALE.top)} or more")

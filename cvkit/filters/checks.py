@@ -973,6 +973,8 @@ class PsnrGap(Comparator):
     reference denoiser's PSNR on the same noisy crop (``case.truth`` is the clean crop); the
     case's credit follows the scale below it."""
 
+    judges_alone = True  # the verdict is what the output achieves on the case's truth
+
     def describe(self) -> str:
         return f"PSNR at most {-DENOISE_SCALE.top:g} dB below the reference denoiser's"
 

@@ -63,6 +63,11 @@ class Comparator:
     #: outputs are judged value by value (allclose-like), so a failing output's difference can be
     #: diagnosed value by value too (shifted, transposed, scaled...; :mod:`cvkit.grading.diagnose`)
     elementwise = False
+    #: the verdict depends on the output and the case only (a measured exercise: what the output
+    #: achieves against the case's truth); ``expected`` serves the message alone. The grader then
+    #: never runs the bank's mistakes to match a failing output: measured against the case, a
+    #: mistake's output could only "match" an output that passes
+    judges_alone = False
 
     def __call__(self, got: Any, expected: Any, case: Any = None) -> Mismatch | None:  # pragma: no cover
         raise NotImplementedError

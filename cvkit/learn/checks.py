@@ -1406,6 +1406,8 @@ class DigitAccuracy(Comparator):
     ``expected`` output (the reference's predictions) only serves for comparison in the
     message."""
 
+    judges_alone = True  # the verdict is what the output achieves on the case's truth
+
     @staticmethod
     def accuracy(got: Any, case: Any) -> float:
         truth = np.asarray(getattr(case, "truth", np.zeros(0)))

@@ -384,6 +384,8 @@ class BadPixelRate(Comparator):
     follows the scale below it. ``expected`` (the reference's map) only serves for comparison in
     the message."""
 
+    judges_alone = True  # the verdict is what the output achieves on the case's truth
+
     def describe(self) -> str:
         return f"at least {DISPARITY_SCALE.show(DISPARITY_SCALE.top)} of the pixels within 1 px of the true disparity"
 

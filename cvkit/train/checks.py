@@ -1830,6 +1830,8 @@ class HeldOutAccuracy(Comparator):
     ``expected`` output (the reference recipe's predictions) only serves for comparison in
     the message: the answer is judged by what it achieves, not by its agreement."""
 
+    judges_alone = True  # the verdict is what the output achieves on the case's truth
+
     top = ACCURACY.top
 
     @staticmethod
