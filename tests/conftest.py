@@ -41,48 +41,45 @@ def grading_sandbox():
         print(f"apt-get could not install bubblewrap:\n{log}")
 
 
-# The files that keep one worker busy longest, in seconds (one idle 2-core run, 2026-11-27).
-# ``scripts/test`` hands files to the workers in collection order (``--no-loadscope-reorder``),
-# and this order puts the long ones first: a long file started last (the browser test, which has
-# few tests and so came last in pytest-xdist's own order by test count) would keep one worker
-# running while the other sits idle. Files not listed follow in their collection order.
+# The files that keep one worker busy longest, in seconds (one 2-core run of the whole suite,
+# 2026-12-07, 20 min). ``scripts/test`` hands files to the workers in collection order
+# (``--no-loadscope-reorder``), and this order puts the long ones first: a long file started last
+# (the browser test, which has few tests and so came last in pytest-xdist's own order by test count)
+# would keep one worker running while the other sits idle. Files not listed follow in their
+# collection order.
 LONGEST_FILES = {
-    "tests/library/test_hidden_cases_reference.py": 490,
-    # two demos (150 s each) + Run All of every released chapter (70 s), 2026-12-06
-    "tests/system/test_fresh_clone.py": 375,
-    "tests/system/test_browser.py": 160,
-    "tests/lectures/test_notebooks.py": 150,
-    "tests/lectures/test_release.py": 145,
-    "tests/sandbox/test_sandbox_attacks_round2.py": 120,
-    "tests/sandbox/test_sandbox_attacks.py": 115,
-    "tests/course/test_course_scaling.py": 100,
-    # grades a tiny measured chapter: 6 reference CNNs trained, 90 s loaded (2026-12-06)
-    "tests/course/test_leaderboard.py": 100,
-    "tests/system/test_hub_round_trip.py": 100,
-    "tests/library/test_checks_ch08.py": 95,
-    "tests/course/test_course.py": 75,
-    "tests/course/test_lms_course.py": 50,  # grades a tiny course once (40-50 s on 2 shared cores, 2026-12-06)
-    "tests/library/test_checks_ch05.py": 70,
-    "tests/grading/test_visible_probes.py": 60,  # 4 variants of every reference, hidden and visible, 2026-12-06
-    "tests/course/test_dask_cluster.py": 60,  # measured 55-75 s on 2 shared cores (2026-12-06)
-    "tests/sandbox/test_allowed_helpers.py": 55,
-    "tests/sandbox/test_trusted.py": 50,
-    "tests/library/test_checks_ch09.py": 45,
-    "tests/course/test_course_plan.py": 45,
-    # grades a tiny course, then Chromium: 15-41 s on 2 shared cores (2026-12-06)
-    "tests/course/test_item_analysis.py": 40,
-    # 60 and 300 simulated students: 25 s CPU, 54-65 s loaded (2026-12-06)
-    "tests/course/test_similarity_clusters.py": 30,
-    "tests/course/test_course_package.py": 35,
-    "tests/course/test_hand_marks.py": 35,
-    "tests/library/test_checks_ch03.py": 30,
-    "tests/course/test_parse_count.py": 35,  # builds and grades one chapter in-process (25-36 s loaded, 2026-12-06)
+    # two demos from fresh clones (their own venvs) + Run All of every released chapter
+    "tests/system/test_fresh_clone.py": 315,
+    "tests/library/test_hidden_cases_reference.py": 145,  # the sweep, on a pool of its own
+    "tests/system/test_hub_round_trip.py": 130,
+    "tests/system/test_browser.py": 120,
+    "tests/lectures/test_notebooks.py": 115,
+    "tests/sandbox/test_sandbox_attacks_round2.py": 115,
+    "tests/library/test_checks_ch12.py": 100,  # the digits' network trained some 20 times
+    "tests/course/test_dask_cluster.py": 90,
+    "tests/sandbox/test_sandbox_attacks.py": 85,
+    "tests/course/test_course.py": 80,
+    "tests/library/test_checks_ch05.py": 75,
+    "tests/grading/test_visible_probes.py": 70,  # 4 variants of every reference, hidden and visible
+    "tests/library/test_checks_ch08.py": 70,
+    "tests/sandbox/test_allowed_helpers.py": 60,
+    "tests/course/test_course_scaling.py": 55,
+    "tests/course/test_hand_marks.py": 45,
+    "tests/sandbox/test_trusted.py": 45,
+    "tests/course/test_course_folder.py": 40,
+    "tests/course/test_parse_count.py": 35,  # builds and grades one chapter in-process
+    "tests/course/test_course_plan.py": 35,
+    "tests/sandbox/test_sandbox_locations.py": 35,
+    "tests/system/test_ordinary_user.py": 30,
+    "tests/course/test_similarity_clusters.py": 30,  # 60 and 300 simulated students
+    "tests/course/test_leaderboard.py": 30,  # grades a tiny measured chapter: reference CNNs trained
 }
 
 
 #: Files that mostly wait (time limits running out, servers and subprocesses starting) rather than
-#: compute. They are handed out right after the longest file, the sweep, whose own worker
-#: processes keep both cores busy meanwhile; at the end of the run their waits left a core idle.
+#: compute. They are handed out right after the longest file (the fresh clones: pip, and the
+#: demos' own grading workers, keep the cores busy meanwhile); at the end of the run their waits
+#: left a core idle.
 MOSTLY_WAITING = ("tests/sandbox/test_guard.py", "tests/sandbox/test_execute.py",
                   "tests/course/test_written_answers.py")
 
