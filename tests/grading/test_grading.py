@@ -170,22 +170,23 @@ def test_the_candidate_runs_with_blas_on_one_thread_as_on_the_grader():
     """The grader's sandbox runs NumPy's BLAS on one thread; a check run in a student's kernel does
     too while the candidate runs (a time limit means the same on both), and gives the threads back."""
     threadpoolctl = pytest.importorskip("threadpoolctl")
+
+    def blas_threads():
+        return {info["internal_api"]: info["num_threads"] for info in threadpoolctl.threadpool_info()
+                if info["user_api"] == "blas"}
+
     seen = []
 
     def counting(image, steps=1):
-        seen.append({info["internal_api"]: info["num_threads"] for info in threadpoolctl.threadpool_info()
-                     if info["user_api"] == "blas"})
+        seen.append(blas_threads())
         return _shift(image, steps)
 
-    before = {info["internal_api"]: info["num_threads"] for info in threadpoolctl.threadpool_info()
-              if info["user_api"] == "blas"}
+    libraries = set(blas_threads())
     with threadpoolctl.threadpool_limits(2):  # as in a kernel on a machine with several cores
-        inside = {info["internal_api"]: info["num_threads"] for info in threadpoolctl.threadpool_info()
-                  if info["user_api"] == "blas"}
+        inside = blas_threads()
         assert evaluate("testing.shift_right", counting).passed
-        after = {info["internal_api"]: info["num_threads"] for info in threadpoolctl.threadpool_info()
-                 if info["user_api"] == "blas"}
-    assert before and seen and all(counts == {name: 1 for name in before} for counts in seen), seen
+        after = blas_threads()
+    assert libraries and seen and all(counts == dict.fromkeys(libraries, 1) for counts in seen), seen
     assert after == inside
 
 
