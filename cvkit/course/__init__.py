@@ -41,8 +41,9 @@ One job per module:
   exchange, the course folders), what ``cvkit hub check`` verifies, and what the exchange tells
   the instructor at grading time (hand-ins not collected, hand-ins without their secret).
 
-Local parallel grading uses worker processes started with ``spawn``: a script that calls
-:meth:`Course.grade` needs the usual ``if __name__ == "__main__":`` guard.
+Local parallel grading uses worker processes forked from a ``forkserver`` (a fresh interpreter
+that imported what they need once): a script that calls :meth:`Course.grade` needs the usual
+``if __name__ == "__main__":`` guard.
 """
 from ..sandbox.startup import skip_unused_schema_grammars
 

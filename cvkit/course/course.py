@@ -146,8 +146,9 @@ class Course(CourseState):
         chapters not in the plan are not graded (:meth:`outside_plan`). After grading, the
         similarity report of every graded assignment is written to ``exports/`` (a signal for
         the instructor, never a score change). ``progress`` shows each phase with a count and
-        the time left. Local workers are started with ``spawn``: a script that calls this
-        needs the usual ``if __name__ == "__main__":`` guard.
+        the time left. Local workers are forked from a ``forkserver`` that imported nbgrader
+        and cvkit once (:func:`~cvkit.course.parallel.worker_context`): a script that calls
+        this needs the usual ``if __name__ == "__main__":`` guard.
         """
         return parallel.grade(self, assignments, workers=workers, scheduler=scheduler, progress_bar=progress,
                               regrade=regrade, batch=batch, sandbox=sandbox)

@@ -31,7 +31,7 @@ from ..grading.report import CaseResult, Report, cascade_report
 from ..grading.runtime.cells import cell_source, is_solution, is_test_cell, nbgrader_metadata
 from ..grading.runtime.guard import Outcome, timeout_message
 from ..grading.runtime.wire import BoxCall
-from ..sandbox.session import NOTEBOOK_SECONDS, run_calls
+from ..sandbox.session import notebook_seconds, run_calls
 
 
 @dataclass
@@ -241,9 +241,9 @@ def grade_notebook(notebook: Any, *, student: str, salt: str, source_notebook: A
     visible cases of every exercise run before any hidden case, and what a student sees of a
     hidden case is cut to what is theirs (:func:`hidden_view`). The whole deciding run, the
     cascade included, has ``total_seconds`` (default
-    :data:`~cvkit.sandbox.session.NOTEBOOK_SECONDS`).
+    :func:`~cvkit.sandbox.session.notebook_seconds`).
     """
-    deadline = time.monotonic() + (NOTEBOOK_SECONDS if total_seconds is None else float(total_seconds))
+    deadline = time.monotonic() + (notebook_seconds() if total_seconds is None else float(total_seconds))
     tests_from = source_notebook if source_notebook is not None else notebook
     calls: list[CheckCall] = []
     for cell in _cells(tests_from):
@@ -277,7 +277,7 @@ def grade_notebook(notebook: Any, *, student: str, salt: str, source_notebook: A
     reports = _evaluate_plans(plans, outcome.outcomes)
     exhausted = outcome.exhausted or _cascades(plans, reports, result, cells, blocks, memory_mb, deadline)
     if exhausted:
-        seconds = NOTEBOOK_SECONDS if total_seconds is None else float(total_seconds)
+        seconds = notebook_seconds() if total_seconds is None else float(total_seconds)
         result.flags.append(f"(notebook): grading stopped after {seconds:g} s in all (the notebook's limit); "
                             "the cases not run by then count as failed")
     telling: dict[str, bool] = {}   # algorithm id -> passes a hidden case that tells something

@@ -53,7 +53,6 @@ from ..grading.runtime.guard import Outcome, timeout_message
 RUNTIME_DIR = Path(__file__).resolve().parent.parent / "grading" / "runtime"
 INSIDE = "/opt/cvkit"            # where the runtime and NumPy appear inside the sandbox
 STARTUP_SECONDS = 60.0           # bubblewrap, Python and NumPy on a loaded machine
-CELL_SECONDS = float(os.environ.get("CVKIT_ANSWER_CELL_TIMEOUT", "60"))  # one answer cell (they define functions)
 GRACE_SECONDS = 1.0              # a case's result may arrive this late (encoding, transfer)
 KILL_GRACE_SECONDS = 3.0         # after this, the sandbox is killed
 OUTPUT_TAIL = 20000              # characters of the worker's own stdout/stderr kept
@@ -63,8 +62,19 @@ MAX_LINE = 2 * wire.MAX_BYTES    # one protocol message (base64 is 4/3 of the da
 #: to parse (``[1,1,1,…]``: about 20 bytes of Python objects per 2 bytes of text)
 MAX_PARTS = 200_000
 MAX_REQUESTS = 1000              # building-block and data requests of one case
-#: the deciding run of one notebook: its cells, cases and restarts (cascades included)
-NOTEBOOK_SECONDS = float(os.environ.get("CVKIT_NOTEBOOK_GRADING_SECONDS", "900"))
+
+
+def answer_cell_seconds() -> float:
+    """One answer cell's limit (answer cells define functions): ``CVKIT_ANSWER_CELL_TIMEOUT``,
+    default 60 s. Read at each run, as every limit the caller's environment sets: a grading
+    worker may have been forked from a process started before the caller set it."""
+    return float(os.environ.get("CVKIT_ANSWER_CELL_TIMEOUT", "60"))
+
+
+def notebook_seconds() -> float:
+    """The deciding run of one notebook — its cells, cases and restarts, cascades included:
+    ``CVKIT_NOTEBOOK_GRADING_SECONDS``, default 900 s (read at each run)."""
+    return float(os.environ.get("CVKIT_NOTEBOOK_GRADING_SECONDS", "900"))
 
 
 @dataclass
@@ -328,7 +338,7 @@ def run_calls(
     memory_mb: int = 3072,
     max_restarts: int = 8,
     sandboxed: bool | None = None,
-    cell_seconds: float = CELL_SECONDS,
+    cell_seconds: float | None = None,
     deadline: float | None = None,
 ) -> SandboxResult:
     """Execute ``cells`` in a sandboxed worker, then each of ``calls``
@@ -338,10 +348,12 @@ def run_calls(
     ids it really may use in ``allowed`` (building blocks and ``"data.<loader>"``; a call
     whose ``allowed`` is None may use the data loaders only). A call's outcome is ``None`` only if it
     was never reached (it then fails with the reason). ``deadline`` (``time.monotonic()``
-    seconds; default :data:`NOTEBOOK_SECONDS` from now) ends the whole run, restarts included.
+    seconds; default :func:`notebook_seconds` from now) ends the whole run, restarts included.
+    ``cell_seconds`` is each answer cell's limit (default :func:`answer_cell_seconds`).
     ``sandboxed=False`` (``--no-sandbox``) runs the same worker with resource limits only.
     """
-    deadline = time.monotonic() + NOTEBOOK_SECONDS if deadline is None else deadline
+    deadline = time.monotonic() + notebook_seconds() if deadline is None else deadline
+    cell_seconds = answer_cell_seconds() if cell_seconds is None else cell_seconds
     sandboxed = (not isolation.sandbox_disabled()) if sandboxed is None else sandboxed
     if sandboxed:
         isolation.require()
