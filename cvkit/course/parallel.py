@@ -229,6 +229,9 @@ def worker_context() -> Any:
     this process loads the gradebook. A worker takes this process's environment as it is when
     its pool starts (:func:`_take_environment`), not the server's."""
     import multiprocessing
+
+    if "forkserver" not in multiprocessing.get_all_start_methods():  # Windows: each worker imports
+        return multiprocessing.get_context("spawn")
     from multiprocessing import forkserver
 
     context = multiprocessing.get_context("forkserver")

@@ -78,3 +78,10 @@ def test_the_preloaded_modules_start_no_thread():
             "print(threading.active_count())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
     assert out.stdout.split() == ["1"]
+
+
+def test_without_forkserver_the_workers_are_spawned(monkeypatch):
+    import multiprocessing
+
+    monkeypatch.setattr(multiprocessing, "get_all_start_methods", lambda: ["spawn"])
+    assert parallel.worker_context().get_start_method() == "spawn"
