@@ -287,8 +287,10 @@ class _Session:
                 "crashed the interpreter or exhausted its memory")
 
     def close(self) -> None:
+        """End the box; then everything it printed has been read (:attr:`output` is whole)."""
         self.box.close()
         self._reader.join(timeout=5)
+        self._drain.join(timeout=5)  # every process of the box is dead: its output ends here
         if self._links:
             import shutil
 
@@ -363,6 +365,7 @@ def run_calls(
         restarts += 1
         session = _Session(memory_mb, sandboxed, deadline)
         run.current = None
+        stopped = False
         try:
             run.start_cells(session)
             run.take_ready(session)
@@ -373,12 +376,12 @@ def run_calls(
             restarts -= 1  # a timeout is not a crash: it does not use up the restarts
             continue
         except _Stopped as stop:
-            run.result.output = session.output
+            stopped = True
             if not run.goes_on_after(stop):
                 break
         finally:
-            run.result.output = run.result.output or session.output
-            session.close()
+            session.close()  # before its output is read: a box that died at once said why on its way out
+            run.result.output = session.output if stopped else (run.result.output or session.output)
     run.settle_the_rest()
     return run.result
 
