@@ -25,7 +25,7 @@ def test_the_row_shortcut_fills_exactly_as_the_even_odd_rule(seed):
     n = int(rng.integers(3, 9))
     vertices = np.column_stack([rng.uniform(-3, cols + 3, n), rng.uniform(-3, rows + 3, n)])
     if seed % 3 == 0:  # vertices on sample rows and a horizontal edge
-        vertices = np.round(vertices * 2) / 2
+        vertices = np.round(vertices)  # on the rows of the centre samples
         vertices[1, 1] = vertices[0, 1]
     x, y = samples(int(rows), int(cols), 3)
     inside = _inside_polygon(vertices)
