@@ -16,6 +16,7 @@ from typing import Callable, Literal, cast
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._fft import correlate_valid as correlate_valid_fft
 from .._validation import as_float_array, check_work
 from ..registry import algorithm
 
@@ -81,13 +82,7 @@ def _correlate_valid(img: np.ndarray, tpl: np.ndarray) -> np.ndarray:
                 if tpl[m, n] != 0.0:
                     out += tpl[m, n] * img[m:m + ho, n:n + wo]
         return out
-    import scipy.fft  # here, not at import time: most calls take the loop above
-
-    shape = tuple(scipy.fft.next_fast_len(int(s), real=True) for s in (H, W))
-    spectrum = scipy.fft.rfft2(img, shape)
-    spectrum *= scipy.fft.rfft2(tpl[::-1, ::-1], shape)
-    full = scipy.fft.irfft2(spectrum, shape)
-    return full[h - 1:H, w - 1:W].copy()
+    return correlate_valid_fft(img, tpl)
 
 
 def _as_pair(image: ArrayLike, template: ArrayLike) -> tuple[np.ndarray, np.ndarray]:

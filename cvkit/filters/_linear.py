@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._docstrings import IMAGE_BORDER, filler
+from .._fft import correlate_valid as correlate_valid_fft
 from .._validation import (Border, as_float_array, as_image, check_allocation, check_border, check_padded,
                            check_int, check_real, check_work)
 from ..registry import algorithm, implementation
@@ -69,7 +70,7 @@ def _use_fft(taps: int, out_shape: tuple[int, int], padded_shape: tuple[int, int
     """Whether the FFT beats ``taps`` whole-image multiply-adds (measured crossover)."""
     n_out = out_shape[0] * out_shape[1]
     n_fft = padded_shape[0] * padded_shape[1]
-    # Measured (NumPy 2.4, SciPy 1.17): a tap costs ~1 ns per output pixel, the FFT route
+    # Measured (NumPy 2.4, PocketFFT): a tap costs ~1 ns per output pixel, the FFT route
     # ~2.5 ns per padded pixel and log2 level; below ~30 taps the direct loop always wins.
     return taps > 30 and taps * n_out > 2.5 * n_fft * math.log2(max(n_fft, 2))
 
@@ -104,22 +105,6 @@ def _correlate_direct(padded: np.ndarray, kernel: np.ndarray, out_shape: tuple[i
     return out
 
 
-def _correlate_fft(padded: np.ndarray, kernel: np.ndarray, out_shape: tuple[int, int]) -> np.ndarray:
-    """Same as :func:`_correlate_direct` through the FFT (linear convolution with the flipped
-    kernel; the circular wrap-around only touches the first ``kh - 1`` rows/cols, dropped)."""
-    import scipy.fft
-
-    kh, kw = kernel.shape
-    shape = tuple(scipy.fft.next_fast_len(int(n), real=True) for n in padded.shape[:2])
-    spectrum = scipy.fft.rfft2(padded, shape, axes=(0, 1))
-    kspec = scipy.fft.rfft2(kernel[::-1, ::-1], shape)
-    if padded.ndim == 3:
-        kspec = kspec[:, :, None]
-    spectrum *= kspec
-    full = scipy.fft.irfft2(spectrum, shape, axes=(0, 1))
-    return np.ascontiguousarray(full[kh - 1 : kh - 1 + out_shape[0], kw - 1 : kw - 1 + out_shape[1]])
-
-
 def _correlate(img: np.ndarray, kernel: np.ndarray, anchor: tuple[int, int], border: str, output: str) -> np.ndarray:
     """Correlation with the kernel tap ``anchor`` placed on the output pixel."""
     kh, kw = kernel.shape
@@ -139,7 +124,7 @@ def _correlate(img: np.ndarray, kernel: np.ndarray, anchor: tuple[int, int], bor
         out_shape = (h, w)
     taps = int(np.count_nonzero(kernel))
     if _use_fft(taps, out_shape, padded.shape[:2]):
-        return _correlate_fft(padded, kernel, out_shape)
+        return correlate_valid_fft(padded, kernel)
     return _correlate_direct(padded, kernel, out_shape)
 
 
@@ -256,7 +241,7 @@ def correlate(image: ArrayLike, kernel: ArrayLike, border: Border = "reflect101"
 
     Small kernels are applied tap by tap (one whole-image multiply-add per non-zero tap,
     exact up to summation order). Kernels with more than 30 non-zero taps on images where it
-    is measurably faster go through the FFT (``scipy.fft``) instead; the result then agrees
+    is measurably faster go through the FFT (NumPy's, :mod:`cvkit._fft`) instead; the result then agrees
     with direct summation to about 1e-15 · max|I| · Σ|K|.
 
     Examples
