@@ -22,6 +22,7 @@ import ast
 import contextlib
 import copy
 import os
+import re
 import secrets
 import stat
 import subprocess
@@ -105,19 +106,51 @@ def made_by_cvkit(folder: str | os.PathLike[str]) -> bool:
     return _project_of(folder) is not None
 
 
+#: the line of a generated configuration that roots the course at the file's folder, and the
+#: line earlier versions wrote in its place (an absolute path)
+_ROOT_LINE = "_os.environ['CVKIT_COURSE_ROOT'] = _os.path.dirname(_os.path.abspath(__file__))  # noqa: F821"
+_ABSOLUTE_ROOT = re.compile(r"""^_os\.environ\['CVKIT_COURSE_ROOT'\] = (?:'[^'\n]*'|"[^"\n]*")$""", re.MULTILINE)
+
+
 def course_config(project_config: Path, root: Path) -> str:
-    """The ``nbgrader_config.py`` of a course folder ``root`` made by cvkit outside the project:
-    the project's configuration (``project_config``), rooted at ``root`` while it loads (the
-    project's file reads its course folder from ``CVKIT_COURSE_ROOT``), so that plain
-    ``nbgrader`` commands run in ``root`` (release, collect, release_feedback, the formgrader)
-    work on this course."""
+    """The ``nbgrader_config.py`` of a course folder made by cvkit outside the project: the
+    project's configuration (``project_config``), rooted while it loads at the folder that holds
+    the file (the project's file reads its course folder from ``CVKIT_COURSE_ROOT``), so that
+    plain ``nbgrader`` commands run there (release, collect, release_feedback, the formgrader)
+    work on this course — also after the folder is moved or copied, which must never record a
+    grade in the gradebook of the folder it came from. (``root`` is not written into it.)"""
     return (_GENERATED_CONFIG
             + "import os as _os\n"
             + "_saved = _os.environ.get('CVKIT_COURSE_ROOT')\n"
-            + f"_os.environ['CVKIT_COURSE_ROOT'] = {str(root)!r}\n"
+            + _ROOT_LINE + "\n"
             + f"load_subconfig({str(project_config)!r})  # noqa: F821\n"
             + "if _saved is None:\n    _os.environ.pop('CVKIT_COURSE_ROOT', None)\n"
             + "else:\n    _os.environ['CVKIT_COURSE_ROOT'] = _saved\n")
+
+
+def _write_course_config(config: Path, text: str) -> None:
+    """Write a course folder's generated ``nbgrader_config.py`` (``text``) where there is none,
+    and root one that an earlier cvkit generated at its own folder: those wrote the folder's
+    absolute path into it, so a moved or copied course recorded its grades in the gradebook of
+    the folder it came from. Only that line changes (anything the instructor added stays); a
+    configuration the instructor wrote is never touched; one that cannot be written is left."""
+    try:
+        old = config.read_text()
+    except FileNotFoundError:
+        old = None
+    except OSError:
+        return
+    if old is None:
+        new = text
+    elif old.startswith(_GENERATED_CONFIG):
+        new = _ABSOLUTE_ROOT.sub(lambda _: _ROOT_LINE, old)
+    else:
+        return
+    if new != old:
+        try:
+            config.write_text(new)
+        except OSError:
+            pass
 
 
 def refused_student_ids(ids: Iterable[str]) -> dict[str, str]:
@@ -190,8 +223,8 @@ class CourseState:
         self.root: Path = Path(root or base).resolve()
         self.root.mkdir(parents=True, exist_ok=True)  # its permissions are the instructor's (module docstring)
         config = self.root / "nbgrader_config.py"
-        if self.root != base and not config.exists():
-            config.write_text(course_config(base / "nbgrader_config.py", self.root))
+        if self.root != base:
+            _write_course_config(config, course_config(base / "nbgrader_config.py", self.root))
         self.db_url: str = db_url or os.environ.get("CVKIT_DB_URL") or f"sqlite:///{self.root / 'gradebook.db'}"
         self._nbgrader_config: Config | None = None
         self._fingerprints: dict[str, str] = {}
