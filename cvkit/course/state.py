@@ -110,30 +110,39 @@ def made_by_cvkit(folder: str | os.PathLike[str]) -> bool:
 #: line earlier versions wrote in its place (an absolute path)
 _ROOT_LINE = "_os.environ['CVKIT_COURSE_ROOT'] = _os.path.dirname(_os.path.abspath(__file__))  # noqa: F821"
 _ABSOLUTE_ROOT = re.compile(r"""^_os\.environ\['CVKIT_COURSE_ROOT'\] = (?:'[^'\n]*'|"[^"\n]*")$""", re.MULTILINE)
+#: the line of a generated configuration that loads the project's configuration
+_PROJECT_LINE = re.compile(r"""^load_subconfig\((?:'[^'\n]*'|"[^"\n]*")\)  # noqa: F821$""", re.MULTILINE)
 
 
-def course_config(project_config: Path, root: Path) -> str:
+def _project_line(project_config: Path) -> str:
+    return f"load_subconfig({str(project_config)!r})  # noqa: F821"
+
+
+def course_config(project_config: Path) -> str:
     """The ``nbgrader_config.py`` of a course folder made by cvkit outside the project: the
     project's configuration (``project_config``), rooted while it loads at the folder that holds
     the file (the project's file reads its course folder from ``CVKIT_COURSE_ROOT``), so that
     plain ``nbgrader`` commands run there (release, collect, release_feedback, the formgrader)
     work on this course — also after the folder is moved or copied, which must never record a
-    grade in the gradebook of the folder it came from. (``root`` is not written into it.)"""
+    grade in the gradebook of the folder it came from."""
     return (_GENERATED_CONFIG
             + "import os as _os\n"
             + "_saved = _os.environ.get('CVKIT_COURSE_ROOT')\n"
             + _ROOT_LINE + "\n"
-            + f"load_subconfig({str(project_config)!r})  # noqa: F821\n"
+            + _project_line(project_config) + "\n"
             + "if _saved is None:\n    _os.environ.pop('CVKIT_COURSE_ROOT', None)\n"
             + "else:\n    _os.environ['CVKIT_COURSE_ROOT'] = _saved\n")
 
 
-def _write_course_config(config: Path, text: str) -> None:
-    """Write a course folder's generated ``nbgrader_config.py`` (``text``) where there is none,
-    and root one that an earlier cvkit generated at its own folder: those wrote the folder's
-    absolute path into it, so a moved or copied course recorded its grades in the gradebook of
-    the folder it came from. Only that line changes (anything the instructor added stays); a
-    configuration the instructor wrote is never touched; one that cannot be written is left."""
+def _write_course_config(config: Path, project_config: Path) -> None:
+    """Write a course folder's generated ``nbgrader_config.py`` where there is none, and keep
+    one cvkit generated in step with the course as it is opened: rooted at its own folder
+    (earlier versions wrote the folder's absolute path into it, so a moved or copied course
+    recorded its grades in the gradebook of the folder it came from) and loading the
+    configuration of the project in use (``project_config``: after the checkout moved, nbgrader
+    would otherwise load none and grade with its defaults). Only those two lines change
+    (anything the instructor added stays); a configuration the instructor wrote is never
+    touched; one that cannot be written is left as it is."""
     try:
         old = config.read_text()
     except FileNotFoundError:
@@ -141,9 +150,10 @@ def _write_course_config(config: Path, text: str) -> None:
     except OSError:
         return
     if old is None:
-        new = text
+        new = course_config(project_config)
     elif old.startswith(_GENERATED_CONFIG):
         new = _ABSOLUTE_ROOT.sub(lambda _: _ROOT_LINE, old)
+        new = _PROJECT_LINE.sub(lambda _: _project_line(project_config), new)
     else:
         return
     if new != old:
@@ -224,7 +234,7 @@ class CourseState:
         self.root.mkdir(parents=True, exist_ok=True)  # its permissions are the instructor's (module docstring)
         config = self.root / "nbgrader_config.py"
         if self.root != base:
-            _write_course_config(config, course_config(base / "nbgrader_config.py", self.root))
+            _write_course_config(config, base / "nbgrader_config.py")
         self.db_url: str = db_url or os.environ.get("CVKIT_DB_URL") or f"sqlite:///{self.root / 'gradebook.db'}"
         self._nbgrader_config: Config | None = None
         self._fingerprints: dict[str, str] = {}

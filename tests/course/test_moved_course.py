@@ -6,7 +6,8 @@ absolute path into that file, so after ``mv course2026 archive/`` or ``cp -r cou
 course2027`` nbgrader — the writer of every grade — kept working on the old folder: the grades
 went into the old gradebook (or nowhere), and the run ended with "no grade recorded" for every
 submission. The file now roots the course at its own folder, and one written by an earlier
-cvkit is brought up to date when the course is opened, changing only that line."""
+cvkit is brought up to date when the course is opened, changing only that line. Likewise after
+the checkout moved: the file is pointed at the project in use, not left loading nothing."""
 import shutil
 
 from nbgrader.api import Gradebook
@@ -59,6 +60,19 @@ def test_an_earlier_generated_configuration_is_rooted_again_and_keeps_the_instru
     upgraded = (tmp_path / "copy" / "nbgrader_config.py").read_text()
     assert upgraded == current + "c.Exchange.timezone = 'UTC'\n"
     assert _root_nbgrader_sees(tmp_path / "copy") == str(tmp_path / "copy")
+
+
+def test_after_the_checkout_moved_the_configuration_loads_the_project_in_use(tmp_path):
+    project, _ = _project(tmp_path)
+    CourseState(tmp_path / "course", project=project)
+    shutil.move(project, tmp_path / "checkout2")
+    assert _root_nbgrader_sees(tmp_path / "course") != str(tmp_path / "course")  # nbgrader's defaults: the trap
+
+    state = CourseState(tmp_path / "course", project=tmp_path / "checkout2")
+    text = (tmp_path / "course" / "nbgrader_config.py").read_text()
+    assert str(tmp_path / "checkout2" / "autograders" / "nbgrader_config.py") in text and str(project) + "/" not in text
+    assert _root_nbgrader_sees(tmp_path / "course") == str(tmp_path / "course")
+    assert state.project == tmp_path / "checkout2"
 
 
 def test_a_configuration_the_instructor_wrote_is_not_touched(tmp_path):
