@@ -156,11 +156,13 @@ def _write_course_config(config: Path, project_config: Path) -> None:
         new = _PROJECT_LINE.sub(lambda _: _project_line(project_config), new)
     else:
         return
-    if new != old:
+    if new != old:  # whole or not at all: nbgrader may be reading it in another process
+        part = config.with_name(f".{config.name}.{os.getpid()}.part")
         try:
-            config.write_text(new)
+            part.write_text(new)
+            os.replace(part, config)
         except OSError:
-            pass
+            part.unlink(missing_ok=True)
 
 
 def refused_student_ids(ids: Iterable[str]) -> dict[str, str]:
