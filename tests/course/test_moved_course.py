@@ -8,6 +8,7 @@ went into the old gradebook (or nowhere), and the run ended with "no grade recor
 submission. The file now roots the course at its own folder, and one written by an earlier
 cvkit is brought up to date when the course is opened, changing only that line. Likewise after
 the checkout moved: the file is pointed at the project in use, not left loading nothing."""
+import os
 import shutil
 
 from nbgrader.api import Gradebook
@@ -31,8 +32,15 @@ def _project(tmp_path):
 
 
 def _root_nbgrader_sees(folder):
-    """The course root nbgrader takes from ``folder``'s configuration, loaded as nbgrader loads it."""
-    config = PyFileConfigLoader("nbgrader_config.py", path=str(folder)).load_config()
+    """The course root nbgrader takes from ``folder``'s configuration, loaded as nbgrader loads it
+    (in nbgrader's process: what the configuration sets in the environment, such as
+    ``CVKIT_TRUSTED_GRADING``, is taken back here, or every later test's checks would be no-ops)."""
+    saved = dict(os.environ)
+    try:
+        config = PyFileConfigLoader("nbgrader_config.py", path=str(folder)).load_config()
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
     return config.CourseDirectory.root
 
 
