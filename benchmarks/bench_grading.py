@@ -87,11 +87,20 @@ class TreeCPU:
             return None
 
     def close(self) -> None:
-        """Leave the group (back to the hierarchy's root) and remove it."""
+        """Move this process and what is left of its children (the workers' forkserver lives
+        until this process exits) back to the hierarchy's root, and remove the group."""
         if self.group is None:
             return
         try:
-            (self.group.parent / "cgroup.procs").write_text(str(os.getpid()))
+            pids = (self.group / "cgroup.procs").read_text().split()
+        except OSError:
+            pids = [str(os.getpid())]
+        for pid in pids:
+            try:
+                (self.group.parent / "cgroup.procs").write_text(pid)
+            except OSError:  # it has just ended
+                pass
+        try:
             self.group.rmdir()
         except OSError:
             pass
