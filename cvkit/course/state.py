@@ -318,6 +318,9 @@ class CourseState:
                         "folder), or set [course] id in plan.toml to the gradebook's course if it is the same course")
                 if not rows:
                     connection.execute(table.insert().values(course_id=course_id, folder=str(self.root)))
+                elif rows[0][1] != str(self.root):  # the course moved (or is graded from another folder):
+                    # the message above names where it is now
+                    connection.execute(table.update().values(folder=str(self.root)))
         finally:
             engine.dispose()
 

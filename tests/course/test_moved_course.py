@@ -10,6 +10,7 @@ cvkit is brought up to date when the course is opened, changing only that line. 
 the checkout moved: the file is pointed at the project in use, not left loading nothing."""
 import os
 import shutil
+import sqlite3
 
 from nbgrader.api import Gradebook
 from traitlets.config.loader import PyFileConfigLoader
@@ -21,7 +22,7 @@ from course_helpers import SETUP, TEMPORAL_MEAN, exercise_cells, new_cell, new_n
 from course_helpers import TEMPORAL_MEAN_LOOP as LOOP
 
 ASSIGNMENT = "ch96_moved"
-PLAN = f'[[assignment]]\nid = "{ASSIGNMENT}"\n'
+PLAN = f'[course]\nid = "moved-course"\n\n[[assignment]]\nid = "{ASSIGNMENT}"\n'
 OLD_STYLE_ROOT = "_os.environ['CVKIT_COURSE_ROOT'] = {!r}\n"
 
 
@@ -106,3 +107,5 @@ def test_a_copied_course_records_its_grades_in_its_own_gradebook(tmp_path):
     with Gradebook(f"sqlite:///{tmp_path / 'course2027' / 'gradebook.db'}") as gradebook:
         assert gradebook.find_submission(ASSIGNMENT, "ada").score == 3
     assert not (tmp_path / "course2026").exists()
+    with sqlite3.connect(tmp_path / "course2027" / "gradebook.db") as db:  # a clash would name the new folder
+        assert list(db.execute("SELECT course_id, folder FROM cvkit_course")) == [("moved-course", str(tmp_path / "course2027"))]
