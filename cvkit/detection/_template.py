@@ -9,14 +9,13 @@ a sliding minimum and maximum, so they score 0 without NaN or division warnings.
 """
 from __future__ import annotations
 
-import math
-
 from typing import Callable, Literal, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from .._fft import correlate_valid as correlate_valid_fft
+from .._fft import fft_pays
 from .._validation import as_float_array, check_work
 from ..registry import algorithm
 
@@ -73,9 +72,7 @@ def _correlate_valid(img: np.ndarray, tpl: np.ndarray) -> np.ndarray:
     H, W = img.shape
     h, w = tpl.shape
     ho, wo = H - h + 1, W - w + 1
-    taps = h * w
-    n_fft = H * W
-    if taps <= 30 or taps * ho * wo <= 2.5 * n_fft * math.log2(max(n_fft, 2)):
+    if not fft_pays(h * w, (ho, wo), (H, W)):
         out = np.zeros((ho, wo))
         for m in range(h):
             for n in range(w):

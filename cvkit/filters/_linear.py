@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike
 
 from .._docstrings import IMAGE_BORDER, filler
 from .._fft import correlate_valid as correlate_valid_fft
+from .._fft import fft_pays
 from .._validation import (Border, as_float_array, as_image, check_allocation, check_border, check_padded,
                            check_int, check_real, check_work)
 from ..registry import algorithm, implementation
@@ -66,15 +67,6 @@ def _padded(img: np.ndarray, before: tuple[int, int], after: tuple[int, int], bo
     return padded[rows, cols]
 
 
-def _use_fft(taps: int, out_shape: tuple[int, int], padded_shape: tuple[int, int]) -> bool:
-    """Whether the FFT beats ``taps`` whole-image multiply-adds (measured crossover)."""
-    n_out = out_shape[0] * out_shape[1]
-    n_fft = padded_shape[0] * padded_shape[1]
-    # Measured (NumPy 2.4, PocketFFT): a tap costs ~1 ns per output pixel, the FFT route
-    # ~2.5 ns per padded pixel and log2 level; below ~30 taps the direct loop always wins.
-    return taps > 30 and taps * n_out > 2.5 * n_fft * math.log2(max(n_fft, 2))
-
-
 def gaussian_radius(sigma: float) -> int:
     """The default half-width ``ceil(3σ − 1e-9)`` of :func:`gaussian_kernel` (the notes' k = 3σ).
 
@@ -123,7 +115,7 @@ def _correlate(img: np.ndarray, kernel: np.ndarray, anchor: tuple[int, int], bor
         padded = _padded(img, anchor, (kh - 1 - anchor[0], kw - 1 - anchor[1]), border)
         out_shape = (h, w)
     taps = int(np.count_nonzero(kernel))
-    if _use_fft(taps, out_shape, padded.shape[:2]):
+    if fft_pays(taps, out_shape, padded.shape[:2]):
         return correlate_valid_fft(padded, kernel)
     return _correlate_direct(padded, kernel, out_shape)
 
