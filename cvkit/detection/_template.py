@@ -125,8 +125,10 @@ def match_template(image: ArrayLike, template: ArrayLike, measure: Measure = "zn
       gain and offset ``I → a·I + b`` (a > 0).
 
     Windows without contrast have no defined NCC/ZNCC; their score is **0**, without
-    warnings: for ``ncc`` a window (or the template) whose mean square is at most 1e-12 times
-    the mean square of the image (an all-zero window); for ``zncc`` a window (or template)
+    warnings: for ``ncc`` a window whose mean square is at most 1e-12 times the mean square of
+    the image (an all-zero window: below that, the sliding sums' rounding decides) and an
+    all-zero template (a template of any other size keeps its scores, as NCC ignores the
+    template's gain); for ``zncc`` a window (or template)
     whose variance is at most 1e-12 times its own mean square (a constant window). Exactly
     constant (or zero) windows are found exactly, with a sliding minimum and maximum, not from
     rounded sums. Scores are clipped to [−1, 1].
@@ -173,12 +175,16 @@ def match_template(image: ArrayLike, template: ArrayLike, measure: Measure = "zn
     if measure == "ncc":
         cross = _correlate_valid(img, tpl)
         energy = np.maximum(_window_sums(img * img, h, w), 0.0)
-        t_energy = float(np.sum(tpl * tpl))
         limit = FLAT * n * float(np.mean(img * img))
         largest = _sliding(_sliding(np.abs(img), w, 1, np.maximum), h, 0, np.maximum)
         zero = (energy <= limit) | (largest == 0.0)
-        if t_energy <= FLAT * n * float(np.mean(img * img)) or t_energy == 0.0:
+        t_scale = float(np.max(np.abs(tpl)))
+        if t_scale == 0.0:
             return np.zeros(energy.shape)
+        if not 1e-150 < t_scale < 1e150:  # NCC ignores the template's gain: keep T² in range
+            tpl = tpl / t_scale
+            cross = _correlate_valid(img, tpl)
+        t_energy = float(np.sum(tpl * tpl))
         with np.errstate(divide="ignore", invalid="ignore"):
             out = cross / np.sqrt(energy * t_energy)
         out[zero] = 0.0

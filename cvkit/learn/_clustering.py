@@ -47,12 +47,25 @@ def _plus_plus(X: np.ndarray, x_sq: np.ndarray, k: int, generator: np.random.Gen
 
 def _assign(X: np.ndarray, x_sq: np.ndarray, centers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Index of the nearest centre of every row (ties: the lowest index) and its squared
-    distance, from ‖x‖² − 2x·c + ‖c‖² (the ‖x‖² term does not change the argmin)."""
+    distance. The candidates come from one matrix product, ‖x‖² − 2x·c + ‖c‖² (the ‖x‖² term
+    does not change the argmin); a row whose best centres lie within that form's rounding
+    error of each other — data far from the origin compared with their spread — is decided
+    again from the differences, so every label is exactly the nearest centre."""
+    c_sq = np.einsum("ij,ij->i", centers, centers)
     partial = X @ (-2.0 * centers).T
-    partial += np.einsum("ij,ij->i", centers, centers)[None, :]
+    partial += c_sq[None, :]
     labels = partial.argmin(axis=1)
-    dist = partial[np.arange(X.shape[0]), labels] + x_sq
-    return labels, np.maximum(dist, 0.0)
+    best = partial[np.arange(X.shape[0]), labels]
+    dist = np.maximum(best + x_sq, 0.0)
+    if centers.shape[0] > 1:
+        # |error| of one expanded distance ≤ (D + 4)·eps·(‖x‖² + ‖c‖²); two are compared
+        slack = 2.0 * (X.shape[1] + 4) * np.finfo(np.float64).eps * (x_sq + c_sq.max())
+        unsure = np.flatnonzero(np.count_nonzero(partial <= (best + 2.0 * slack)[:, None], axis=1) > 1)
+        if unsure.size:
+            labels[unsure] = nearest_rows(X[unsure], centers)
+            difference = X[unsure] - centers[labels[unsure]]
+            dist[unsure] = np.einsum("ij,ij->i", difference, difference)
+    return labels, dist
 
 
 def _update(XT: np.ndarray, labels: np.ndarray, dist: np.ndarray, k: int) -> np.ndarray:
@@ -123,7 +136,10 @@ def kmeans(X: ArrayLike, k: int, iterations: int = 50, rng: np.random.Generator 
     k-means++: the first centre a uniformly drawn sample, each next one the best (lowest
     inertia) of ``2 + ⌊ln k⌋`` samples drawn with probability ∝ D(x)² (scikit-learn's
     ``KMeans(init="k-means++")``). Distances come from one matrix product
-    ‖x‖² − 2x·c + ‖c‖² per iteration.
+    ‖x‖² − 2x·c + ‖c‖² per iteration; a sample whose nearest centres are closer to each
+    other than that form's rounding error (data far from the origin compared with their
+    spread) is assigned again from the differences, so the labels are exactly the nearest
+    centres.
 
     Examples
     --------

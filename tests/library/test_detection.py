@@ -57,6 +57,17 @@ def test_match_template_equals_opencv(measure, flag):
     assert np.median(np.abs(ours - theirs)) <= 2e-6 * scale
 
 
+@pytest.mark.parametrize("gain", [1e-7, 1e-170, 1e170])
+def test_ncc_ignores_the_templates_gain(gain):
+    # NCC is a cosine: a tiny (or huge) template is not an all-zero one
+    rng = np.random.default_rng(0)
+    img, tpl = rng.random((20, 20)), rng.random((5, 5))
+    plain = detection.match_template(img, tpl, "ncc")
+    np.testing.assert_allclose(detection.match_template(img, gain * tpl, "ncc"), plain, rtol=0, atol=1e-12)
+    assert plain.max() > 0.8
+    assert not np.any(detection.match_template(img, np.zeros((5, 5)), "ncc"))
+
+
 def test_zncc_equals_scikit_image_fft_and_direct_paths():
     rng = np.random.default_rng(0)
     img = rng.random((70, 90))

@@ -339,6 +339,13 @@ def test_rounding_takes_halves_to_even(x, y, sigma):
     assert features.orientations((xx + yy) * 0.1, 10, 10, 1.2) == pytest.approx([math.radians(40)])
 
 
+def test_orientations_stay_below_two_pi():
+    # the peak in bin 0 with a tiny negative parabola offset: np.mod(-1e-17, 2π) rounds to 2π
+    yy, xx = np.mgrid[0:21, 0:21].astype(float)
+    found = features.orientations(xx + 0.015 * (yy - 10) ** 2, 10.0, 10.0, 1.5)
+    assert found.size and np.all((found >= 0) & (found < 2 * math.pi))
+
+
 def test_orientations_rotate_with_the_image(camera):
     L = cvkit.filters.gaussian(camera, 2.0)[60:140, 80:160]
     first = features.orientations(L, 40.3, 39.8, 2.0)

@@ -281,6 +281,22 @@ def test_kmeans_refuses_more_clusters_than_distinct_points():
         learn.kmeans(X, 4, rng=0)
 
 
+@pytest.mark.parametrize("offset, spread", [(1e4, 1e-5), (255.0, 1e-5), (1e6, 1e-3), (0.0, 1.0)])
+def test_kmeans_labels_are_exactly_the_nearest_returned_centres(offset, spread):
+    # far from the origin, ‖x‖² − 2x·c + ‖c‖² loses the gaps between distances to round-off
+    X = offset + spread * np.random.default_rng(3).normal(size=(200, 2))
+    X_before = X.copy()
+    for k in (2, 5):
+        centers, labels = learn.kmeans(X, k, rng=0)
+        exact = ((X[:, None, :] - centers[None, :, :]) ** 2).sum(axis=2)
+        np.testing.assert_array_equal(labels, exact.argmin(axis=1))
+        assert np.bincount(labels, minlength=k).min() >= 1  # no centre without its points
+    np.testing.assert_array_equal(X, X_before)
+    tiny = 1e6 + np.array([[0.0], [0.0004], [0.0007], [0.001]])
+    _, labels = learn.kmeans(tiny, 2, iterations=0, init=np.array([[1e6], [1e6 + 0.001]]))
+    np.testing.assert_array_equal(labels, [0, 0, 1, 1])
+
+
 def test_bovw_histogram_matches_brute_force():
     codebook = RNG.normal(size=(7, 4))
     desc = RNG.normal(size=(50, 4))
