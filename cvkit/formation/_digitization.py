@@ -67,8 +67,13 @@ def quantize(image: ArrayLike, bits: int, vmax: float = 1.0) -> np.ndarray:
         raise ValueError(f"bits must be <= {MAX_BITS} (levels beyond 2**53 are not exact in float64), got {bits}")
     vmax = check_real(vmax, "vmax", positive=True)
     levels = float(2 ** bits - 1)
-    k = np.round(np.clip(values, 0.0, vmax) * levels / vmax)
-    return k * vmax / levels
+    clipped = np.clip(values, 0.0, vmax)
+    with np.errstate(over="ignore"):
+        scaled = clipped * levels
+        # v·levels can overflow for vmax near the largest float: divide first there
+        k = np.round(np.where(np.isfinite(scaled), scaled / vmax, clipped / vmax * levels))
+        out = k * vmax / levels
+        return np.where(np.isfinite(out), out, k / levels * vmax)
 
 
 @algorithm("formation.image_memory_bits", section="2.11", check="cvkit.formation.checks:image_memory_bits")
@@ -147,8 +152,12 @@ def snr_db(frames: ArrayLike) -> np.ndarray:
         raise ValueError(f"frames must be (T, H, W) or (T, H, W, 3), got shape {stack.shape}")
     if stack.shape[0] < 2:
         raise ValueError(f"frames must hold T >= 2 frames to estimate the noise, got T = {stack.shape[0]}")
-    mean = stack.mean(axis=0)
-    std = stack.std(axis=0)
+    # mean/std does not change when every frame of a pixel is scaled by the same power of
+    # two, which is exact: scaled to [−1, 1), the squares can neither overflow nor underflow
+    _, exponent = np.frexp(np.abs(stack).max(axis=0))
+    scaled = np.ldexp(stack, -exponent)
+    mean = scaled.mean(axis=0)
+    std = scaled.std(axis=0)
     std[np.all(stack == stack[0], axis=0)] = 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
         snr = 20.0 * np.log10(mean / std)
@@ -192,7 +201,12 @@ def dynamic_range_db(e_max: ArrayLike, e_min: ArrayLike) -> Values:
     if np.any(low <= 0):
         raise ValueError("e_min must be > 0")
     try:
-        ratio = high / low
+        with np.errstate(over="ignore", under="ignore"):
+            ratio = high / low
     except ValueError:
         raise ValueError(f"e_max and e_min must broadcast together, got shapes {high.shape} and {low.shape}") from None
-    return scalar_or_array(20.0 * np.log10(ratio))
+    with np.errstate(over="ignore", under="ignore"):
+        decibels = 20.0 * np.log10(ratio)
+        # a ratio beyond the float range (1e300 / 1e-300): the difference of the logarithms
+        decibels = np.where(np.isfinite(ratio) & (ratio > 0), decibels, 20.0 * (np.log10(high) - np.log10(low)))
+    return scalar_or_array(decibels)

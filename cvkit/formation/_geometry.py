@@ -64,7 +64,10 @@ def project_pinhole(points_cam: ArrayLike, f: float) -> np.ndarray:
         raise ValueError(
             "points_cam contains points with z = 0 (in the focal plane): they have no image"
         )
-    return f * points[:, :2] / z[:, None]
+    with np.errstate(over="ignore"):
+        uv = f * points[:, :2] / z[:, None]
+        # f·x can overflow where the image f·(x/z) is finite: divide first there
+        return np.where(np.isfinite(uv), uv, f * (points[:, :2] / z[:, None]))
 
 
 @algorithm("formation.depth_from_disparity", section="2.5.1", check="cvkit.formation.checks:depth_from_disparity")

@@ -57,8 +57,10 @@ def thin_lens_image_distance(object_distance: ArrayLike, focal_length: float) ->
     if np.any(d_s <= 0):
         raise ValueError("object_distance must be > 0 (a point in front of the lens)")
     finite = np.isfinite(d_s)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         d_i = f * d_s / (d_s - f)
+        # f·dS can overflow where dI is finite (dS near the largest float): f / (1 − f/dS) there
+        d_i = np.where(np.isinf(d_i), f / (1.0 - f / d_s), d_i)
     d_i = np.where(d_s == f, np.inf, d_i)
     d_i = np.where(finite, d_i, f)
     return scalar_or_array(d_i)
@@ -136,8 +138,11 @@ def blur_circle_diameter(object_distance: ArrayLike, focus_distance: ArrayLike, 
     if np.any(d_f <= f):
         raise ValueError("focus_distance must be larger than focal_length (a real image)")
     o_inf, f_inf = np.isinf(d_o), np.isinf(d_f)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         c = aperture * f * np.abs(d_o - d_f) / (d_o * (d_f - f))
+        # a product that overflows (distances near the largest float): the same ratio in steps
+        c = np.where(np.isfinite(aperture * f * np.abs(d_o - d_f)) & np.isfinite(d_o * (d_f - f)), c,
+                     aperture * f / (d_f - f) * (np.abs(d_o - d_f) / d_o))
         c = np.where(o_inf & ~f_inf, aperture * f / (d_f - f), c)
         c = np.where(f_inf & ~o_inf, aperture * f / d_o, c)
         c = np.where(o_inf & f_inf, 0.0, c)

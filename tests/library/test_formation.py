@@ -443,3 +443,24 @@ def test_bayer_mosaic_bad_shape(shape):
 def test_demosaic_bad_shape(shape):
     with pytest.raises(ValueError, match="raw"):
         formation.demosaic_bilinear(np.ones(shape))
+
+
+def test_extreme_but_finite_inputs_give_the_finite_answer():
+    """An intermediate product beyond the float range must not turn a finite answer into inf,
+    0 or nan (never a silent wrong answer), and the warnings stay inside."""
+    import warnings
+
+    frames = np.random.default_rng(0).uniform(1, 2, (5, 4, 3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        np.testing.assert_allclose(formation.snr_db(frames * 1e160), formation.snr_db(frames), rtol=1e-13)
+        np.testing.assert_allclose(formation.snr_db(frames * 1e-160), formation.snr_db(frames), rtol=1e-13)
+        np.testing.assert_allclose(formation.snr_db(np.array([[[1e-320]], [[2e-320]]])), [[20 * np.log10(3.0)]],
+                                   rtol=1e-12)
+        assert formation.thin_lens_image_distance(1e308, 50.0) == pytest.approx(50.0)
+        assert formation.blur_circle_diameter(1e300, 1e10, 50.0, 25.0) == pytest.approx(25 * 50 / (1e10 - 50))
+        assert formation.dynamic_range_db(1e300, 1e-300) == pytest.approx(12000.0)
+        np.testing.assert_allclose(formation.quantize([1.7e308, 0.9e308], 2, vmax=1.7e308),
+                                   [1.7e308, 1.7e308 / 3 * 2], rtol=1e-15)
+        np.testing.assert_allclose(formation.project_pinhole([[1e306, -2e306, 1e10]], 800.0), [[8e298, -1.6e299]],
+                                   rtol=1e-15)
