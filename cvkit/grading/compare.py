@@ -236,8 +236,9 @@ class Close(Comparator):
     """``allclose`` with stated tolerances: ``|got − expected| ≤ atol + rtol·|expected|``.
 
     NaN and ±inf must appear at the same places. ``kind`` optionally requires the dtype kind
-    (``"f"`` float, ``"b"`` bool, ``"i"`` integer). Tuples and lists are compared element by
-    element.
+    (``"f"`` float, ``"b"`` bool, ``"i"`` integer). A bool output where numbers are expected is
+    compared as the numbers 0 and 1; where a mask is expected, numbers must be 0 or 1. Tuples
+    and lists are compared element by element.
     """
 
     rtol: float = 1e-7
@@ -276,8 +277,14 @@ class Close(Comparator):
             return Mismatch(f"dtype mismatch: expected a {kind_words(self.kind)} array, got {arr.dtype}")
         if arr.shape != exp.shape:
             return Mismatch(shape_mismatch(arr.shape, exp.shape))
-        if exp.dtype.kind == "b" or arr.dtype.kind == "b":
-            bad = arr.astype(bool) != exp.astype(bool)
+        if exp.dtype.kind == "b":
+            if arr.dtype.kind != "b":
+                # a mask may come as 0/1 numbers, but not as any numbers (x itself for x != 0)
+                with np.errstate(all="ignore"):
+                    binary = (arr == 0) | (arr == 1)
+                if not binary.all():
+                    return Mismatch(f"expected a True/False mask, got {arr.dtype} values other than 0 and 1")
+            bad = arr.astype(bool) != exp
             n = int(bad.sum())
             if n == 0:
                 return None

@@ -42,6 +42,9 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from .. import registry
 from . import isolation
@@ -312,9 +315,21 @@ CELL_HELPERS = frozenset(f"data.{name}" for name in DATA_SOURCES)
 EXHAUSTED = "the notebook's grading time ran out (every cell and case of one notebook, in all)"
 
 
+def _blank(value: Any) -> Any:
+    """``value`` with every array replaced by zeros of its shape and dtype (containers kept)."""
+    if isinstance(value, np.ndarray):
+        return np.zeros_like(value)
+    if isinstance(value, (tuple, list)):
+        return type(value)(_blank(v) for v in value)
+    if isinstance(value, dict):
+        return {k: _blank(v) for k, v in value.items()}
+    return value
+
+
 def _serve(session: _Session, message: dict, allowed: set | frozenset, budget: float, refused: list,
-           count: int) -> None:
-    """Answer one building-block request (the ``count``-th of this case) within ``budget`` seconds."""
+           count: int, blanked: frozenset = frozenset()) -> None:
+    """Answer one building-block request (the ``count``-th of this case) within ``budget`` seconds;
+    an id in ``blanked`` is answered with zeros of its value's shape."""
     identifier = str(message.get("rpc"))[:200]
     if count > MAX_REQUESTS:
         note = f"more than {MAX_REQUESTS} requests for cvkit's building blocks in one case"
@@ -329,6 +344,8 @@ def _serve(session: _Session, message: dict, allowed: set | frozenset, budget: f
     else:
         reply = ReferenceServer.shared().call(identifier, message.get("args"), message.get("kwargs"),
                                               timeout=max(0.1, budget))
+        if identifier in blanked and "value" in reply:
+            reply = {"value": wire.encode(_blank(wire.decode(reply["value"])))}
     session.send(reply)
 
 
@@ -342,6 +359,7 @@ def run_calls(
     sandboxed: bool | None = None,
     cell_seconds: float | None = None,
     deadline: float | None = None,
+    blank_for_cells: frozenset | None = None,
 ) -> SandboxResult:
     """Execute ``cells`` in a sandboxed worker, then each of ``calls``
     (:class:`~cvkit.grading.runtime.wire.BoxCall`) in order; see the module docstring.
@@ -353,13 +371,22 @@ def run_calls(
     seconds; default :func:`notebook_seconds` from now) ends the whole run, restarts included.
     ``cell_seconds`` is each answer cell's limit (default :func:`answer_cell_seconds`).
     ``sandboxed=False`` (``--no-sandbox``) runs the same worker with resource limits only.
+
+    A cell may load the data sources (:data:`CELL_HELPERS`), and what it keeps in a global
+    every case can read — as can a case of another exercise that may load it. When the cells or
+    the cases loaded a source that some call may not use itself (the clean pictures
+    ``filters.denoise`` is measured on), those calls run again in a fresh
+    sandbox whose cells get that source blank (zeros of its shape and dtype:
+    ``blank_for_cells``), and their outcomes are that run's: a lookup table filled at the top
+    of the notebook then holds nothing, while the cells still run to their end, so a function
+    that does not depend on the picture is graded as before.
     """
     deadline = time.monotonic() + notebook_seconds() if deadline is None else deadline
     cell_seconds = answer_cell_seconds() if cell_seconds is None else cell_seconds
     sandboxed = (not isolation.sandbox_disabled()) if sandboxed is None else sandboxed
     if sandboxed:
         isolation.require()
-    run = _Run.prepare(cells, calls, blocks, sandboxed, cell_seconds, deadline)
+    run = _Run.prepare(cells, calls, blocks, sandboxed, cell_seconds, deadline, frozenset(blank_for_cells or ()))
     restarts = 0
     while restarts <= max_restarts and time.monotonic() < deadline:
         restarts += 1
@@ -383,19 +410,48 @@ def run_calls(
             session.close()  # before its output is read: a box that died at once said why on its way out
             run.result.output = session.output if stopped else (run.result.output or session.output)
     run.settle_the_rest()
+    if blank_for_cells is None:  # (a run again happens once: what the cells load is known then)
+        _again_without_answering_data(run, cells, calls, blocks, memory_mb, max_restarts, sandboxed, cell_seconds,
+                                      deadline)
     return run.result
 
 
+def _again_without_answering_data(run: "_Run", cells: list[str], calls: list[wire.BoxCall], blocks: tuple,
+                                  memory_mb: int, max_restarts: int, sandboxed: bool, cell_seconds: float,
+                                  deadline: float) -> None:
+    """The calls that may not use some data source the cells (or another exercise's cases) loaded,
+    run again with cells that get it blank (see :func:`run_calls`); their outcomes replace the
+    first ones. Only those calls run again: no other exercise's case can load it there."""
+    loaded = run.loads & CELL_HELPERS
+    denied_to = {i: loaded - set(call.allowed) for i, call in enumerate(calls)
+                 if call.allowed is not None and loaded - set(call.allowed)}
+    if not denied_to:
+        return
+    denied = frozenset().union(*denied_to.values())
+    indices = sorted(denied_to)
+    again = run_calls(cells, [calls[i] for i in indices], blocks=blocks, memory_mb=memory_mb, max_restarts=max_restarts,
+                      sandboxed=sandboxed, cell_seconds=cell_seconds, deadline=deadline,
+                      blank_for_cells=denied)
+    for i, outcome in zip(indices, again.outcomes):
+        run.result.outcomes[i] = outcome
+    run.result.exhausted = run.result.exhausted or again.exhausted
+    if again.crashed and not run.result.crashed:
+        run.result.crashed = again.crashed
+
+
 def _answer_requests(session: _Session, started: float, seconds: float, what: str, allowed: set | frozenset,
-                     refused: list) -> dict:
-    """Serve the box's requests until it sends another message (returned), ``seconds`` after ``started`` at most."""
+                     refused: list, asked: set | None = None, blanked: frozenset = frozenset()) -> dict:
+    """Serve the box's requests until it sends another message (returned), ``seconds`` after ``started`` at most
+    (the allowed ids requested are added to ``asked``; those in ``blanked`` are answered with zeros)."""
     requests = 0
     while True:  # the wall clock, serving included: the time is all of it
         message = session.receive(seconds - (time.monotonic() - started), what)
         if "rpc" not in message:
             return message
         requests += 1
-        _serve(session, message, allowed, seconds - (time.monotonic() - started), refused, requests)
+        if asked is not None and str(message.get("rpc"))[:200] in allowed:
+            asked.add(str(message.get("rpc"))[:200])
+        _serve(session, message, allowed, seconds - (time.monotonic() - started), refused, requests, blanked)
 
 
 @dataclass
@@ -409,6 +465,8 @@ class _Run:
     cell_seconds: float
     deadline: float                         # ``time.monotonic()`` seconds: the end of the whole run
     result: SandboxResult
+    blank_for_cells: frozenset = frozenset()       # data the cells get as zeros
+    loads: set = field(default_factory=set)        # the data ids served to the cells and the cases
     skipped_cells: set[int] = field(default_factory=set)
     strikes: dict[str, int] = field(default_factory=dict)   # group → cases that killed the worker
     stalled: dict[str, int] = field(default_factory=dict)   # group → its first call that did not return in time
@@ -417,7 +475,7 @@ class _Run:
 
     @classmethod
     def prepare(cls, cells: list[str], calls: list[wire.BoxCall], blocks: tuple, sandboxed: bool,
-                cell_seconds: float, deadline: float) -> "_Run":
+                cell_seconds: float, deadline: float, blank_for_cells: frozenset = frozenset()) -> "_Run":
         """The run before its first sandbox: the calls encoded, nothing decided yet."""
         wrong = next((call for call in calls if not isinstance(call, wire.BoxCall)), None)
         if wrong is not None:
@@ -426,7 +484,8 @@ class _Run:
         result = SandboxResult([None] * len(calls), sandboxed=sandboxed, started=False)
         # the worker's stand-ins for cvkit's modules
         opening = {"blocks": sorted(blocks), "data": list(DATA_LOADERS), "topics": registry.topic_modules()}
-        return cls(cells, calls, encoded, opening, cell_seconds, deadline, result, pending=list(range(len(calls))))
+        return cls(cells, calls, encoded, opening, cell_seconds, deadline, result, blank_for_cells=blank_for_cells,
+                   pending=list(range(len(calls))))
 
     @property
     def outcomes(self) -> list:
@@ -447,8 +506,8 @@ class _Run:
         """One cell under its wall-clock limit, serving its data requests; a cell stopped is skipped from now on."""
         try:
             # a cell may load data (a demo the student added): served like a case's
-            message = _answer_requests(session, time.monotonic(), self.cell_seconds, f"cell {index}", CELL_HELPERS,
-                                       [])
+            message = _answer_requests(session, time.monotonic(), self.cell_seconds, f"cell {index}",
+                                       CELL_HELPERS, [], self.loads, self.blank_for_cells)
             if message.get("cell_done") != index:
                 raise _Stopped("the graded code sent a message out of turn")
         except _Stopped as stop:
@@ -499,7 +558,8 @@ class _Run:
         refused: list = []
         session.send({"call": self.encoded[index]})
         started = time.monotonic()
-        message = _answer_requests(session, started, limit + KILL_GRACE_SECONDS, "this case", allowed, refused)
+        message = _answer_requests(session, started, limit + KILL_GRACE_SECONDS, "this case", allowed, refused,
+                                   self.loads)
         if "outcome" not in message or not isinstance(message["outcome"], dict):
             raise _Stopped("the graded code sent a message out of turn")
         outcome = Outcome.from_json(message["outcome"])

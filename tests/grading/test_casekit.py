@@ -292,7 +292,7 @@ HIDDEN_DIGESTS = {
     "camera.distort": "dcfd022f73f116e1",
     "calibration.homography_dlt": "26ee305b00d5dc80",
     "warp.warp_homography": "431356df8390898a",
-    "learn.sgd_train": "a334231d6ffc5552",
+    "learn.sgd_train": "ee25c2466da1434a",  # round 3: the sorted-labels cases tell zeros from training
     "nn.relu_forward": "0148938c685288d0",
     "train.cutout": "b0ad54b5331ef23b",
 }

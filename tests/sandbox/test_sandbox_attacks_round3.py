@@ -1,0 +1,79 @@
+"""The attack suite, round 3: what a third red team found, each attack replayed on the trusted path.
+
+- A notebook's cells could fill a table with the clean pictures ``filters.denoise`` is measured
+  on (the cases are refused them, the cells were not) and "denoise" by looking the crop up:
+  now the calls that may not use a source the cells loaded run again with cells that get it
+  blank, so the table holds zeros — while a function that does not depend on it keeps its
+  grade, even when a demo line loading the picture sits before its definition.
+- An output of booleans passed every check that compares with ``Close`` where numbers were
+  expected: see ``tests/grading/test_mask_outputs.py``.
+"""
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from cvkit import data
+from cvkit.grading.runtime.wire import BoxCall
+from cvkit.sandbox import isolation, session as sandbox
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def bubblewrap():
+    if shutil.which("bwrap") is None:
+        subprocess.run(["apt-get", "-o", "DPkg::Lock::Timeout=900", "install", "-y", "-q", "bubblewrap"],
+                       check=False, capture_output=True)
+    if isolation.probe(force=True):
+        pytest.fail(f"the sandbox is needed for this suite: {isolation.probe()}")
+
+
+CELLS = ["import numpy as np",
+         # a demo line loading a picture, then the definitions: a lookup table and an honest function
+         "from cvkit import data\nSTEP = data.step_signal(5)\n"
+         "def looks_up(x):\n    return STEP\n"
+         "def doubles(x):\n    return np.asarray(x) * 2.0\n"]
+
+
+def test_a_table_of_data_loaded_by_a_cell_is_blank_where_the_exercise_may_not_use_that_data(bubblewrap):
+    withheld = ("data.camera",)   # a case that may load the camera, not the step signal
+    calls = [BoxCall("looks_up", args=(np.ones(2),), time_limit=20.0, allowed=withheld),
+             BoxCall("doubles", args=(np.ones(2),), time_limit=20.0, allowed=withheld),
+             BoxCall("looks_up", args=(np.ones(2),), time_limit=20.0, allowed=("data.step_signal",))]
+    result = sandbox.run_calls(CELLS, calls)
+    looked_up, doubled, allowed = result.outcomes
+    assert looked_up.ok and np.array_equal(looked_up.value, np.zeros_like(data.step_signal(5)))
+    assert doubled.ok and np.array_equal(doubled.value, [2.0, 2.0])   # defined after the load: still there
+    assert allowed.ok and np.array_equal(allowed.value, data.step_signal(5))
+    assert not result.crashed and not result.cell_errors, result.cell_errors
+
+
+def test_cells_that_load_nothing_withheld_are_run_once(bubblewrap, monkeypatch):
+    runs = []
+    original = sandbox._Run.prepare
+
+    def counted(*args, **kwargs):
+        runs.append(args[1])
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(sandbox._Run, "prepare", classmethod(lambda cls, *a, **k: counted(*a, **k)))
+    result = sandbox.run_calls(CELLS, [BoxCall("doubles", args=(np.ones(2),), time_limit=20.0,
+                                               allowed=("data.step_signal",))])
+    assert result.outcomes[0].ok and len(runs) == 1
+    runs.clear()
+    sandbox.run_calls(CELLS, [BoxCall("doubles", args=(np.ones(2),), time_limit=20.0, allowed=("data.camera",))])
+    assert len(runs) == 2   # the step signal was loaded by a cell and is not this exercise's
+
+
+def test_data_another_exercises_case_loaded_is_not_there_for_an_exercise_that_may_not_use_it(bubblewrap):
+    cells = ["import numpy as np\nfrom cvkit import data\n"
+             "def stashes(x):\n    global STOLEN\n    STOLEN = data.step_signal(5)\n    return np.asarray(x)\n"
+             "def uses(x):\n    return STOLEN\n"]
+    result = sandbox.run_calls(cells, [BoxCall("stashes", args=(np.ones(2),), time_limit=20.0,
+                                               allowed=("data.step_signal",)),
+                                       BoxCall("uses", args=(np.ones(2),), time_limit=20.0, allowed=("data.camera",))])
+    stashed, used = result.outcomes
+    assert stashed.ok
+    assert not used.ok and used.exception == "NameError"   # run again alone: nothing was stashed there
