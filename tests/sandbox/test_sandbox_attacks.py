@@ -11,7 +11,6 @@ import csv
 import json
 import re
 import os
-import shutil
 import subprocess
 import textwrap
 
@@ -134,14 +133,6 @@ ADDED_CELLS = {
         from IPython.display import HTML, display
         display(HTML('<script>alert("pwned-script")</script><img src=x onerror="alert(1)">'))'''),
 }
-
-
-@pytest.fixture(scope="module")
-def bubblewrap():
-    if shutil.which("bwrap") is None:
-        subprocess.run(["apt-get", "-o", "DPkg::Lock::Timeout=900", "install", "-y", "-q", "bubblewrap"], check=False, capture_output=True)
-    if isolation.probe(force=True):
-        pytest.fail(f"the sandbox is needed for this suite: {isolation.probe()}")
 
 
 @pytest.fixture(scope="module")

@@ -13,8 +13,6 @@ import csv
 import json
 import os
 import re
-import shutil
-import subprocess
 import textwrap
 import time
 
@@ -24,7 +22,7 @@ import pytest
 from cvkit import registry
 from cvkit.course import Course
 from cvkit.grading import evaluate, hidden_seed
-from cvkit.sandbox import isolation, session as sandbox
+from cvkit.sandbox import session as sandbox
 from cvkit.sandbox.notebook_run import bounded, execute_in_sandbox
 from cvkit.grading.runtime.guard import Outcome
 from cvkit.grading.runtime.wire import BoxCall
@@ -182,15 +180,6 @@ EXPECTED = {
 }
 #: folders refused for their names: listed as not graded, never given to nbgrader
 REFUSED = {"st\udcffudent": "is not valid UTF-8", "ada\u200b": "looks like student 'ada'"}
-
-
-@pytest.fixture(scope="module")
-def bubblewrap():
-    if shutil.which("bwrap") is None:
-        subprocess.run(["apt-get", "-o", "DPkg::Lock::Timeout=900", "install", "-y", "-q", "bubblewrap"],
-                       check=False, capture_output=True)
-    if isolation.probe(force=True):
-        pytest.fail(f"the sandbox is needed for this suite: {isolation.probe()}")
 
 
 @pytest.fixture(scope="module")

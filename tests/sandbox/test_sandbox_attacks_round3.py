@@ -1,33 +1,23 @@
 """The attack suite, round 3: what a third red team found, each attack replayed on the trusted path.
 
 - A notebook's cells could fill a table with the clean pictures ``filters.denoise`` is measured
-  on (the cases are refused them, the cells were not) and "denoise" by looking the crop up:
-  now the calls that may not use a source the cells loaded run again with cells that get it
-  blank, so the table holds zeros — while a function that does not depend on it keeps its
-  grade, even when a demo line loading the picture sits before its definition.
+  on (the cases are refused them, the cells were not; so could another exercise's case) and
+  "denoise" by looking the crop up: now the calls that may not use a source the cells or other
+  cases loaded run again alone, with cells that get it blank, so the table holds zeros — while
+  a function that does not depend on it keeps its grade, even when a demo line loading the
+  picture sits before its definition.
 - An output of booleans passed every check that compares with ``Close`` where numbers were
   expected: see ``tests/grading/test_mask_outputs.py``.
 """
-import shutil
-import subprocess
 
 import numpy as np
 import pytest
 
 from cvkit import data
 from cvkit.grading.runtime.wire import BoxCall
-from cvkit.sandbox import isolation, session as sandbox
+from cvkit.sandbox import session as sandbox
 
 pytestmark = pytest.mark.slow
-
-
-@pytest.fixture(scope="module")
-def bubblewrap():
-    if shutil.which("bwrap") is None:
-        subprocess.run(["apt-get", "-o", "DPkg::Lock::Timeout=900", "install", "-y", "-q", "bubblewrap"],
-                       check=False, capture_output=True)
-    if isolation.probe(force=True):
-        pytest.fail(f"the sandbox is needed for this suite: {isolation.probe()}")
 
 
 CELLS = ["import numpy as np",
