@@ -517,8 +517,9 @@ def hidden_view(case: CaseResult, outcome: Outcome, cells: Sequence[str], time_l
 
 
 def _trivial(case, expected) -> bool:
-    """A case whose answer can be given without computing anything: an all-zero output, or an
-    output equal to one of the inputs (a flat image, a size-1 filter)."""
+    """A case whose answer can be given without computing anything: ``None`` ("no board
+    found"), a zero or ``False``, an all-zero output, or an output equal to one of the inputs (a
+    flat image, a size-1 filter)."""
     def same(a, b) -> bool:
         try:
             a, b = np.asarray(a), np.asarray(b)
@@ -526,6 +527,10 @@ def _trivial(case, expected) -> bool:
         except Exception:  # noqa: BLE001 - objects that do not compare are not trivial
             return False
 
+    if expected is None:
+        return True
+    if isinstance(expected, (bool, int, float, np.bool_, np.integer, np.floating)) and expected == 0:
+        return True
     if isinstance(expected, np.ndarray) and expected.dtype.kind in "biuf" and expected.size > 0:
         if not np.any(expected):
             return True
@@ -538,7 +543,9 @@ def _hard_coding_rule(result: NotebookGrade, telling: dict[str, bool]) -> None:
     """A function that passes the public cases but none of the hidden cases that tell anything
     (see :func:`_trivial`; a hidden case of a measured check that earned part of its credit
     counts as passed here) has most likely memorised the public answers: its visible test gets
-    no credit either, nor do the trivial hidden cases it passed, and it is flagged."""
+    no credit either, nor do the trivial hidden cases it passed, and it is flagged. Trivial hidden
+    cases count only beside one that tells something in any case: ``return None`` passes every
+    "no board found" case of a corner finder, and proves nothing."""
     memorised = {call.algorithm_id for entries in result.reports.values() for call, report in entries
                  if not call.hidden and report.passed and telling.get(call.algorithm_id) is False}
     for entries in result.reports.values():
@@ -552,6 +559,16 @@ def _hard_coding_rule(result: NotebookGrade, telling: dict[str, bool]) -> None:
                                     "answers of the shown cases look memorised")
             if not call.hidden:
                 result.flags.append(f"{call.grade_id}: passes only the public cases ({call.algorithm_id})")
+    for entries in result.reports.values():
+        for call, report in entries:
+            if not call.hidden or call.algorithm_id in memorised or telling.get(call.algorithm_id) is not False:
+                continue
+            for case in report.cases:  # every case passed here is a trivial one
+                if case.passed:
+                    case.passed = False
+                    case.message = ("passes, but its answer needs no computing (None, zero or one of the inputs): "
+                                    "such a case counts only beside a hidden case that tells something, and this "
+                                    "function passes none")
 
 
 _HIDDEN_BLOCK = re.compile(r"### BEGIN HIDDEN TESTS.*?### END HIDDEN TESTS\n?", re.S)

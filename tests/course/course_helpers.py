@@ -11,7 +11,7 @@ from pathlib import Path
 from cvkit import registry
 from cvkit.grading import evaluate, hidden_seed
 from cvkit.grading.runtime.cells import is_solution as is_answer_cell, is_test_cell
-from cvkit.course.trusted import submission_version
+from cvkit.course.trusted import _trivial, submission_version
 
 ROOT = Path(__file__).resolve().parents[2]
 #: the set-up cell of a tiny chapter
@@ -168,8 +168,20 @@ def _predict(notebook: dict, student: str, salt: str, originals: dict[str, str],
             seed = hidden_seed(algorithm_id, student=student, salt=salt, version=version)
             report = evaluate(algorithm_id, function, hidden=hidden, seed=seed if hidden else None)
             if hidden:
-                total = min(total, round(report.score * float(keywords.get("points", 1.0)), 6))
+                score = report.score if _tells_something(algorithm_id, report, seed) else 0.0
+                total = min(total, round(score * float(keywords.get("points", 1.0)), 6))
             elif not report.passed:
                 total = 0.0
         scores[grade_id] = total
     return scores
+
+
+def _tells_something(algorithm_id: str, report, seed: int) -> bool:
+    """Whether hidden cases whose answer needs no computing may count (the rule of
+    :func:`cvkit.course.trusted.grade_notebook`): there is none that needs computing, or the
+    function passed (or earned credit on) one of them."""
+    import numpy as np
+
+    cases = registry.get(algorithm_id).check.hidden_cases(np.random.default_rng(seed))
+    telling = [c for c in report.cases if not _trivial(cases[c.index], c.expected)]
+    return not telling or any(c.passed or c.credit for c in telling)

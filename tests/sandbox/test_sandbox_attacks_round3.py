@@ -6,6 +6,9 @@
   cases loaded run again alone, with cells that get it blank, so the table holds zeros — while
   a function that does not depend on it keeps its grade, even when a demo line loading the
   picture sits before its definition.
+- ``return None`` earned the hidden cases whose answer is None (training never stops, no board
+  in the picture): a case whose answer needs no computing now counts only beside one that
+  tells something.
 - An output of booleans passed every check that compares with ``Close`` where numbers were
   expected: see ``tests/grading/test_mask_outputs.py``.
 """
@@ -14,8 +17,11 @@ import numpy as np
 import pytest
 
 from cvkit import data
+from cvkit.course.trusted import grade_notebook
 from cvkit.grading.runtime.wire import BoxCall
 from cvkit.sandbox import session as sandbox
+
+from course_helpers import exercise_cells, new_cell, new_notebook, submitted
 
 pytestmark = pytest.mark.slow
 
@@ -67,3 +73,37 @@ def test_data_another_exercises_case_loaded_is_not_there_for_an_exercise_that_ma
     stashed, used = result.outcomes
     assert stashed.ok
     assert not used.ok and used.exception == "NameError"   # run again alone: nothing was stashed there
+
+
+# ------------------------------------------------- answers that need no computing earn nothing alone
+STOPPING = {
+    "constant": '@student("train.early_stopping")\ndef early_stopping(val_losses, patience):\n    return None',
+    "honest": '@student("train.early_stopping")\ndef early_stopping(val_losses, patience):\n'
+              '    losses = np.asarray(val_losses, dtype=float)\n'
+              '    for i in range(len(losses)):\n'
+              '        if i - int(np.argmin(losses[:i + 1])) >= patience:\n'
+              '            return i\n'
+              '    return None',
+}
+
+
+def _stopping_notebook(answer):
+    cells = [new_cell("import numpy as np\nfrom cvkit.grading import check\nfrom cvkit.registry import student", "setup")]
+    cells += exercise_cells("train.early_stopping", "early_stopping", answer)
+    return new_notebook(cells)
+
+
+def test_a_constant_none_earns_nothing_from_the_hidden_cases_whose_answer_is_none(bubblewrap):
+    """``return None`` is the right answer of every hidden case in which training never stops
+    (3 of 11 for early stopping, 4 of 13 "no board" cases for the corner finder): such cases
+    count only beside a hidden case that tells something."""
+    release = _stopping_notebook("### BEGIN SOLUTION\n" + STOPPING["honest"] + "\n### END SOLUTION")
+    graded = {}
+    for name, answer in STOPPING.items():
+        result = grade_notebook(submitted(release, {"early_stopping_answer": answer}), student="sam", salt="round-3",
+                                source_notebook=release)
+        graded[name] = next(report for _, report in result.reports["early_stopping_hidden"])
+    constant, honest = graded["constant"], graded["honest"]
+    assert honest.score == 1
+    assert any(case.message.startswith("passes, but its answer needs no computing") for case in constant.cases)
+    assert constant.score == 0
