@@ -41,6 +41,15 @@ def grading_sandbox():
         print(f"apt-get could not install bubblewrap:\n{log}")
 
 
+@pytest.fixture(scope="module")
+def bubblewrap(grading_sandbox):
+    """The sandbox, for the attack suites: they fail (never skip) when it cannot run."""
+    from cvkit.sandbox import isolation
+
+    if isolation.probe(force=True):
+        pytest.fail(f"the sandbox is needed for this suite: {isolation.probe()}")
+
+
 # The files that keep one worker busy longest, in seconds (one 2-core run of the whole suite,
 # 2026-12-07, 20 min). ``scripts/test`` hands files to the workers in collection order
 # (``--no-loadscope-reorder``), and this order puts the long ones first: a long file started last
