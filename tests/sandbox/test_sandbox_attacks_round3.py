@@ -107,3 +107,15 @@ def test_a_constant_none_earns_nothing_from_the_hidden_cases_whose_answer_is_non
     assert honest.score == 1
     assert any(case.message.startswith("passes, but its answer needs no computing") for case in constant.cases)
     assert constant.score == 0
+
+
+def test_which_answers_need_no_computing():
+    from cvkit.course.trusted import _trivial
+    from cvkit.grading import Case
+
+    image = np.arange(6.0).reshape(2, 3)
+    case = Case((image, 1), {}, "an image and a size")
+    for answer in (None, 0, 0.0, False, np.float64(0.0), np.zeros((2, 3)), image.copy()):
+        assert _trivial(case, answer), answer
+    for answer in (1, 0.5, True, (0, 0), image + 1, np.array([0.0, 2.0])):
+        assert not _trivial(case, answer), answer
