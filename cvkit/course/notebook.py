@@ -14,6 +14,7 @@ dicts and nbformat nodes alike —, a cell's source, its grade id):
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import json
 import re
@@ -21,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Mapping
 
+from ..grading.report import MIME_TYPE
 from ..grading.runtime.cells import cell_source, grade_id, is_solution, is_test_cell, nbgrader_metadata
 
 #: the flag of a notebook graded from its repaired copy (:meth:`Submitted.to_grade`)
@@ -84,34 +86,116 @@ def repaired_notebook(release: Mapping[str, Any], notebook: Mapping[str, Any]) -
     return dict(release, cells=cells)
 
 
-def cell_outputs(folder: Path, *, trusted: bool = False) -> Iterator[tuple[str | None, Mapping[str, Any]]]:
-    """(grade id or None, output) of every output of every cell of the notebooks in ``folder``
-    (a hand-in's or an autograded submission's), skipping what cannot be read: the one walk the
-    course's readers of reports (named mistakes, case verdicts, visible-test runs) share.
-    ``trusted``: only the outputs of the test cells the trusted grader wrote (those with its
-    ``metadata.cvkit.report``, which it alone writes), never a report a student's own cell displayed."""
-    for path in sorted(folder.glob("*.ipynb")):
-        try:
-            cells = json.loads(path.read_text()).get("cells", [])
-        except (OSError, ValueError, AttributeError):
+@dataclass(frozen=True)
+class GradedCell:
+    """What the course's readers take from one cell of a graded notebook."""
+
+    grade_id: str | None
+    #: the trusted grader's verdicts as data (``metadata.cvkit.report``), which it alone writes;
+    #: None for every other cell
+    report: Mapping[str, Any] | None
+    #: the cell's outputs that carry a cvkit report, reduced to it (``data`` and ``metadata`` of
+    #: :data:`cvkit.grading.report.MIME_TYPE`): the figures and text are never read back
+    outputs: tuple[Mapping[str, Any], ...]
+
+
+@dataclass(frozen=True)
+class GradedNotebook:
+    """A graded (or handed-in) notebook as the course's readers use it: its ``metadata.cvkit``
+    (flags, sandbox, environment) and its cells' grade ids, verdicts and reports. Read with
+    :func:`read_graded`."""
+
+    metadata: Mapping[str, Any]
+    cells: tuple[GradedCell, ...]
+
+
+_graded_memo: dict[str, tuple[tuple[int, ...], GradedNotebook | None]] | None = None
+
+
+@contextlib.contextmanager
+def graded_read_once() -> Iterator[None]:
+    """Within this block each graded notebook file is parsed once (:func:`read_graded`), however
+    many readers ask for it — the exports, the item analysis, the class notes and the leaderboard
+    each walk every autograded notebook of the course; a file that changed since is read again.
+    What is kept is small (:class:`GradedNotebook`: no figures, no text outputs)."""
+    global _graded_memo
+    outer = _graded_memo
+    _graded_memo = {} if outer is None else outer
+    try:
+        yield
+    finally:
+        _graded_memo = outer
+
+
+def read_graded(path: Path) -> GradedNotebook | None:
+    """The parts of the notebook at ``path`` the course's readers use, or None when it cannot be
+    read (missing, not JSON, not a notebook). See :func:`graded_read_once`."""
+    memo = _graded_memo
+    if memo is None:
+        return _parse_graded(path)
+    try:
+        stat = path.stat()
+    except OSError:
+        return None
+    identity = (stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns)
+    kept = memo.get(str(path))
+    if kept is None or kept[0] != identity:
+        kept = memo[str(path)] = (identity, _parse_graded(path))
+    return kept[1]
+
+
+def _parse_graded(path: Path) -> GradedNotebook | None:
+    try:
+        nb = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(nb, dict):
+        return None
+    meta = nb.get("metadata")
+    meta = meta.get("cvkit") if isinstance(meta, dict) else None
+    cells = nb.get("cells")
+    graded = []
+    for cell in cells if isinstance(cells, list) else []:
+        if not isinstance(cell, dict):
             continue
-        for cell in cells if isinstance(cells, list) else []:
-            if not isinstance(cell, dict):
+        outputs = []
+        for output in cell.get("outputs", []) or []:
+            if not isinstance(output, dict):
                 continue
-            cell_id = grade_id(cell)
-            if trusted and not _trusted_cell(cell):
-                continue
-            for output in cell.get("outputs", []) or []:
-                if isinstance(output, dict):
-                    yield cell_id, output
+            kept = {part: {MIME_TYPE: found[MIME_TYPE]} for part, found in
+                    (("data", output.get("data")), ("metadata", output.get("metadata")))
+                    if isinstance(found, dict) and MIME_TYPE in found}
+            if kept:
+                outputs.append(kept)
+        cvkit_meta = cell.get("metadata")
+        cvkit_meta = cvkit_meta.get("cvkit") if isinstance(cvkit_meta, dict) else None
+        report = cvkit_meta.get("report") if isinstance(cvkit_meta, dict) else None
+        graded.append(GradedCell(grade_id(cell), report if isinstance(report, dict) else None, tuple(outputs)))
+    return GradedNotebook(meta if isinstance(meta, dict) else {}, tuple(graded))
 
 
-def _trusted_cell(cell: Mapping[str, Any]) -> bool:
-    """A test cell whose outputs the trusted grader wrote (:func:`~cvkit.course.trusted.apply_trusted_checks`
-    drops every cell's ``cvkit`` metadata first, then writes ``report``)."""
-    meta = cell.get("metadata")
-    found = meta.get("cvkit") if isinstance(meta, dict) else None
-    return isinstance(found, dict) and isinstance(found.get("report"), dict)
+def graded_notebooks(folder: Path) -> Iterator[GradedNotebook]:
+    """The readable notebooks of ``folder`` (a submission's), in the order of their names."""
+    for path in sorted(folder.glob("*.ipynb")):
+        found = read_graded(path)
+        if found is not None:
+            yield found
+
+
+def cell_outputs(folder: Path, *, trusted: bool = False) -> Iterator[tuple[str | None, Mapping[str, Any]]]:
+    """(grade id or None, output) of every output that carries a cvkit report (the data and
+    metadata of :data:`cvkit.grading.report.MIME_TYPE`, nothing else of it) of every cell of
+    the notebooks in ``folder`` (a hand-in's or an autograded submission's), skipping what
+    cannot be read: the one walk the course's readers of reports (named mistakes, case
+    verdicts, visible-test runs) share. ``trusted``: only the outputs of the test cells the
+    trusted grader wrote (those with its ``metadata.cvkit.report``, which it alone writes),
+    never a report a student's own cell displayed."""
+    for notebook in graded_notebooks(folder):
+        for cell in notebook.cells:
+            if trusted and cell.report is None:
+                continue
+            for output in cell.outputs:
+                yield cell.grade_id, output
 
 
 def metadata_flags(meta: Mapping[str, Any]) -> list[str]:

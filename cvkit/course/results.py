@@ -11,10 +11,10 @@ import copy
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable
+from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 from ..grading.report import MIME_TYPE, finding
-from .notebook import exercise_name, grade_id, metadata_flags
+from .notebook import exercise_name, grade_id, graded_notebooks, metadata_flags, read_graded
 from .samples import student_order
 
 if TYPE_CHECKING:
@@ -44,7 +44,7 @@ def scores(course: CourseState, assignment: str) -> dict[str, list[ExerciseScore
 
 
 def _scores(course: CourseState, assignment: str) -> dict[str, list[ExerciseScore]]:
-    from nbgrader.api import Gradebook, MissingEntry
+    from nbgrader.api import Gradebook
 
     table: dict[str, list[ExerciseScore]] = {}
     submitted = course.submissions([assignment])
@@ -56,38 +56,71 @@ def _scores(course: CourseState, assignment: str) -> dict[str, list[ExerciseScor
     for cell_id in cells:
         order.setdefault(exercise_name(cell_id), len(order))
     with Gradebook(course.db_url) as gb:
-        for student, _ in submitted:
-            if f"{student}/{assignment}" in not_graded:
-                continue  # no score: listed as not graded (Course.table, the exports)
-            try:
-                submission = gb.find_submission(assignment, student)
-            except MissingEntry:
-                continue
-            graded = course.root / "autograded" / student / assignment
-            found = reported_findings(graded)
-            exercises: dict[str, ExerciseScore] = {}
-            for nb in submission.notebooks:
-                # in the notebook's order (the visible test's findings before the hidden tests'), so
-                # that the table's first problem of an exercise is the same on every run
-                for grade in sorted(nb.grades, key=lambda g: (cells.get(g.name, len(cells)), g.name)):
-                    name = exercise_name(grade.name, answers=False)
-                    entry = exercises.setdefault(name, ExerciseScore(name, 0.0, 0.0))
-                    entry.to_mark = entry.to_mark or bool(grade.needs_manual_grade)
-                    entry.score += float(grade.score or 0.0)
-                    entry.max_score += float(grade.max_score or 0.0)
-                    for kind, text in found.get(grade.name, []):
-                        bucket = entry.mistakes if kind == "mistake" else entry.problems
-                        if text not in bucket:
-                            bucket.append(text)
-            for flag in _flags(graded):
-                where, _, what = flag.partition(": ")
-                name = exercise_name(where)
-                target = exercises.get(name)
-                if target is None:
-                    target = exercises.setdefault("(notebook)", ExerciseScore("(notebook)", 0.0, 0.0))
-                target.flags.append(what if target.name == name else flag)
-            table[student] = sorted(exercises.values(), key=lambda e: order.get(e.name, len(order)))
+        recorded = _recorded_grades(gb, assignment)
+    for student, _ in submitted:
+        if f"{student}/{assignment}" in not_graded or student not in recorded:
+            continue  # no score: listed as not graded (Course.table, the exports), or not in the gradebook
+        graded = course.root / "autograded" / student / assignment
+        found = reported_findings(graded)
+        exercises: dict[str, ExerciseScore] = {}
+        for notebook in recorded[student].values():
+            # in the notebook's order (the visible test's findings before the hidden tests'), so
+            # that the table's first problem of an exercise is the same on every run
+            for grade in sorted(notebook, key=lambda g: (cells.get(g.name, len(cells)), g.name)):
+                name = exercise_name(grade.name, answers=False)
+                entry = exercises.setdefault(name, ExerciseScore(name, 0.0, 0.0))
+                entry.to_mark = entry.to_mark or grade.needs_manual_grade
+                entry.score += grade.score
+                entry.max_score += grade.max_score
+                for kind, text in found.get(grade.name, []):
+                    bucket = entry.mistakes if kind == "mistake" else entry.problems
+                    if text not in bucket:
+                        bucket.append(text)
+        for flag in _flags(graded):
+            where, _, what = flag.partition(": ")
+            name = exercise_name(where)
+            target = exercises.get(name)
+            if target is None:
+                target = exercises.setdefault("(notebook)", ExerciseScore("(notebook)", 0.0, 0.0))
+            target.flags.append(what if target.name == name else flag)
+        table[student] = sorted(exercises.values(), key=lambda e: order.get(e.name, len(order)))
     return dict(sorted(table.items(), key=lambda item: student_order(item[0])))
+
+
+@dataclass(frozen=True)
+class _Recorded:
+    """One grade of nbgrader's gradebook, as the scores use it."""
+
+    name: str
+    score: float
+    max_score: float
+    needs_manual_grade: bool
+
+
+def _recorded_grades(gb: Any, assignment: str) -> dict[str, dict[str, list[_Recorded]]]:
+    """student → notebook → the grades nbgrader recorded for ``assignment``, in two queries
+    whatever the size of the class (the gradebook's objects would load each grade's cell and
+    maximum one query at a time: two per graded cell of every submission). A student with a
+    submission and no grade has an empty entry; the notebooks are in the order of their names."""
+    from nbgrader.api import Assignment, BaseCell, Grade, Notebook, SubmittedAssignment, SubmittedNotebook
+
+    found: dict[str, dict[str, list[_Recorded]]] = {
+        student: {} for (student,) in gb.db.query(SubmittedAssignment.student_id)
+        .join(Assignment, SubmittedAssignment.assignment_id == Assignment.id)
+        .filter(Assignment.name == assignment)}
+    rows = (gb.db.query(SubmittedAssignment.student_id, Notebook.name, BaseCell.name, Grade.score, Grade.max_score,
+                        Grade.needs_manual_grade)
+            .select_from(Grade)
+            .join(SubmittedNotebook, Grade.notebook_id == SubmittedNotebook.id)
+            .join(Notebook, SubmittedNotebook.notebook_id == Notebook.id)
+            .join(SubmittedAssignment, SubmittedNotebook.assignment_id == SubmittedAssignment.id)
+            .join(Assignment, SubmittedAssignment.assignment_id == Assignment.id)
+            .join(BaseCell, Grade.cell_id == BaseCell.id)
+            .filter(Assignment.name == assignment))
+    for student, notebook, name, score, max_score, manual in rows:
+        found.setdefault(student, {}).setdefault(notebook, []).append(
+            _Recorded(name, float(score or 0.0), float(max_score or 0.0), bool(manual)))
+    return {student: dict(sorted(notebooks.items())) for student, notebooks in found.items()}
 
 
 def _cell_order(course: CourseState, assignment: str) -> dict[str, int]:
@@ -120,11 +153,8 @@ def notebook_flags(path: Path) -> list[str]:
     list of str
         ``"<grade id or (notebook)>: <what>"``; empty for a clean or unreadable notebook.
     """
-    try:
-        meta = json.loads(path.read_text()).get("metadata", {}).get("cvkit", {})
-    except (OSError, ValueError, AttributeError):
-        return []
-    return metadata_flags(meta)
+    found = read_graded(path)
+    return [] if found is None else metadata_flags(found.metadata)
 
 
 def environment(course: CourseState, assignments: Iterable[str]) -> dict[str, dict[str, list[str]]]:
@@ -137,11 +167,8 @@ def environment(course: CourseState, assignments: Iterable[str]) -> dict[str, di
     for assignment in sorted(set(assignments)):
         for folder in sorted((course.root / "autograded").glob(f"*/{assignment}")):
             student = folder.parent.name
-            for path in sorted(folder.glob("*.ipynb")):
-                try:
-                    causes = json.loads(path.read_text()).get("metadata", {}).get("cvkit", {}).get("environment", [])
-                except (OSError, ValueError, AttributeError):
-                    continue
+            for notebook in graded_notebooks(folder):
+                causes = notebook.metadata.get("environment", [])
                 for cause in causes if isinstance(causes, list) else []:
                     students = found.setdefault(str(cause), {}).setdefault(assignment, [])
                     if student not in students:
@@ -168,23 +195,21 @@ def reported_findings(folder: Path) -> dict[str, list[tuple[str, str]]]:
         (no ``metadata.cvkit.reports_in_cells``) is read from its reports' JSON outputs.
     """
     found: dict[str, list[tuple[str, str]]] = {}
-    for path in sorted(folder.glob("*.ipynb")):
-        nb = json.loads(path.read_text())
-        in_cells = bool(nb.get("metadata", {}).get("cvkit", {}).get("reports_in_cells"))
-        for cell in nb.get("cells", []):
-            cell_id = grade_id(cell)
+    for notebook in graded_notebooks(folder):
+        in_cells = bool(notebook.metadata.get("reports_in_cells"))
+        for cell in notebook.cells:
+            cell_id = cell.grade_id
             if not cell_id:
                 continue
-            for item in _cell_findings(cell) if in_cells else _output_findings(cell):
+            for item in _cell_findings(cell.report) if in_cells else _output_findings(cell.outputs):
                 items = found.setdefault(cell_id, [])
                 if item not in items:
                     items.append(item)
     return found
 
 
-def _cell_findings(cell: dict[str, Any]) -> list[tuple[str, str]]:
+def _cell_findings(report: Mapping[str, Any] | None) -> list[tuple[str, str]]:
     """The findings of a test cell's verdicts stored as data (``metadata.cvkit.report``)."""
-    report = cell.get("metadata", {}).get("cvkit", {}).get("report")
     checks = report.get("checks") if isinstance(report, dict) else None
     items = []
     for check in checks if isinstance(checks, list) else []:
@@ -197,10 +222,10 @@ def _cell_findings(cell: dict[str, Any]) -> list[tuple[str, str]]:
     return items
 
 
-def _output_findings(cell: dict[str, Any]) -> list[tuple[str, str]]:
+def _output_findings(outputs: Iterable[Mapping[str, Any]]) -> list[tuple[str, str]]:
     """The findings of the reports in a cell's outputs (notebooks graded before the verdicts
     were stored as data)."""
-    reports = [output.get("data", {}).get(MIME_TYPE) for output in cell.get("outputs", [])]
+    reports = [output.get("data", {}).get(MIME_TYPE) for output in outputs]
     return [item for item in (finding(r) for r in reports if r and isinstance(r, dict)) if item is not None]
 
 
@@ -235,12 +260,8 @@ def unsandboxed(course: CourseState) -> set[str]:
     """``student/assignment`` of submissions graded with ``--no-sandbox``."""
     found = set()
     for folder in sorted((course.root / "autograded").glob("*/*")):
-        for path in folder.glob("*.ipynb"):
-            try:
-                meta: dict[str, Any] = json.loads(path.read_text()).get("metadata", {}).get("cvkit", {})
-            except (OSError, ValueError):
-                continue
-            if meta.get("sandboxed") is False:
+        for notebook in graded_notebooks(folder):
+            if notebook.metadata.get("sandboxed") is False:
                 found.add(f"{folder.parent.name}/{folder.name}")
     return found
 

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Iterator
 from .._text import differences, name_problem, printable, skeleton
 from ..sandbox.isolation import collect_files
 from .journal import Journal
+from .notebook import graded_read_once
 from .plan import Plan, not_in_plan, plan_path, read_plan, sync_due_dates
 from .stamps import checks_fingerprint, due_stamp, late_stamp
 
@@ -538,11 +539,14 @@ class CourseState:
         outside it, every call reads the folder as it is now."""
         return self._kept("_snapshots")
 
-    def scores_read_once(self) -> contextlib.AbstractContextManager[None]:
+    @contextlib.contextmanager
+    def scores_read_once(self) -> Iterator[None]:
         """Within this block the gradebook is only read (the exports, the item analysis and the
         like, after the last grade of a run is recorded): each assignment's scores
-        (:func:`~cvkit.course.results.scores`) are read from it once, not once per reader."""
-        return self._kept("settled_scores")
+        (:func:`~cvkit.course.results.scores`) are read from it once, not once per reader, and
+        each autograded notebook is parsed once (:func:`~cvkit.course.notebook.graded_read_once`)."""
+        with self._kept("settled_scores"), graded_read_once():
+            yield
 
     def submission_files(self, student: str, assignment: str) -> dict[str, bytes]:
         """The submission's regular files (links, devices and the like are refused, see
