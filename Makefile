@@ -1,5 +1,5 @@
 # Shortcuts; each target calls the stdlib-only scripts, which create and reuse .venv.
-.PHONY: demo test lab bench bench-notebooks bench-grading clean
+.PHONY: demo test lab bench bench-notebooks bench-grading bench-course-reads clean
 demo:
 	python3 scripts/demo
 test:
@@ -12,5 +12,7 @@ bench-notebooks:
 	python3 scripts/_venv.py && .venv/bin/python benchmarks/bench_notebooks.py --check
 bench-grading:
 	python3 scripts/_venv.py && .venv/bin/python benchmarks/bench_grading.py
+bench-course-reads:
+	python3 scripts/_venv.py && .venv/bin/python benchmarks/bench_course_reads.py
 clean:
 	rm -rf .venv cvkit-demo artefacts autograders/release autograders/submitted autograders/autograded autograders/feedback autograders/*.db
