@@ -112,3 +112,59 @@ def test_the_notebook_run_waits_with_this_client(monkeypatch, tmp_path):
     executed = execute(notebook, str(tmp_path))
     assert used == [ReadyClient]
     assert "".join(executed["cells"][0]["outputs"][0]["text"]) == "first output kept\n"
+
+
+def _run(source, folder):
+    from cvkit.sandbox.notebook_run import execute
+
+    notebook = {"nbformat": 4, "nbformat_minor": 5,
+                "metadata": {"kernelspec": {"name": "python3", "display_name": "Python 3", "language": "python"}},
+                "cells": [{"cell_type": "code", "id": "c1", "metadata": {}, "execution_count": None, "outputs": [],
+                           "source": source}]}
+    return "".join("".join(o.get("text", "")) for o in execute(notebook, str(folder))["cells"][0]["outputs"])
+
+
+def test_the_kernel_starts_without_its_debugger(tmp_path):
+    """ipykernel's launcher, with debugpy marked absent (it costs every run 0.08 s of CPU); the
+    kernel's sys.path is that of a kernel ipykernel's own launcher starts."""
+    from jupyter_client.manager import start_new_kernel
+
+    probe = "import sys; print(sys.modules.get('debugpy', 'never imported')); print(sys.path)"
+    printed = _run(probe, tmp_path).splitlines()
+    assert printed[0] == "None"
+    manager, client = start_new_kernel(kernel_name="python3", cwd=str(tmp_path))
+    try:
+        texts = []
+        client.execute_interactive("import sys; print(sys.path)",
+                                   output_hook=lambda m: texts.append(m["content"].get("text", "")))
+    finally:
+        client.stop_channels()
+        manager.shutdown_kernel(now=True)
+    assert printed[1] == "".join(texts).strip()
+
+
+def test_a_students_file_cannot_stand_in_for_a_kernel_module(tmp_path):
+    """The working folder (the submission) is off sys.path while ipykernel loads, as in
+    ipykernel's own launcher: a file named like one of its modules is not what starts."""
+    (tmp_path / "zmq.py").write_text("raise SystemExit('the student file was imported')\n")
+    (tmp_path / "ipykernel.py").write_text("raise SystemExit('the student file was imported')\n")
+    assert _run("print('ran')", tmp_path) == "ran\n"
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["/env/bin/python", "-m", "ipykernel_launcher", "-f", "{connection_file}"],
+     ["/env/bin/python", "-c", kernel.LAUNCHER, "-f", "CONNECTION"]),
+    (["/env/bin/python", "-Xfrozen_modules=off", "-m", "ipykernel_launcher", "-f", "{connection_file}"],
+     ["/env/bin/python", "-Xfrozen_modules=off", "-c", kernel.LAUNCHER, "-f", "CONNECTION"]),
+    (["/opt/other-kernel", "-m", "something_else", "{connection_file}"],
+     ["/opt/other-kernel", "-m", "something_else", "CONNECTION"]),
+])
+def test_only_ipykernels_launcher_is_replaced(monkeypatch, argv, expected):
+    from jupyter_client.manager import AsyncKernelManager
+
+    def format_plain(self, extra_arguments=None):
+        return [a.replace("{connection_file}", "CONNECTION") for a in argv + list(extra_arguments or [])]
+
+    monkeypatch.setattr(AsyncKernelManager, "format_kernel_cmd", format_plain)
+    manager = kernel.KernelManager()
+    assert manager.format_kernel_cmd(["--x=1"]) == expected + ["--x=1"]
