@@ -13,8 +13,11 @@ from __future__ import annotations
 
 import base64
 import csv
+import functools
+import hashlib
 import html
 import io
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
@@ -111,7 +114,7 @@ def export(course: CourseState, assignments: Iterable[str] | None = None) -> Pat
     results = analyse_course(course, assignments)
     folder = course.root / "exports"
     write_csv(results, folder / CSV_NAME)
-    return write_html(results, folder / HTML_NAME)
+    return write_html(results, folder / HTML_NAME, plots=course.root / PLOTS_FOLDER, prune=assignments is None)
 
 
 # ------------------------------------------------------------------------------ text summary
@@ -360,6 +363,53 @@ def _plots(result: AssignmentStats) -> str:
     return "<div class=\"plots\">" + "".join(p for p in parts if p) + "</div>"
 
 
+#: where the item analysis keeps each assignment's plots, in the course folder (:func:`_kept_plots`)
+PLOTS_FOLDER = Path(".cvkit") / "item_analysis_plots"
+
+
+@functools.lru_cache(maxsize=1)
+def _drawing_code() -> str:
+    """What the plots are drawn with: this module's code, the statistics' (whose properties it
+    plots), the text rules', matplotlib's version."""
+    import matplotlib
+
+    from .. import _text
+    from . import item_stats
+
+    digest = hashlib.sha256(matplotlib.__version__.encode())
+    for module in (__file__, item_stats.__file__, _text.__file__):
+        digest.update(Path(module).read_bytes())
+    return digest.hexdigest()
+
+
+def _kept_plots(result: AssignmentStats, folder: Path | None, used: set[str]) -> str:
+    """:func:`_plots` of ``result``, kept in ``folder`` under a digest of all they are drawn from
+    (the result's figures, exactly, and :func:`_drawing_code`): an assignment whose figures did
+    not change since the last export is not drawn again — every grading run exports every
+    chapter, and drawing is most of an export's time in a course of many chapters. A plot that
+    could not be drawn is drawn again next time; a folder that cannot be written only costs the
+    time."""
+    if folder is None:
+        return _plots(result)
+    key = hashlib.sha256(f"{_drawing_code()}\0{result!r}".encode("utf-8", "surrogatepass")).hexdigest()[:40]
+    name = f"{key}.html"
+    used.add(name)
+    try:
+        return (folder / name).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        pass
+    made = _plots(result)
+    if "class=\"warning\"" not in made:
+        partial = folder / f".{name}.{os.getpid()}"
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            partial.write_text(made, encoding="utf-8")
+            os.replace(partial, folder / name)  # whole or not at all
+        except OSError:
+            partial.unlink(missing_ok=True)
+    return made
+
+
 # ------------------------------------------------------------------------------ HTML
 _PAGE = """<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
@@ -400,7 +450,7 @@ def _e(text: object) -> str:
     return html.escape(printable(text, newlines=True))
 
 
-def _assignment_html(result: AssignmentStats) -> str:
+def _assignment_html(result: AssignmentStats, plots: Callable[[AssignmentStats], str] | None = None) -> str:
     parts = [f"<section class=\"assignment\"><h2>{_e(result.assignment)}</h2>"]
     parts += [f"<p class=\"warning\" role=\"note\">{_e(w)}</p>" for w in result.warnings]
     if not result.exercises:
@@ -409,7 +459,7 @@ def _assignment_html(result: AssignmentStats) -> str:
              else "Cronbach's α: not computed (see above)")
     parts.append(f"<p>{result.students} student{'s' * (result.students != 1)} graded; {result.complete} with a score "
                  f"for every exercise; maximum {result.max_total:g} points. {alpha}.</p>")
-    parts.append(_plots(result))
+    parts.append((plots or _plots)(result))
     header = ["exercise", "graded", "mean / max", "facility", "item–rest r", "D (27 %)", "not attempted", "flagged",
               "unexplained failures", "what to look at"]
     rows = []
@@ -470,16 +520,22 @@ def _exercise_html(e: Any) -> str:
     return "".join(parts) + "</details>"
 
 
-def write_html(results: list[AssignmentStats], path: Path) -> Path:
+def write_html(results: list[AssignmentStats], path: Path, plots: Path | None = None, prune: bool = False) -> Path:
     """The dashboard: per assignment, the warnings, the plots, the table of exercises and per
     exercise its mistakes, unexplained failures and failure rates by case parameter; the formulas
     with their sources at the end. Self-contained, no script (a Content-Security-Policy allows
-    none); every text escaped."""
+    none); every text escaped. ``plots``: a folder where each assignment's plots are kept
+    (:func:`_kept_plots`), ``prune``: remove the kept plots of results not among these."""
     formulas = "".join(f"<dt><b>{html.escape(name)}</b></dt><dd>{html.escape(text)}"
                        + (f" <span class=\"muted\">({html.escape(source)})</span>" if source else "") + "</dd>"
                        for name, text, source in FORMULAS)
-    body = "".join(_assignment_html(r) for r in results) or "<p class=\"warning\" role=\"note\">No assignment to " \
-                                                            "analyse: the course has no plan and no submission.</p>"
+    used: set[str] = set()
+    body = "".join(_assignment_html(r, lambda result: _kept_plots(result, plots, used)) for r in results) or \
+        "<p class=\"warning\" role=\"note\">No assignment to analyse: the course has no plan and no submission.</p>"
+    if plots is not None and prune and plots.is_dir():
+        for kept in plots.glob("*.html"):
+            if kept.name not in used:
+                kept.unlink(missing_ok=True)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(_PAGE.format(assignments=body, formulas=formulas), encoding="utf-8")
     return path

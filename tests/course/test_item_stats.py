@@ -289,3 +289,49 @@ def test_an_exercise_nobody_has_a_mark_for_yet_does_not_void_the_class_statistic
     nothing = analyse("ch01", {f"s{i}": {"written": Response(None, 2.0)} for i in range(12)})
     assert nothing.totals == [] and nothing.complete == 0 and nothing.alpha is None
     assert all(band.count == 0 for band in nothing.distribution)
+
+
+def test_the_plots_of_unchanged_figures_are_kept_not_drawn_again(tmp_path, monkeypatch):
+    """Every grading run exports every chapter: an assignment whose figures did not change is
+    not drawn again, and the page is the same byte for byte as one drawn afresh."""
+    from cvkit.course import item_analysis
+
+    drawn = []
+    plain = item_analysis._plots
+    monkeypatch.setattr(item_analysis, "_plots", lambda result: drawn.append(result.assignment) or plain(result))
+    kept = tmp_path / "kept"
+    results = [analyse("ch01", cohort(30)), analyse("ch02", cohort(25, seed=3))]
+    fresh = item_analysis.write_html(results, tmp_path / "fresh.html").read_bytes()
+    assert drawn == ["ch01", "ch02"]
+    drawn.clear()
+    first = item_analysis.write_html(results, tmp_path / "first.html", plots=kept, prune=True).read_bytes()
+    again = item_analysis.write_html(results, tmp_path / "again.html", plots=kept, prune=True).read_bytes()
+    assert drawn == ["ch01", "ch02"]  # drawn once, then read
+    assert first == again == fresh
+    assert len(list(kept.glob("*.html"))) == 2
+    # one student more in ch02: its plots are drawn again; ch01's are read
+    drawn.clear()
+    changed = [results[0], analyse("ch02", cohort(26, seed=3))]
+    page = item_analysis.write_html(changed, tmp_path / "changed.html", plots=kept, prune=True).read_bytes()
+    assert drawn == ["ch02"]
+    assert page == item_analysis.write_html(changed, tmp_path / "changed_fresh.html").read_bytes()
+    assert len(list(kept.glob("*.html"))) == 2  # the old ch02 plots are gone (pruned)
+    # an export of some assignments keeps the others' plots
+    item_analysis.write_html(changed[:1], tmp_path / "one.html", plots=kept, prune=False)
+    assert len(list(kept.glob("*.html"))) == 2
+
+
+def test_a_plot_that_could_not_be_drawn_is_not_kept(tmp_path, monkeypatch):
+    from cvkit.course import item_analysis
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("no backend")
+
+    monkeypatch.setattr(item_analysis, "_png", broken)
+    kept = tmp_path / "kept"
+    page = item_analysis.write_html([analyse("ch01", cohort(30))], tmp_path / "page.html", plots=kept).read_text()
+    assert "not drawn (RuntimeError: no backend)" in page
+    assert not list(kept.glob("*.html")) if kept.exists() else True
+    monkeypatch.undo()
+    page = item_analysis.write_html([analyse("ch01", cohort(30))], tmp_path / "page.html", plots=kept).read_text()
+    assert "not drawn" not in page and "<img" in page
