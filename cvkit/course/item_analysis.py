@@ -363,53 +363,6 @@ def _plots(result: AssignmentStats) -> str:
     return "<div class=\"plots\">" + "".join(p for p in parts if p) + "</div>"
 
 
-#: where the item analysis keeps each assignment's plots, in the course folder (:func:`_kept_plots`)
-PLOTS_FOLDER = Path(".cvkit") / "item_analysis_plots"
-
-
-@functools.lru_cache(maxsize=1)
-def _drawing_code() -> str:
-    """What the plots are drawn with: this module's code, the statistics' (whose properties it
-    plots), the text rules', matplotlib's version."""
-    import matplotlib
-
-    from .. import _text
-    from . import item_stats
-
-    digest = hashlib.sha256(matplotlib.__version__.encode())
-    for module in (__file__, item_stats.__file__, _text.__file__):
-        digest.update(Path(module).read_bytes())
-    return digest.hexdigest()
-
-
-def _kept_plots(result: AssignmentStats, folder: Path | None, used: set[str]) -> str:
-    """:func:`_plots` of ``result``, kept in ``folder`` under a digest of all they are drawn from
-    (the result's figures, exactly, and :func:`_drawing_code`): an assignment whose figures did
-    not change since the last export is not drawn again — every grading run exports every
-    chapter, and drawing is most of an export's time in a course of many chapters. A plot that
-    could not be drawn is drawn again next time; a folder that cannot be written only costs the
-    time."""
-    if folder is None:
-        return _plots(result)
-    key = hashlib.sha256(f"{_drawing_code()}\0{result!r}".encode("utf-8", "surrogatepass")).hexdigest()[:40]
-    name = f"{key}.html"
-    used.add(name)
-    try:
-        return (folder / name).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError):
-        pass
-    made = _plots(result)
-    if "class=\"warning\"" not in made:
-        partial = folder / f".{name}.{os.getpid()}"
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            partial.write_text(made, encoding="utf-8")
-            os.replace(partial, folder / name)  # whole or not at all
-        except OSError:
-            partial.unlink(missing_ok=True)
-    return made
-
-
 # ------------------------------------------------------------------------------ HTML
 _PAGE = """<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
@@ -539,3 +492,50 @@ def write_html(results: list[AssignmentStats], path: Path, plots: Path | None = 
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(_PAGE.format(assignments=body, formulas=formulas), encoding="utf-8")
     return path
+
+
+#: where the item analysis keeps each assignment's plots, in the course folder (:func:`_kept_plots`)
+PLOTS_FOLDER = Path(".cvkit") / "item_analysis_plots"
+
+
+@functools.lru_cache(maxsize=1)
+def _drawing_code() -> str:
+    """What the plots are drawn with: this module's code, the statistics' (whose properties it
+    plots), the text rules', matplotlib's version."""
+    import matplotlib
+
+    from .. import _text
+    from . import item_stats
+
+    digest = hashlib.sha256(matplotlib.__version__.encode())
+    for module in (__file__, item_stats.__file__, _text.__file__):
+        digest.update(Path(module).read_bytes())
+    return digest.hexdigest()
+
+
+def _kept_plots(result: AssignmentStats, folder: Path | None, used: set[str]) -> str:
+    """:func:`_plots` of ``result``, kept in ``folder`` under a digest of all they are drawn from
+    (the result's figures, exactly, and :func:`_drawing_code`): an assignment whose figures did
+    not change since the last export is not drawn again — every grading run exports every
+    chapter, and drawing is most of an export's time in a course of many chapters. A plot that
+    could not be drawn is drawn again next time; a folder that cannot be written only costs the
+    time."""
+    if folder is None:
+        return _plots(result)
+    key = hashlib.sha256(f"{_drawing_code()}\0{result!r}".encode("utf-8", "surrogatepass")).hexdigest()[:40]
+    name = f"{key}.html"
+    used.add(name)
+    try:
+        return (folder / name).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        pass
+    made = _plots(result)
+    if "class=\"warning\"" not in made:
+        partial = folder / f".{name}.{os.getpid()}"
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            partial.write_text(made, encoding="utf-8")
+            os.replace(partial, folder / name)  # whole or not at all
+        except OSError:
+            partial.unlink(missing_ok=True)
+    return made
