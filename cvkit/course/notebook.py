@@ -10,7 +10,9 @@ dicts and nbformat nodes alike —, a cell's source, its grade id):
   worker (:func:`cvkit.course.jobs.grade_submission`);
 - :func:`prepare` (what nbgrader's sanitizing steps make of a notebook before execution),
   :func:`repaired_notebook`, :func:`graded_layout`;
-- the readers of graded notebooks: :func:`exercise_name`, :func:`cell_outputs`.
+- the readers of graded notebooks: :func:`read_graded` (a notebook reduced to what the course's
+  readers use, parsed once a run within :func:`graded_read_once`), :func:`cell_outputs`,
+  :func:`exercise_name`.
 """
 from __future__ import annotations
 
