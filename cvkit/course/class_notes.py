@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 from ..grading.report import MIME_TYPE
+from .files import write_whole
 from .notebook import cell_outputs
 from .plan import plan_data, switch_table
 
@@ -155,7 +156,7 @@ def annotate_feedback(course: CourseState, assignments: Iterable[str] | None = N
             text = page.read_text(encoding="utf-8")
             changed = annotate(text, shares)
             if changed != text:
-                page.write_text(changed, encoding="utf-8")
+                write_whole(page, changed, mode=page.stat().st_mode & 0o777)
                 pages += 1
         if chosen.enabled:
             lines.append(f"class-wide notes {assignment}: " + (

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Iterable
 
 from .._text import printable
+from .files import whole_file, write_whole
 from .progress import Phase
 from .results import ExerciseScore, environment, scores, unsandboxed
 
@@ -207,7 +208,7 @@ def _export_grades(course: CourseState, target: Path) -> None:
                 row = [""] * len(header)
                 row[column["student_id"]], _, row[column["assignment"]] = key.partition("/")
                 out.append([_cell(cell) for cell in row] + [_cell(f"not graded: {reason}")])
-    with target.open("w", newline="", encoding="utf-8") as handle:
+    with whole_file(target, newline="") as handle:
         csv.writer(handle).writerows(out)
 
 
@@ -215,7 +216,7 @@ def _export_exercises(course: CourseState, target: Path, assignments: list[str],
     """cvkit's exercises.csv: one row per student × exercise, and one per submission not graded
     (``bar`` counts the assignments written)."""
     not_graded = course.not_graded()
-    with target.open("w", newline="", encoding="utf-8") as handle:
+    with whole_file(target, newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(["assignment", "student", "exercise", "score", "max_score", "mistakes", "problems", "flags",
                          "status"])
@@ -293,10 +294,7 @@ def _similar_pairs(course: CourseState, assignment: str) -> list:
     except (OSError, ValueError, TypeError, KeyError, AttributeError):
         pass  # none kept, or unreadable: measured again
     pairs = similarity.similar_pairs(answers, exercises, assignment=assignment)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    scratch = path.with_suffix(".tmp")
-    scratch.write_text(json.dumps({"digest": digest, "pairs": [dataclasses.asdict(p) for p in pairs]}))  # ASCII
-    scratch.replace(path)
+    write_whole(path, json.dumps({"digest": digest, "pairs": [dataclasses.asdict(p) for p in pairs]}))  # ASCII
     return pairs
 
 

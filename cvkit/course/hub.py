@@ -48,6 +48,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 from .._text import printable
+from .files import write_whole
 
 if TYPE_CHECKING:
     from .state import CourseState
@@ -405,11 +406,7 @@ def _free_port(taken: set[int]) -> int:
 
 # ---------------------------------------------------------------------------- writing
 def _write(path: Path, text: str, mode: int = 0o644, written: list[Path] | None = None) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    scratch = path.with_name(f".{path.name}.{os.getpid()}")
-    scratch.write_text(text)
-    scratch.chmod(mode)
-    os.replace(scratch, path)
+    write_whole(path, text, mode=mode)
     if written is not None:
         written.append(path)
 

@@ -12,17 +12,18 @@ report+json``). Every text a student could have written is shown printable and e
 from __future__ import annotations
 
 import base64
+import contextlib
 import csv
 import functools
 import hashlib
 import html
 import io
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from .._text import printable
 from ..grading.report import MIME_TYPE
+from .files import whole_file, write_whole
 from .notebook import cell_outputs, exercise_name
 from .results import scores
 from .item_stats import (FORMULAS, MIN_CORRELATION, MIN_DISCRIMINATION, AssignmentStats, Rate, Response, analyse,
@@ -234,9 +235,7 @@ def write_csv(results: list[AssignmentStats], path: Path) -> Path:
     ``value`` is the figure or share, ``count`` of ``of`` what it counts; an empty value is a
     figure not computed (``note`` says why). Texts printable, never a spreadsheet formula."""
     from .safety import csv_safe
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="", encoding="utf-8") as handle:
+    with whole_file(path, newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(CSV_COLUMNS)
         for row in _rows(results):
@@ -489,8 +488,7 @@ def write_html(results: list[AssignmentStats], path: Path, plots: Path | None = 
         for kept in plots.glob("*.html"):
             if kept.name not in used:
                 kept.unlink(missing_ok=True)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(_PAGE.format(assignments=body, formulas=formulas), encoding="utf-8")
+    write_whole(path, _PAGE.format(assignments=body, formulas=formulas))
     return path
 
 
@@ -531,11 +529,6 @@ def _kept_plots(result: AssignmentStats, folder: Path | None, used: set[str]) ->
         pass
     made = _plots(result)
     if "class=\"warning\"" not in made:
-        partial = folder / f".{name}.{os.getpid()}"
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            partial.write_text(made, encoding="utf-8")
-            os.replace(partial, folder / name)  # whole or not at all
-        except OSError:
-            partial.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):
+            write_whole(folder / name, made)
     return made

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from ..sandbox.isolation import collect_files
+from .files import write_whole
 from .received import listed_stamp
 
 #: what a journal entry records besides the files' hash (see :mod:`.stamps`)
@@ -105,8 +106,7 @@ class Journal:
             entry: dict[str, Any] = {"files": self.submission_hash(student, assignment)}
             entry.update({k: v for k, v in (stamps or {}).get(assignment, {}).items() if k in STAMPS})
             journal[f"{student}/{assignment}"] = entry
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.path.write_text(json.dumps(journal, indent=1))
+        write_whole(self.path, json.dumps(journal, indent=1))
 
     def changed(self, pairs: list[tuple[str, str]],
                 stamps: Mapping[str, Mapping[str, Any]]) -> dict[tuple[str, str], list[str]]:
@@ -158,8 +158,7 @@ class Journal:
             data.pop(key, None)
         else:
             data[key] = reason
-        self.not_graded_path.parent.mkdir(parents=True, exist_ok=True)
-        self.not_graded_path.write_text(json.dumps(data, indent=1))
+        write_whole(self.not_graded_path, json.dumps(data, indent=1))
 
     # ------------------------------------------------------------------ flags
     def add_flag(self, student: str, assignment: str, flag: str) -> None:
@@ -168,4 +167,4 @@ class Journal:
             nb = json.loads(path.read_text())
             meta = nb.setdefault("metadata", {}).setdefault("cvkit", {})
             meta.setdefault("flags", []).append(flag)
-            path.write_text(json.dumps(nb, indent=1))
+            write_whole(path, json.dumps(nb, indent=1))

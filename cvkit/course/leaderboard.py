@@ -64,6 +64,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping, NamedTuple
 
 from .._text import name_problem, printable, skeleton
 from ..grading.report import MIME_TYPE
+from .files import whole_file, write_whole
 from .notebook import cell_outputs, cell_source, exercise_name
 from .plan import plan_data, switch_table
 
@@ -483,9 +484,7 @@ CSV_COLUMNS = ["assignment", "exercise", "measure", "unit", "rank", "pseudonym",
 def write_csv(board: Board, path: Path) -> Path:
     """The tables, one row per entry (texts printable, never a spreadsheet formula)."""
     from .safety import csv_safe
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="", encoding="utf-8") as handle:
+    with whole_file(path, newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(CSV_COLUMNS)
         for table in board.tables:
@@ -522,7 +521,7 @@ def _annotate_pages(course: CourseState, board: Board | None, assignment: str) -
             continue
         changed = with_board(text, section)
         if changed != text:
-            path.write_text(changed, encoding="utf-8")
+            write_whole(path, changed, mode=path.stat().st_mode & 0o777)
             pages += 1
     return pages
 
@@ -594,8 +593,7 @@ def publish(course: CourseState, assignments: Iterable[str] | None = None, chose
             continue
         if board.published:
             folder = course.root / FOLDER
-            folder.mkdir(parents=True, exist_ok=True)
-            (folder / f"{assignment}.html").write_text(page(board), encoding="utf-8")
+            write_whole(folder / f"{assignment}.html", page(board))
             write_csv(board, folder / f"{assignment}.csv")
             _annotate_pages(course, board, assignment)
         else:
@@ -603,8 +601,7 @@ def publish(course: CourseState, assignments: Iterable[str] | None = None, chose
         lines += summary(board)
     if not lines:
         lines = ["leaderboard: no graded assignment has a measured exercise"]
-    report.parent.mkdir(parents=True, exist_ok=True)
-    report.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_whole(report, "\n".join(lines) + "\n")
     return lines
 
 

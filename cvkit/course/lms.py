@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Iterable
 
 from .._text import printable
+from .files import whole_file
 
 if TYPE_CHECKING:
     from .state import CourseState
@@ -204,8 +205,7 @@ def _unsafe_identifier(text: str) -> str:
 
 def write_csv(path: Path, rows: list[list[str]]) -> Path:
     """``rows`` as RFC 4180 CSV in UTF-8 (no byte-order mark), CRLF line ends."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="", encoding="utf-8") as handle:
+    with whole_file(path, newline="") as handle:
         csv.writer(handle, lineterminator="\r\n", quoting=csv.QUOTE_MINIMAL).writerows(rows)
     return path
 

@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 from ..grading.runtime.cells import cell_source
+from .files import write_whole
 
 if TYPE_CHECKING:
     from .state import CourseState
@@ -234,10 +235,7 @@ def _load(path: Path) -> dict[str, Any]:
 
 
 def _save(path: Path, data: Mapping[str, Any]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    scratch = path.with_name(f".{path.name}.{os.getpid()}")
-    scratch.write_text(json.dumps(dict(sorted(data.items())), indent=1))
-    os.replace(scratch, path)
+    write_whole(path, json.dumps(dict(sorted(data.items())), indent=1))
 
 
 def stale_pages(course: CourseState, pairs: Iterable[tuple[str, str]], now: Marks | None = None) -> list[tuple[str, str]]:

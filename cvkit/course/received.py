@@ -59,6 +59,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
 from ..sandbox.isolation import collect_files
+from .files import write_whole
 
 if TYPE_CHECKING:
     from .state import CourseState
@@ -275,10 +276,7 @@ class _Records:
         return {part: data[part] if isinstance(data.get(part), dict) else {} for part in ("submissions", "releases")}
 
     def save(self, data: Mapping[str, Any]) -> None:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        scratch = self.path.with_name(f".{self.path.name}.{os.getpid()}")
-        scratch.write_text(json.dumps(data, indent=1, sort_keys=True))
-        os.replace(scratch, self.path)
+        write_whole(self.path, json.dumps(data, indent=1, sort_keys=True))
 
     def submission(self, student: str, assignment: str, version: str) -> Received | None:
         entry = self.load()["submissions"].get(f"{student}/{assignment}")
@@ -572,17 +570,14 @@ def settle_stamp(root: str | os.PathLike[str], student: str, assignment: str, wh
     if data is not None and data.strip() == ours.encode():
         return False
     copy = _claim_copy(root, student, assignment)
-    scratch = path.with_name(f".{STAMP_FILE}.{os.getpid()}")
     try:
         if data is not None:
             copy.parent.mkdir(parents=True, exist_ok=True)
             copy.write_bytes(data)
         elif copy.exists():
             copy.unlink()
-        scratch.write_text(ours)
-        os.replace(scratch, path)  # a link in its place is replaced, never followed
+        write_whole(path, ours)  # a link in its place is replaced, never followed
     except OSError:
-        scratch.unlink(missing_ok=True)
         return False
     return True
 

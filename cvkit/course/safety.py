@@ -91,6 +91,8 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any, Iterable
 
+from .files import whole_file
+
 __all__ = [
     "SanitizeStudentContent", "SafeFeedbackExporter", "sanitize_notebook", "sanitize_html", "sanitize_markdown",
     "safe_svg",
@@ -977,23 +979,12 @@ def csv_safe(value) -> str:
 
 def sanitize_csv_file(path) -> Path:
     """Rewrite the CSV file ``path`` in place with every cell passed through :func:`csv_safe`
-    (properly quoted; written to a temporary file next to it, then moved over it)."""
+    (properly quoted; whole or not at all: :func:`~cvkit.course.files.whole_file`)."""
     path = Path(path)
     with path.open(newline="", encoding="utf-8", errors="surrogateescape") as handle:
         rows = list(csv.reader(handle))
-    fd, temporary = tempfile.mkstemp(prefix=f".{path.name}-", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="", encoding="utf-8", errors="surrogateescape") as handle:
-            writer = csv.writer(handle, lineterminator="\n")  # as nbgrader writes it
-            for row in rows:
-                writer.writerow([csv_safe(cell) for cell in row])
-        try:
-            os.chmod(temporary, path.stat().st_mode & 0o777)
-        except OSError:
-            pass
-        os.replace(temporary, path)
-    except BaseException:
-        if os.path.exists(temporary):
-            os.remove(temporary)
-        raise
+    with whole_file(path, mode=path.stat().st_mode & 0o777, newline="", errors="surrogateescape") as handle:
+        writer = csv.writer(handle, lineterminator="\n")  # as nbgrader writes it
+        for row in rows:
+            writer.writerow([csv_safe(cell) for cell in row])
     return path

@@ -172,6 +172,7 @@ from typing import Any, Iterable, Mapping
 
 from .._text import name_problem, printable
 from ..grading.runtime.cells import cell_source
+from .files import whole_file, write_whole
 
 __all__ = [
     "NOISE", "THRESHOLD", "MIN_SIZE", "SOLUTION", "CODE_STUB", "MAX_NOTEBOOK_BYTES", "MAX_ANSWER_CHARS", "ADDED",
@@ -1351,8 +1352,7 @@ def write_csv(items: Iterable[SimilarPair | SimilarGroup], path: str | os.PathLi
         rows += [(group.assignment, group.exercise, str(number), str(len(group.members)), m.name, m.closest,
                   f"{m.similarity:.3f}", textbook, _pulled_note(group, m)) for m in group.members]
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="", encoding="utf-8") as handle:
+    with whole_file(path, newline="") as handle:
         writer = csv.writer(handle, lineterminator="\n")
         writer.writerow(CSV_COLUMNS)
         writer.writerows([csv_safe(printable(cell)) for cell in row] for row in rows)
@@ -1439,8 +1439,6 @@ def write_html(items: Iterable[SimilarPair | SimilarGroup], path: str | os.PathL
              "<th>who</th><th></th></tr>" + "".join(rows) + "</table>") if rows \
         else "<p>No answers alike above the threshold.</p>"
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(_PAGE.format(count=len(ordered), students=sum(len(g.members) for g in ordered),
-                                 index=index, sections="\n".join(sections), added=e(ADDED), shown_all=SHOWN_ALL),
-                    encoding="utf-8")
+    write_whole(path, _PAGE.format(count=len(ordered), students=sum(len(g.members) for g in ordered),
+                                   index=index, sections="\n".join(sections), added=e(ADDED), shown_all=SHOWN_ALL))
     return path

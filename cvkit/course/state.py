@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Iterator
 
 from .._text import differences, name_problem, printable, skeleton
 from ..sandbox.isolation import collect_files
+from .files import write_whole
 from .journal import Journal
 from .notebook import graded_read_once
 from .plan import Plan, not_in_plan, plan_path, read_plan, sync_due_dates
@@ -158,12 +159,8 @@ def _write_course_config(config: Path, project_config: Path) -> None:
     else:
         return
     if new != old:  # whole or not at all: nbgrader may be reading it in another process
-        part = config.with_name(f".{config.name}.{os.getpid()}.part")
-        try:
-            part.write_text(new)
-            os.replace(part, config)
-        except OSError:
-            part.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):
+            write_whole(config, new)
 
 
 def refused_student_ids(ids: Iterable[str]) -> dict[str, str]:
