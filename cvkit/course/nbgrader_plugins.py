@@ -7,6 +7,8 @@
   phase of ``cvkit course grade`` calls directly, outside nbgrader's pipeline).
 - :class:`LatePenalty` — nbgrader's late-submission plugin with the policies of ``plan.toml``
   (``[late]``: none, zero, points per started hour).
+- :class:`SaveAutoGradesAtOnce` — nbgrader's ``SaveAutoGrades`` with a notebook's grades and
+  comments recorded in one transaction.
 - :class:`HideHiddenTests` — a feedback preprocessor: students see the results of the hidden
   tests, never their source.
 - :class:`SanitizeStudentContent` and :class:`SafeFeedbackExporter` (from
@@ -20,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from nbgrader.plugins import LateSubmissionPlugin
-from nbgrader.preprocessors import NbGraderPreprocessor
+from nbgrader.preprocessors import NbGraderPreprocessor, SaveAutoGrades
 from traitlets import Bool, Dict, Enum, Float, Int, Unicode
 
 from .safety import SafeFeedbackExporter, SanitizeStudentContent  # noqa: F401  (re-exported for the config)
@@ -99,6 +101,35 @@ class LatePenalty(LateSubmissionPlugin):
             return score
         hours = -(-float(total_seconds_late) // 3600.0)
         return min(float(score), hours * float(self.points_per_hour))
+
+
+class _OneTransaction(NbGraderPreprocessor):
+    """The cell-by-cell pass of :class:`SaveAutoGradesAtOnce`, inside nbgrader's own
+    ``SaveAutoGrades.preprocess`` (which opens ``self.gradebook`` and calls it as its parent's
+    ``preprocess``): nbgrader's per-cell commits become flushes, and the notebook is committed
+    once at the end, or rolled back whole if a cell fails."""
+
+    def preprocess(self, nb, resources):
+        session = self.gradebook.db
+        session.commit = session.flush  # shadows the method on this session only, for this pass
+        try:
+            nb, resources = super().preprocess(nb, resources)
+        except BaseException:
+            del session.commit
+            session.rollback()
+            raise
+        del session.commit
+        session.commit()
+        return nb, resources
+
+
+class SaveAutoGradesAtOnce(SaveAutoGrades, _OneTransaction):
+    """nbgrader's ``SaveAutoGrades`` (the same score, comment and "needs manual grade" for every
+    cell, by nbgrader's own code), with a notebook's grades and comments written in **one
+    transaction** instead of one commit per cell (about 50 per chapter notebook, each a
+    synchronous write of the gradebook file, after which every loaded row is read again): a
+    notebook's grades are recorded whole or not at all — an interrupted run never leaves a
+    notebook half recorded — and the single writer spends less on each."""
 
 
 class PlanExtensions(NbGraderPreprocessor):

@@ -43,12 +43,12 @@ def configure(c: Any, root: str | os.PathLike[str], source: str | os.PathLike[st
     """
     from nbconvert.preprocessors import CSSHTMLHeaderPreprocessor, ClearMetadataPreprocessor
     from nbgrader.preprocessors import (
-        AssignLatePenalties, CheckCellMetadata, GetGrades, IgnorePattern, LimitOutput, SaveAutoGrades,
+        AssignLatePenalties, CheckCellMetadata, GetGrades, IgnorePattern, LimitOutput,
     )
 
     from .nbgrader_plugins import (
         HideHiddenTests, PlanExtensions, SafeFeedbackExporter, SandboxedExecute, SanitizeStudentContent,
-        TrustedChecks, WaitingForInstructor,
+        SaveAutoGradesAtOnce, TrustedChecks, WaitingForInstructor,
     )
     from .safety import mathjax_post_convert_hook
     from .plan import configure_nbgrader
@@ -99,7 +99,7 @@ def configure(c: Any, root: str | os.PathLike[str], source: str | os.PathLike[st
     # ClearMetadataPreprocessor disabled (nbconvert's default), or keep "cvkit" in its
     # preserve_cell_metadata_mask and preserve_nb_metadata_mask
     c.Autograde.autograde_preprocessors = [
-        SandboxedExecute, IgnorePattern, ClearMetadataPreprocessor, TrustedChecks, LimitOutput, SaveAutoGrades,
+        SandboxedExecute, IgnorePattern, ClearMetadataPreprocessor, TrustedChecks, LimitOutput, SaveAutoGradesAtOnce,
         PlanExtensions, AssignLatePenalties, CheckCellMetadata,
     ]
 
