@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Iterable
 
+from .files import write_whole
 from .progress import Phase
 from .state import CourseState
 
@@ -30,9 +31,7 @@ def write_feedback(course: CourseState, submissions: Iterable[tuple[str, str]], 
         if bar is not None:
             bar.update()
     if failed:
-        log = course.root / ".cvkit" / "feedback_errors.log"
-        log.parent.mkdir(parents=True, exist_ok=True)
-        log.write_text("\n".join(failed))
+        write_whole(course.root / ".cvkit" / "feedback_errors.log", "\n".join(failed))
 
 
 def feedback_submissions(root: str, db_url: str, project: str, pairs: list[tuple[str, str]]) -> None:

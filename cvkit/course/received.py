@@ -627,8 +627,8 @@ def place_submission(course: CourseState, student: str, assignment: str, noteboo
     moment = checked_time(_dt.datetime.now(_dt.timezone.utc) if received_at is None else received_at)
     folder = course.root / "submitted" / student / assignment
     folder.mkdir(parents=True, exist_ok=True)
-    for name, nb in notebooks.items():
-        (folder / name).write_text(json.dumps(nb, indent=1))
-    (folder / STAMP_FILE).write_text(nbgrader_timestamp(moment))
+    for name, nb in notebooks.items():  # each whole: a grading run may be reading the folder
+        write_whole(folder / name, json.dumps(nb, indent=1))
+    write_whole(folder / STAMP_FILE, nbgrader_timestamp(moment))
     record_submitted(course.root, student, assignment, moment.replace(tzinfo=_dt.timezone.utc))
     return folder
