@@ -7,6 +7,7 @@ impossible the grading tests fail with the installation hint (they are never ski
 without its sandbox is not a working grader).
 """
 import importlib.util
+import os
 import shutil
 from pathlib import Path
 
@@ -39,6 +40,28 @@ def grading_sandbox():
     yield isolation.probe() or None
     if log and not shutil.which("bwrap"):  # pragma: no cover - reported by the grading tests themselves
         print(f"apt-get could not install bubblewrap:\n{log}")
+
+
+#: what makes a process the trusted grader (nbgrader_settings.configure sets them): left behind by
+#: a test, they would make every later test of its worker a grading run (checks become no-ops)
+GRADER_VARIABLES = ("CVKIT_TRUSTED_GRADING", "CVKIT_GRADING_SALT")
+
+
+@pytest.fixture(autouse=True)
+def no_grader_environment_left_behind():
+    """Put the grader's variables back after every test, and fail the test that changed them
+    (setting them for a test goes through ``monkeypatch``, which undoes it first)."""
+    before = {name: os.environ.get(name) for name in GRADER_VARIABLES}
+    yield
+    changed = sorted(name for name in GRADER_VARIABLES if os.environ.get(name) != before[name])
+    for name, value in before.items():
+        if value is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = value
+    if changed:
+        pytest.fail(f"the test left {', '.join(changed)} changed in the environment (put back now): "
+                    "set them with monkeypatch, or take them back as CourseState does")
 
 
 @pytest.fixture(scope="module")

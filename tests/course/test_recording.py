@@ -87,9 +87,13 @@ def test_a_failing_cell_leaves_nothing_of_the_notebook_recorded(tmp_path):
     assert _recorded(theirs)[0]["test_a"] == (2.0, False)  # nbgrader's: half a notebook recorded
 
 
-def test_the_course_configuration_records_with_it(tmp_path):
+def test_the_course_configuration_records_with_it(tmp_path, monkeypatch):
     from traitlets.config import Config
 
+    # configure() marks this process as the trusted grader's and takes the salt from the
+    # environment: both are put back after the test, or the next tests would see a grader
+    monkeypatch.setenv("CVKIT_TRUSTED_GRADING", "0")
+    monkeypatch.delenv("CVKIT_GRADING_SALT", raising=False)
     c = Config()
     configure(c, tmp_path)
     steps = c.Autograde.autograde_preprocessors
