@@ -69,7 +69,8 @@ def whole_file(path: str | os.PathLike[str], *, mode: int | None = None, binary:
     """
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    descriptor, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
+    # a hidden name beside the target (its first 100 characters: a long name stays a valid one)
+    descriptor, temporary = tempfile.mkstemp(prefix=f".{target.name[:100]}.", suffix=".part", dir=target.parent)
     try:
         os.chmod(temporary, _default_mode() if mode is None else mode)
         with (os.fdopen(descriptor, "wb") if binary else

@@ -235,6 +235,7 @@ def write_csv(results: list[AssignmentStats], path: Path) -> Path:
     ``value`` is the figure or share, ``count`` of ``of`` what it counts; an empty value is a
     figure not computed (``note`` says why). Texts printable, never a spreadsheet formula."""
     from .safety import csv_safe
+
     with whole_file(path, newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(CSV_COLUMNS)

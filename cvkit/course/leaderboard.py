@@ -484,6 +484,7 @@ CSV_COLUMNS = ["assignment", "exercise", "measure", "unit", "rank", "pseudonym",
 def write_csv(board: Board, path: Path) -> Path:
     """The tables, one row per entry (texts printable, never a spreadsheet formula)."""
     from .safety import csv_safe
+
     with whole_file(path, newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(CSV_COLUMNS)

@@ -111,6 +111,12 @@ def test_concurrent_writers_leave_one_whole_version(tmp_path):
     assert _leftovers(tmp_path) == []
 
 
+def test_a_name_as_long_as_the_system_allows(tmp_path):
+    target = tmp_path / ("n" * 250)
+    write_whole(target, "x")
+    assert target.read_text() == "x" and _leftovers(tmp_path) == []
+
+
 def test_data_must_be_text_or_bytes(tmp_path):
     with pytest.raises(TypeError, match="data must be str or bytes, got dict"):
         write_whole(tmp_path / "x", {"a": 1})
