@@ -110,7 +110,10 @@ class _OneTransaction(NbGraderPreprocessor):
     once at the end, or rolled back whole if a cell fails."""
 
     def preprocess(self, nb, resources):
-        session = self.gradebook.db
+        gradebook = getattr(self, "gradebook", None)
+        session = getattr(gradebook, "db", None)
+        if session is None:  # not inside SaveAutoGrades' open gradebook (another nbgrader): as nbgrader does
+            return super().preprocess(nb, resources)
         session.commit = session.flush  # shadows the method on this session only, for this pass
         try:
             nb, resources = super().preprocess(nb, resources)
