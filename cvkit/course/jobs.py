@@ -95,13 +95,13 @@ def environment_problems(executed: dict[str, Any], release: dict[str, Any] | Non
     list of str
         One ``"<exception>: <first line of its message>"`` per cause, in the order met.
     """
-    from ..grading.runtime.cells import cell_source as text, is_solution
+    from ..grading.runtime.cells import cell_source as text, is_code, is_solution
 
-    released = {text(c) for c in (release or {}).get("cells", []) if c.get("cell_type") == "code"}
+    released = {text(c) for c in (release or {}).get("cells", []) if is_code(c)}
     folders: list[Path] | None = None
     causes: list[str] = []
     for cell in executed.get("cells", []):
-        if cell.get("cell_type") != "code" or is_solution(cell):
+        if not is_code(cell) or is_solution(cell):
             continue
         as_released = (text(cell) in released) if release is not None \
             else bool(cell.get("metadata", {}).get("nbgrader", {}).get("locked"))

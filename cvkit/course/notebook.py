@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any, Iterator, Mapping
 
 from ..grading.report import MIME_TYPE
-from ..grading.runtime.cells import cell_source, grade_id, is_solution, is_test_cell, nbgrader_metadata
+from ..grading.runtime.cells import cell_source, grade_id, is_code, is_solution, is_test_cell, nbgrader_metadata
 
 #: the flag of a notebook graded from its repaired copy (:meth:`Submitted.to_grade`)
 REPAIRED_FLAG = "(notebook): graded cells were deleted, duplicated or retyped; graded from a repaired copy"
@@ -67,7 +67,7 @@ def repaired_notebook(release: Mapping[str, Any], notebook: Mapping[str, Any]) -
         if _is_answer(cell) and cell_id and cell_id not in answers:
             answers[cell_id] = cell_source(cell)
             last = cell_id
-        elif (not cell.get("metadata", {}).get("nbgrader", {}) and cell.get("cell_type") == "code"
+        elif (not nbgrader_metadata(cell) and is_code(cell)
               and cell_source(cell).strip() not in known):
             added_after.setdefault(last, []).append(cell_source(cell))
 
@@ -230,7 +230,7 @@ def prepare(notebook: Mapping[str, Any], release: Mapping[str, Any] | None) -> d
         if original is not None and not is_solution(cell):
             cell = nb["cells"][index] = dict(cell, source=original["source"], cell_type=original["cell_type"],
                                              metadata=copy.deepcopy(original.get("metadata", {})))
-        if cell.get("cell_type") == "code":
+        if is_code(cell):
             cell["outputs"] = []
             cell["execution_count"] = None
         else:

@@ -171,7 +171,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 from .._text import name_problem, printable
-from ..grading.runtime.cells import cell_source
+from ..grading.runtime.cells import cell_source, cells_of, is_code, is_test_cell, nbgrader_metadata
 from .files import whole_file, write_whole
 
 __all__ = [
@@ -313,26 +313,8 @@ def _source(cell: Mapping) -> str | None:
     return cell_source(cell, None)
 
 
-def _nbgrader(cell: Mapping) -> Mapping:
-    metadata = cell.get("metadata")
-    meta = metadata.get("nbgrader") if isinstance(metadata, Mapping) else None
-    return meta if isinstance(meta, Mapping) else {}
-
-
-def _cells(notebook: Any) -> list[Mapping]:
-    cells = notebook.get("cells") if isinstance(notebook, Mapping) else None
-    return [cell for cell in cells if isinstance(cell, Mapping)] if isinstance(cells, list) else []
-
-
 def _answer_cell(cell: Mapping) -> bool:
-    return cell.get("cell_type") == "code" and _nbgrader(cell).get("solution") is True
-
-
-def _test_cell(cell: Mapping) -> bool:
-    """A test cell as the grader's worker tells them (:func:`cvkit.grading.runtime.cells.is_test_cell`:
-    graded, not an answer), read from metadata that may be malformed."""
-    meta = _nbgrader(cell)
-    return bool(meta.get("grade")) and not bool(meta.get("solution"))
+    return is_code(cell) and nbgrader_metadata(cell).get("solution") is True
 
 
 def answer_sources(notebook: Mapping) -> dict[str, str]:
@@ -351,8 +333,8 @@ def answer_sources(notebook: Mapping) -> dict[str, str]:
         that is not a dict gives ``{}``.
     """
     answers: dict[str, str] = {}
-    for cell in _cells(notebook):
-        grade_id = _nbgrader(cell).get("grade_id")
+    for cell in cells_of(notebook):
+        grade_id = nbgrader_metadata(cell).get("grade_id")
         source = _source(cell)
         if _answer_cell(cell) and isinstance(grade_id, str) and source is not None:
             answers.setdefault(grade_id, source)
@@ -366,11 +348,11 @@ def _exercise_calls(notebook: Mapping) -> dict[str, list[Any]]:
 
     found: dict[str, list[Any]] = {}
     current = None
-    for cell in _cells(notebook):
-        meta = _nbgrader(cell)
+    for cell in cells_of(notebook):
+        meta = nbgrader_metadata(cell)
         if _answer_cell(cell):
             current = meta.get("grade_id") if isinstance(meta.get("grade_id"), str) else None
-        elif current is not None and cell.get("cell_type") == "code" and meta.get("grade"):
+        elif current is not None and is_code(cell) and meta.get("grade"):
             calls = check_calls(_source(cell) or "", str(meta.get("grade_id", "")))
             if calls:
                 found.setdefault(current, []).extend(calls)
@@ -536,9 +518,9 @@ def _instructor_code(*notebooks: Mapping | None) -> set[str]:
     """The text (ends stripped) of every non-answer code cell of the instructor's notebooks."""
     found = set()
     for notebook in notebooks:
-        for cell in _cells(notebook):
+        for cell in cells_of(notebook):
             source = _source(cell)
-            if cell.get("cell_type") == "code" and not _answer_cell(cell) and source is not None:
+            if is_code(cell) and not _answer_cell(cell) and source is not None:
                 found.add(source.strip())
     return found
 
@@ -595,11 +577,11 @@ def _student_code(notebook: Mapping, release: _Release) -> dict[str, Answer]:
     checked = release.checked
     answers: dict[str, tuple[int, str]] = {}  # grade_id -> (cell position, source)
     added: list[tuple[int, str]] = []
-    for position, cell in enumerate(_cells(notebook)):
+    for position, cell in enumerate(cells_of(notebook)):
         source = _source(cell)
-        if cell.get("cell_type") != "code" or source is None or _test_cell(cell):
+        if not is_code(cell) or source is None or is_test_cell(cell):
             continue
-        grade_id = _nbgrader(cell).get("grade_id")
+        grade_id = nbgrader_metadata(cell).get("grade_id")
         if _answer_cell(cell) and isinstance(grade_id, str) and grade_id in release.exercise_ids \
                 and grade_id not in answers:
             answers[grade_id] = (position, source)

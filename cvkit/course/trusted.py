@@ -28,7 +28,7 @@ from ..grading.checks import FORBIDDEN_LIBRARIES, Case, Check, call_target
 from ..grading.engine import arg_names, evaluate, hidden_seed
 from ..grading.served import served_helpers
 from ..grading.report import CaseResult, Report, cascade_report
-from ..grading.runtime.cells import cell_source, is_solution, is_test_cell, nbgrader_metadata
+from ..grading.runtime.cells import cell_source, cells_of, is_code, is_solution, is_test_cell, nbgrader_metadata
 from ..grading.runtime.guard import Outcome, timeout_message
 from ..grading.runtime.wire import BoxCall
 from ..sandbox.session import notebook_seconds, run_calls
@@ -68,19 +68,6 @@ class NotebookGrade:
         return round(float(total), 6), reasons
 
 
-def _source(cell: Any) -> str:
-    source = cell["source"] if isinstance(cell, dict) else cell.source
-    return source if isinstance(source, str) else "".join(source)
-
-
-def _cells(notebook: Any) -> list[Any]:
-    return notebook["cells"] if isinstance(notebook, dict) else notebook.cells
-
-
-def _is_code(cell: Any) -> bool:
-    return (cell["cell_type"] if isinstance(cell, dict) else cell.cell_type) == "code"
-
-
 def check_calls(source: str, grade_id: str) -> list[CheckCall]:
     """The ``check(...)`` calls of a test cell's source."""
     try:
@@ -108,13 +95,13 @@ def worker_cells(notebook: Any, source_notebook: Any = None) -> list[str]:
     the student added or changed — never the test cells, nor the instructor's demo cells."""
     original: set[str] = set()
     if source_notebook is not None:
-        original = {_source(cell).strip() for cell in _cells(source_notebook)
-                    if _is_code(cell) and not is_solution(cell)}
+        original = {cell_source(cell).strip() for cell in cells_of(source_notebook)
+                    if is_code(cell) and not is_solution(cell)}
     cells = []
-    for cell in _cells(notebook):
-        if not _is_code(cell) or is_test_cell(cell):
+    for cell in cells_of(notebook):
+        if not is_code(cell) or is_test_cell(cell):
             continue  # test cells run only in the trusted process
-        source = _source(cell)
+        source = cell_source(cell)
         setup_or_answer = nbgrader_metadata(cell).get("grade_id") == "setup" or is_solution(cell)
         if setup_or_answer or source.strip() not in original:
             if source_notebook is None and not setup_or_answer:
@@ -246,19 +233,19 @@ def grade_notebook(notebook: Any, *, student: str, salt: str, source_notebook: A
     deadline = time.monotonic() + (notebook_seconds() if total_seconds is None else float(total_seconds))
     tests_from = source_notebook if source_notebook is not None else notebook
     calls: list[CheckCall] = []
-    for cell in _cells(tests_from):
+    for cell in cells_of(tests_from):
         if is_test_cell(cell):
-            calls += check_calls(_source(cell), nbgrader_metadata(cell).get("grade_id", ""))
+            calls += check_calls(cell_source(cell), nbgrader_metadata(cell).get("grade_id", ""))
     result = NotebookGrade()
     original: set[str] = set()
     if source_notebook is not None:
-        original = {_source(c).strip() for c in _cells(source_notebook)}
-    for cell in _cells(notebook):  # the student's code only: answers and cells they added
+        original = {cell_source(c).strip() for c in cells_of(source_notebook)}
+    for cell in cells_of(notebook):  # the student's code only: answers and cells they added
         meta = nbgrader_metadata(cell)
-        if not _is_code(cell):
+        if not is_code(cell):
             continue
-        if is_solution(cell) or (not meta and source_notebook is not None and _source(cell).strip() not in original):
-            result.flags += scan(_source(cell), meta.get("grade_id") or "added cell")
+        if is_solution(cell) or (not meta and source_notebook is not None and cell_source(cell).strip() not in original):
+            result.flags += scan(cell_source(cell), meta.get("grade_id") or "added cell")
     if not calls:
         return result
 

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Iterable
 
 from .. import registry
-from .runtime.cells import cell_source as _source, is_grade, is_solution, nbgrader_metadata
+from .runtime.cells import cell_source as _source, is_code, is_grade, is_solution, nbgrader_metadata
 
 __all__ = ["AnswersUnavailable", "load_answers", "DEFAULT_NOTEBOOK"]
 
@@ -52,7 +52,7 @@ def _setup_imports(cells: list[dict]) -> str:
     """The import statements of the notebook's locked set-up cells (IPython magics dropped)."""
     lines = []
     for cell in cells:
-        if cell.get("cell_type") != "code" or not nbgrader_metadata(cell).get("locked") or is_grade(cell) \
+        if not is_code(cell) or not nbgrader_metadata(cell).get("locked") or is_grade(cell) \
                 or is_solution(cell):
             continue
         text = "\n".join(line for line in _source(cell).splitlines() if not line.lstrip().startswith(("%", "!")))
@@ -123,7 +123,7 @@ def load_answers(path: str | Path = DEFAULT_NOTEBOOK, ids: Iterable[str] | None 
 
     answers = []   # (cell number, source, ids it registers, is a stub)
     for number, cell in enumerate(cells):
-        if cell.get("cell_type") == "code" and is_solution(cell):
+        if is_code(cell) and is_solution(cell):
             source = _source(cell)
             answers.append((number, source, _STUDENT_ID.findall(source), bool(_STUB.search(source))))
     declared = {i for _, _, found, _ in answers for i in found}

@@ -438,3 +438,30 @@ def test_cell_roles_are_nbgrader_s_own(nbgrader_metadata):
         assert cells.is_test_cell(cell) == bool(utils.is_grade(node) and not utils.is_solution(node))
         assert cells.nbgrader_metadata(cell) == (nbgrader_metadata or {})
     assert plain["metadata"] == metadata  # the cell is only read
+
+
+def test_cells_of_a_notebook_read_alike_from_json_and_nbformat_and_survive_edited_json():
+    """One reader of a notebook's cells for every course module: a dict and nbformat's node
+    give the same cells, kinds and sources; JSON a student edited by hand (metadata that is a
+    list, a cell that is a string, cells that are not a list) reads as "no such cell" rather
+    than raising."""
+    import nbformat
+
+    from cvkit.grading.runtime import cells
+
+    plain = {"cells": [{"cell_type": "markdown", "source": ["# a", "\n"], "metadata": {}},
+                       {"cell_type": "code", "source": ["x = 1\n", "y = 2"], "metadata": {"nbgrader": {"solution": True}},
+                        "outputs": [], "execution_count": None}],
+             "metadata": {}, "nbformat": 4, "nbformat_minor": 5}
+    node = nbformat.from_dict(plain)
+    for notebook in (plain, node):
+        found = cells.cells_of(notebook)
+        assert [cells.is_code(c) for c in found] == [False, True]
+        assert [cells.cell_source(c) for c in found] == ["# a\n", "x = 1\ny = 2"]
+        assert cells.is_solution(found[1]) and not cells.is_solution(found[0])
+    edited = {"cells": ["not a cell", {"cell_type": "code", "source": "z", "metadata": ["junk"]}, 7]}
+    found = cells.cells_of(edited)
+    assert len(found) == 1 and cells.nbgrader_metadata(found[0]) == {} and not cells.is_test_cell(found[0])
+    assert cells.cell_source({"source": [1, 2]}) == "" and cells.cell_source({"source": 3}, None) is None
+    assert cells.cells_of({"cells": "abc"}) == [] and cells.cells_of(None) == [] and cells.cells_of([]) == []
+    assert not cells.is_code({"cell_type": "raw"}) and not cells.is_code("code")

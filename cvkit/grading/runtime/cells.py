@@ -16,7 +16,8 @@ from typing import Any, Mapping, TypeVar
 
 _Default = TypeVar("_Default", str, None)
 
-__all__ = ["nbgrader_metadata", "is_grade", "is_solution", "is_test_cell", "cell_source", "grade_id"]
+__all__ = ["nbgrader_metadata", "is_grade", "is_solution", "is_test_cell", "is_code", "cell_source", "grade_id",
+           "cells_of"]
 
 
 def nbgrader_metadata(cell: Any) -> dict:
@@ -30,10 +31,11 @@ def nbgrader_metadata(cell: Any) -> dict:
     Returns
     -------
     dict
-        ``cell["metadata"]["nbgrader"]``, copied; empty for a cell nbgrader does not manage.
+        ``cell["metadata"]["nbgrader"]``, copied; empty for a cell nbgrader does not manage, and
+        for metadata that is not a mapping (a student can edit the notebook's JSON).
     """
     metadata = cell.get("metadata", {}) if isinstance(cell, Mapping) else getattr(cell, "metadata", {})
-    found = (metadata or {}).get("nbgrader", {})
+    found = metadata.get("nbgrader", {}) if isinstance(metadata, Mapping) else {}
     return dict(found) if isinstance(found, Mapping) else {}
 
 
@@ -50,6 +52,19 @@ def is_solution(cell: Any) -> bool:
 def is_test_cell(cell: Any) -> bool:
     """Whether the cell is an autograded test cell: graded, and not an answer."""
     return is_grade(cell) and not is_solution(cell)
+
+
+def is_code(cell: Any) -> bool:
+    """Whether the cell is a code cell (for a dict or an nbformat node)."""
+    kind = cell.get("cell_type") if isinstance(cell, Mapping) else getattr(cell, "cell_type", None)
+    return kind == "code"
+
+
+def cells_of(notebook: Any) -> list[Any]:
+    """A notebook's cells (a dict or an nbformat node); what is not a cell is left out, and a
+    notebook without a list of cells has none (a student can edit the JSON)."""
+    cells = notebook.get("cells") if isinstance(notebook, Mapping) else getattr(notebook, "cells", None)
+    return [cell for cell in cells if isinstance(cell, Mapping)] if isinstance(cells, list) else []
 
 
 def cell_source(cell: Any, default: _Default = "") -> str | _Default:  # type: ignore[assignment]
