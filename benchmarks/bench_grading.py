@@ -8,6 +8,12 @@ one chapter at a time, with 1 worker and then with N, checks that both runs reco
 grades, and prints per chapter notebooks per minute, seconds per notebook, the CPU seconds all
 processes spent per notebook (where a ``cpuacct`` control group can be made: root, cgroup v1),
 and the speed-up.
+
+``--where`` instead says where a notebook's CPU goes (needs the ``cpuacct`` group): each
+submission is graded in this process by the workers' own function, the student's notebook run
+(sandbox, driver, kernel and the notebook's cells) and the trusted checks timed apart, an
+empty notebook's sandboxed run for the fixed part of a run, then the whole ``Course.grade``
+with one worker for the total.
 """
 from __future__ import annotations
 
@@ -129,13 +135,77 @@ def sandbox_cost(repeats: int = 10) -> float:
     return timings[True] - timings[False]
 
 
+def where_the_time_goes(chapters: list[str], count: int) -> None:
+    """Print, per chapter and for all, the CPU seconds per notebook of the student's notebook
+    run, of the trusted checks, and of the whole grading (1 worker), and their shares."""
+    from cvkit.course import jobs, trusted
+    from cvkit.sandbox import notebook_run
+
+    cpu = TreeCPU()
+    if cpu.seconds() is None:
+        print("not measured: needs root and cgroup v1's cpuacct")
+        return
+    spent: dict[str, float] = {}
+
+    def timed(module, name: str, key: str) -> None:
+        function = getattr(module, name)
+
+        def measured(*args, **kwargs):
+            start = cpu.seconds()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                spent[key] = spent.get(key, 0.0) + cpu.seconds() - start
+        setattr(module, name, measured)
+
+    empty = {"cells": [{"cell_type": "code", "execution_count": None, "metadata": {}, "outputs": [], "source": ""}],
+             "metadata": {"kernelspec": {"name": "python3", "display_name": "Python 3", "language": "python"}},
+             "nbformat": 4, "nbformat_minor": 5}
+    start = cpu.seconds()
+    for _ in range(5):
+        notebook_run.execute_in_sandbox({"empty.ipynb": json.dumps(empty).encode()}, "empty.ipynb")
+    fixed = (cpu.seconds() - start) / 5
+    timed(jobs, "_execute", "run")
+    timed(trusted, "apply_trusted_checks", "checks")
+    totals = {"run": 0.0, "checks": 0.0, "whole": 0.0}
+    print(f"an empty notebook's sandboxed run (sandbox, driver, kernel start): {fixed:.2f} CPU s")
+    print(f"{'chapter':<20} {'notebook run':>13} {'trusted checks':>15} {'whole grading':>14} {'run share':>10} "
+          f"{'checks share':>13}   (CPU s per notebook)")
+    with tempfile.TemporaryDirectory(prefix="cvkit-bench-") as folder, contextlib.closing(cpu):
+        for chapter in chapters:
+            spent.clear()
+            course = Course(Path(folder) / chapter)
+            (course.root / ".grading_salt").write_text("benchmark")
+            course.build([chapter])
+            for student, notebooks in submissions(course, chapter, count).items():
+                course.submit(student, chapter, notebooks)
+            for student, assignment in course.submissions():
+                jobs.grade_submission(*jobs.payload(course, student, assignment))
+            start = cpu.seconds()
+            course.grade([chapter], workers=1)
+            whole = cpu.seconds() - start
+            run, checks = spent.get("run", 0.0), spent.get("checks", 0.0)
+            for key, value in (("run", run), ("checks", checks), ("whole", whole)):
+                totals[key] += value
+            print(f"{chapter:<20} {run / count:>13.2f} {checks / count:>15.2f} {whole / count:>14.2f} "
+                  f"{run / whole:>10.0%} {checks / whole:>13.0%}")
+    n = count * len(chapters)
+    print(f"{'all':<20} {totals['run'] / n:>13.2f} {totals['checks'] / n:>15.2f} {totals['whole'] / n:>14.2f} "
+          f"{totals['run'] / totals['whole']:>10.0%} {totals['checks'] / totals['whole']:>13.0%}")
+    print(f"the fixed part of a notebook's run: {fixed * n / totals['whole']:.0%} of the whole grading")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--submissions", type=int, default=8)
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 2)
     parser.add_argument("--chapters", default="ch03_filtering,ch04_edges,ch07_camera_model")
     parser.add_argument("--sandbox-cost-only", action="store_true", help="only measure the sandbox's cost")
+    parser.add_argument("--where", action="store_true", help="where a notebook's CPU goes (see above)")
     args = parser.parse_args()
+    if args.where:
+        where_the_time_goes([c for c in args.chapters.split(",") if (ROOT / "lectures" / c).is_dir()], args.submissions)
+        return 0
     cost = sandbox_cost()
     print(f"sandbox cost: {cost:.3f} s per sandboxed run, {2 * cost:.3f} s per notebook (goal <= 0.3 s)")
     if args.sandbox_cost_only:
