@@ -18,7 +18,7 @@ import os
 import re
 import shutil
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Sequence
 
 from .state import COURSE_CONFIG, is_course_folder, project_root
 
@@ -130,8 +130,3 @@ def new_course(folder: str | os.PathLike[str], chapters: Sequence[str] = (), cou
         plan_file.write_text(plan_toml(plan, course_id))
         written.append(plan_file)
     return written
-
-
-def chapters_of(folder: str | os.PathLike[str]) -> Iterable[str]:
-    """The chapters in a course folder's ``source/``."""
-    return sorted(p.name for p in (Path(folder) / "source").iterdir() if p.is_dir())

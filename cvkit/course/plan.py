@@ -134,11 +134,6 @@ class Plan:
         """The extension of ``student`` for ``assignment`` (None when they have none)."""
         return next((e for e in self.extensions if e.student == student and e.assignment == assignment), None)
 
-    def due_for(self, student: str, assignment: str) -> _dt.datetime | None:
-        """``student``'s due date for ``assignment`` (naive UTC): their extension's, else the plan's."""
-        extended = self.extension(student, assignment)
-        return extended.until if extended is not None else self.due(assignment)
-
     def ids(self) -> list[str]:
         """The assignment ids, in the plan's order."""
         return [a.id for a in self.assignments]

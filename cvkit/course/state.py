@@ -281,10 +281,6 @@ class CourseState:
         chapters = [p.name for p in sorted(self.source_dir.glob("ch*_*")) if p.is_dir()]
         return read_plan(self.plan_path, chapters)
 
-    def missing_chapters(self) -> list[str]:
-        """Chapters the plan lists that have no folder in :attr:`source_dir`."""
-        return [a for a in self.plan().ids() if not (self.source_dir / a).is_dir()]
-
     def assignments(self) -> list[str]:
         """Assignment ids of the plan that have a source folder in ``lectures/``."""
         return [a for a in self.plan().ids() if (self.source_dir / a).is_dir()]

@@ -318,7 +318,3 @@ def notes(spec: Check, cases: list[Case], outputs: list[tuple[Any, Any]], run: C
         if len(found) >= 3:
             break
     return found
-
-
-def copy_case(case: Case) -> Case:
-    return Case(copy.deepcopy(case.args), copy.deepcopy(case.kwargs), case.label)
