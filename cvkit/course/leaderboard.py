@@ -65,7 +65,8 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping, NamedTuple
 from .._text import name_problem, printable, skeleton
 from ..grading.report import MIME_TYPE
 from .files import whole_file, write_whole
-from .notebook import cell_outputs, cell_source, exercise_name
+from ..grading.runtime.cells import cell_source, cells_of, is_code
+from .notebook import cell_outputs, exercise_name
 from .plan import plan_data, switch_table
 
 if TYPE_CHECKING:
@@ -162,17 +163,12 @@ def read_opt_in(folder: Path) -> OptIn | None:
     found: list[OptIn] = []
     for path in sorted(folder.glob("*.ipynb")):
         try:
-            cells = json.loads(path.read_text(encoding="utf-8")).get("cells", [])
-        except (OSError, ValueError, AttributeError):
+            notebook = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
             continue
-        for cell in cells if isinstance(cells, list) else []:
-            if not isinstance(cell, dict) or cell.get("cell_type") != "code":
-                continue
-            if isinstance(cell.get("source"), (str, list)):
-                try:
-                    found += opt_ins_in(cell_source(cell))
-                except TypeError:  # a source list that is not all strings
-                    continue
+        for cell in cells_of(notebook):  # hand-edited JSON: what is not a cell is left out
+            if is_code(cell):
+                found += opt_ins_in(cell_source(cell))  # a source that is not text reads as empty
     if not found:
         return None
     if len(set(found)) > 1:

@@ -91,6 +91,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any, Iterable
 
+from ..grading.runtime.cells import is_code, is_test_cell, nbgrader_metadata
 from .files import whole_file
 
 __all__ = [
@@ -362,14 +363,11 @@ def _trusted_test_cell(cell, notebook_trusted: bool) -> bool:
     """A test cell whose outputs cvkit's trusted grader replaced: a code cell with nbgrader
     ``grade`` and not ``solution`` and ``check(...)`` calls in its (instructor's) source, in a
     notebook that went through :class:`~cvkit.course.nbgrader_plugins.TrustedChecks`."""
-    if not notebook_trusted or cell.get("cell_type") != "code":
-        return False
-    meta = cell.get("metadata", {}).get("nbgrader", {}) or {}
-    if not (meta.get("grade") and not meta.get("solution")):
+    if not notebook_trusted or not is_code(cell) or not is_test_cell(cell):
         return False
     from .trusted import check_calls
 
-    return bool(check_calls(_text(cell.get("source", "")), str(meta.get("grade_id", ""))))
+    return bool(check_calls(_text(cell.get("source", "")), str(nbgrader_metadata(cell).get("grade_id", ""))))
 
 
 def _image_metadata(metadata: dict, mime: str) -> dict:

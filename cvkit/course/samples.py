@@ -11,8 +11,8 @@ import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..grading.runtime.cells import cell_source, grade_id
 from . import received
-from .notebook import cell_source, grade_id
 
 if TYPE_CHECKING:
     from .state import CourseState

@@ -397,6 +397,21 @@ def test_two_different_settings_in_one_hand_in_are_no(tmp_path):
     assert lb.read_opt_in(tmp_path) is None
 
 
+@pytest.mark.parametrize("notebook", [
+    [1, 2], {"cells": "LEADERBOARD"}, {"cells": ["LEADERBOARD = {'join': True}", 3]},
+    {"cells": [{"cell_type": "code", "source": ["LEADERBOARD = ", 5], "metadata": {}}]},
+    {"cells": [{"cell_type": "markdown", "source": 'LEADERBOARD = {"join": True, "pseudonym": "Owl"}'}]},
+], ids=["a list", "cells a string", "cells not dicts", "source not all text", "markdown"])
+def test_a_hand_edited_notebook_is_no_opt_in_and_no_error(tmp_path, notebook):
+    """JSON a student edited by hand is read as far as it is a notebook: what is not a code
+    cell with text for its source sets nothing, and nothing raises."""
+    (tmp_path / "a.ipynb").write_text(json.dumps(notebook))
+    assert lb.read_opt_in(tmp_path) is None
+    cells = [_cell('LEADERBOARD = {"join": True, "pseudonym": "Owl"}')]
+    (tmp_path / "b.ipynb").write_text(json.dumps(_notebook(cells)))
+    assert lb.read_opt_in(tmp_path) == lb.OptIn(True, "Owl")
+
+
 # ------------------------------------------------------------------------------ the chapters
 def _measured_ids(notebook: dict) -> set[str]:
     found = set()
