@@ -309,10 +309,6 @@ def reference_label(name: str) -> str:
 
 
 # ------------------------------------------------------------------------------- notebooks
-def _source(cell: Mapping) -> str | None:
-    return cell_source(cell, None)
-
-
 def _answer_cell(cell: Mapping) -> bool:
     return is_code(cell) and nbgrader_metadata(cell).get("solution") is True
 
@@ -335,7 +331,7 @@ def answer_sources(notebook: Mapping) -> dict[str, str]:
     answers: dict[str, str] = {}
     for cell in cells_of(notebook):
         grade_id = nbgrader_metadata(cell).get("grade_id")
-        source = _source(cell)
+        source = cell_source(cell, None)
         if _answer_cell(cell) and isinstance(grade_id, str) and source is not None:
             answers.setdefault(grade_id, source)
     return answers
@@ -353,7 +349,7 @@ def _exercise_calls(notebook: Mapping) -> dict[str, list[Any]]:
         if _answer_cell(cell):
             current = meta.get("grade_id") if isinstance(meta.get("grade_id"), str) else None
         elif current is not None and is_code(cell) and meta.get("grade"):
-            calls = check_calls(_source(cell) or "", str(meta.get("grade_id", "")))
+            calls = check_calls(cell_source(cell), str(meta.get("grade_id", "")))
             if calls:
                 found.setdefault(current, []).extend(calls)
     return found
@@ -519,7 +515,7 @@ def _instructor_code(*notebooks: Mapping | None) -> set[str]:
     found = set()
     for notebook in notebooks:
         for cell in cells_of(notebook):
-            source = _source(cell)
+            source = cell_source(cell, None)
             if is_code(cell) and not _answer_cell(cell) and source is not None:
                 found.add(source.strip())
     return found
@@ -578,7 +574,7 @@ def _student_code(notebook: Mapping, release: _Release) -> dict[str, Answer]:
     answers: dict[str, tuple[int, str]] = {}  # grade_id -> (cell position, source)
     added: list[tuple[int, str]] = []
     for position, cell in enumerate(cells_of(notebook)):
-        source = _source(cell)
+        source = cell_source(cell, None)
         if not is_code(cell) or source is None or is_test_cell(cell):
             continue
         grade_id = nbgrader_metadata(cell).get("grade_id")
