@@ -64,8 +64,8 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping, NamedTuple
 
 from .._text import name_problem, printable, skeleton
 from ..grading.report import MIME_TYPE
-from .files import whole_file, write_whole
 from ..grading.runtime.cells import cell_source, cells_of, is_code
+from .files import whole_file, write_whole
 from .notebook import cell_outputs, exercise_name
 from .plan import plan_data, switch_table
 
