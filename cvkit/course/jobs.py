@@ -95,16 +95,16 @@ def environment_problems(executed: dict[str, Any], release: dict[str, Any] | Non
     list of str
         One ``"<exception>: <first line of its message>"`` per cause, in the order met.
     """
-    from ..grading.runtime.cells import cell_source as text, is_code, is_solution
+    from ..grading.runtime.cells import cell_source, is_code, is_solution, nbgrader_metadata
 
-    released = {text(c) for c in (release or {}).get("cells", []) if is_code(c)}
+    released = {cell_source(c) for c in (release or {}).get("cells", []) if is_code(c)}
     folders: list[Path] | None = None
     causes: list[str] = []
     for cell in executed.get("cells", []):
         if not is_code(cell) or is_solution(cell):
             continue
-        as_released = (text(cell) in released) if release is not None \
-            else bool(cell.get("metadata", {}).get("nbgrader", {}).get("locked"))
+        as_released = (cell_source(cell) in released) if release is not None \
+            else bool(nbgrader_metadata(cell).get("locked"))
         if not as_released:
             continue
         for output in cell.get("outputs", []):

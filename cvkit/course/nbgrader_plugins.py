@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
 
 from nbgrader.plugins import LateSubmissionPlugin
 from nbgrader.preprocessors import NbGraderPreprocessor, SaveAutoGrades
@@ -118,10 +117,10 @@ class _OneTransaction(NbGraderPreprocessor):
         try:
             nb, resources = super().preprocess(nb, resources)
         except BaseException:
-            del session.commit
             session.rollback()
             raise
-        del session.commit
+        finally:
+            del session.commit
         session.commit()
         return nb, resources
 

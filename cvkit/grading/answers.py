@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Iterable
 
 from .. import registry
-from .runtime.cells import cell_source as _source, is_code, is_grade, is_solution, nbgrader_metadata
+from .runtime.cells import cell_source, is_code, is_grade, is_solution, nbgrader_metadata
 
 __all__ = ["AnswersUnavailable", "load_answers", "DEFAULT_NOTEBOOK"]
 
@@ -55,7 +55,7 @@ def _setup_imports(cells: list[dict]) -> str:
         if not is_code(cell) or not nbgrader_metadata(cell).get("locked") or is_grade(cell) \
                 or is_solution(cell):
             continue
-        text = "\n".join(line for line in _source(cell).splitlines() if not line.lstrip().startswith(("%", "!")))
+        text = "\n".join(line for line in cell_source(cell).splitlines() if not line.lstrip().startswith(("%", "!")))
         try:
             tree = ast.parse(text)
         except SyntaxError:
@@ -124,7 +124,7 @@ def load_answers(path: str | Path = DEFAULT_NOTEBOOK, ids: Iterable[str] | None 
     answers = []   # (cell number, source, ids it registers, is a stub)
     for number, cell in enumerate(cells):
         if is_code(cell) and is_solution(cell):
-            source = _source(cell)
+            source = cell_source(cell)
             answers.append((number, source, _STUDENT_ID.findall(source), bool(_STUB.search(source))))
     declared = {i for _, _, found, _ in answers for i in found}
     stubs = sorted({i for _, _, found, stub in answers if stub for i in found})
