@@ -205,7 +205,7 @@ def dynamic_range_db(e_max: ArrayLike, e_min: ArrayLike) -> Values:
             ratio = high / low
     except ValueError:
         raise ValueError(f"e_max and e_min must broadcast together, got shapes {high.shape} and {low.shape}") from None
-    with np.errstate(over="ignore", under="ignore"):
+    with np.errstate(over="ignore", under="ignore", divide="ignore"):
         decibels = 20.0 * np.log10(ratio)
         # a ratio beyond the float range (1e300 / 1e-300): the difference of the logarithms
         decibels = np.where(np.isfinite(ratio) & (ratio > 0), decibels, 20.0 * (np.log10(high) - np.log10(low)))

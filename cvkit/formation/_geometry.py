@@ -106,7 +106,7 @@ def depth_from_disparity(disparity: ArrayLike, baseline: float, focal: float) ->
     d = as_values(disparity, "disparity", allow_nan=True, allow_inf=True)
     b = check_real(baseline, "baseline", positive=True)
     f = check_real(focal, "focal", positive=True)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a tiny d: z = inf, as it should
         z = (b * f) / d
     z = np.where(d == 0, np.inf, z)
     z = np.where(d < 0, np.nan, z)

@@ -220,6 +220,15 @@ def test_dynamic_range():
     assert formation.dynamic_range_db(1.0, 10.0) == pytest.approx(-20.0)
 
 
+@pytest.mark.filterwarnings("error")
+def test_ratios_beyond_the_float_range_give_their_value_without_a_warning():
+    """Valid inputs whose ratio over- or underflows: the exact value, and no RuntimeWarning
+    (a caller running with warnings as errors must not see one)."""
+    assert formation.dynamic_range_db(1e-300, 1e300) == pytest.approx(-12000.0)
+    assert formation.dynamic_range_db(1e300, 1e-300) == pytest.approx(12000.0)
+    np.testing.assert_array_equal(formation.depth_from_disparity(np.array([1e-320, 2.0]), 1.0, 1.0), [np.inf, 0.5])
+
+
 # --------------------------------------------------------------------------------------------
 # Bayer
 # --------------------------------------------------------------------------------------------
