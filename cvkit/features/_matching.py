@@ -10,6 +10,8 @@ stops when its budget of distance computations is spent.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -36,6 +38,13 @@ def nearest_two(desc1: np.ndarray, desc2: np.ndarray) -> tuple[np.ndarray, np.nd
     Candidates come from the BLAS expansion; the few within its round-off of the best two are
     re-measured as ``sqrt(Σ (a − b)²)``, so the result is that of the direct formula.
     """
+    # Values whose squares over- or underflow (beyond about 1e±154): measure in units of a
+    # power of two near the largest magnitude (exact), so that inf − inf never makes a NaN.
+    peak = max(np.abs(desc1).max(initial=0.0), np.abs(desc2).max(initial=0.0))
+    unit = 1.0
+    if peak > 2.0 ** 400 or 0.0 < peak < 2.0 ** -400:
+        unit = math.ldexp(1.0, math.frexp(peak)[1])
+        desc1, desc2 = desc1 / unit, desc2 / unit
     n1 = desc1.shape[0]
     j1 = np.empty(n1, dtype=np.int64)
     d1 = np.empty(n1)
@@ -57,6 +66,10 @@ def nearest_two(desc1: np.ndarray, desc2: np.ndarray) -> tuple[np.ndarray, np.nd
         j1[start:start + len(a)] = j[first]
         d1[start:start + len(a)] = exact[first]
         d2[start:start + len(a)] = exact[first + 1]
+    if unit != 1.0:
+        with np.errstate(over="ignore"):  # a distance beyond the float range is inf
+            d1 *= unit
+            d2 *= unit
     return j1, d1, d2
 
 

@@ -400,6 +400,21 @@ def test_match_ratio_boundary_and_duplicates():
     assert features.match_ratio(a, b, 0.79).shape == (0, 2)
 
 
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("scale", [1e-200, 1e-160, 1e160, 1e250])
+def test_match_ratio_at_magnitudes_whose_squares_leave_the_float_range(scale):
+    """The matches depend only on ratios of distances: descriptors scaled by 1e±160 or more
+    (their squares over- or underflow) match as at scale 1, with no error and no warning."""
+    rng = np.random.default_rng(7)
+    d2 = rng.random((40, 8))
+    d1 = np.vstack([d2[:20] + rng.normal(0, 0.05, (20, 8)), rng.random((15, 8))])
+    expected = features.match_ratio(d1, d2, 0.9)
+    assert len(expected) > 10
+    assert np.array_equal(features.match_ratio(d1 * scale, d2 * scale, 0.9), expected)
+    big = np.array([[1e200, 0.0]]), np.array([[1e200, 1.0], [-1e200, 0.0]])  # d1 = 1, d2 = 2e200
+    assert features.match_ratio(*big).tolist() == [[0, 0]]
+
+
 def knn_brute(points, queries, k):
     d = np.sqrt(((queries[:, None, :] - points[None]) ** 2).sum(-1))
     idx = np.argsort(d, axis=1, kind="stable")[:, :k]
