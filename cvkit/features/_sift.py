@@ -241,9 +241,8 @@ def descriptors_batch(dx: np.ndarray, dy: np.ndarray, x: ArrayLike, y: ArrayLike
     out = np.zeros((count, d * d * n_o))
     if count == 0:
         return out
-    limit = int(math.ceil(math.hypot(*dx.shape)))
     cx, cy = _round(x), _round(y)
-    radii = _window_radii(cx, cy, np.minimum(_round(DESCRIPTOR_RADIUS_FACTOR * sigma), limit), dx.shape)
+    radii = _window_radii(cx, cy, _round(DESCRIPTOR_RADIUS_FACTOR * sigma), dx.shape)
     cos_t, sin_t = np.cos(angle), np.sin(angle)
     big = int(radii.max())
     size = (d + 2) * (d + 2) * (n_o + 2)  # room for the bins −1 and d (and o + 1) while voting
@@ -341,7 +340,7 @@ def sift_descriptor(gaussian_image: ArrayLike, x: float, y: float, sigma: float,
     ``u = (ox cos a + oy sin a) / 3σ`` and ``v = (−ox sin a + oy cos a) / 3σ`` in cells of 3σ
     pixels, and bin coordinates ``col = u + 1.5``, ``row = v + 1.5`` (cell centres at
     0, 1, 2, 3). Samples are the pixels of the square of radius
-    ``R = round(3σ·√2·5/2)`` (at most the image diagonal) about ``(round x, round y)`` with
+    ``R = round(3σ·√2·5/2)`` about ``(round x, round y)`` with
     −1 < row, col < 4 whose central differences exist. Each votes ``m·exp(−(u² + v²)/8)``
     (a Gaussian of σ_w = 2 cells), m and θ as in :func:`orientations`, **trilinearly**: split
     between the two nearest cell rows, the two nearest cell columns (bins outside 0..3 are
@@ -368,7 +367,7 @@ def sift_descriptor(gaussian_image: ArrayLike, x: float, y: float, sigma: float,
     y = check_real(y, "y")
     sigma = check_real(sigma, "sigma", positive=True)
     angle = check_real(angle, "angle")
-    _check_keypoint(x, y, sigma, min(DESCRIPTOR_RADIUS_FACTOR * sigma, math.ceil(math.hypot(*img.shape))), img.shape)
+    _check_keypoint(x, y, sigma, DESCRIPTOR_RADIUS_FACTOR * sigma, img.shape)
     dx, dy = _differences(img)
     return descriptors_batch(dx, dy, [x], [y], [sigma], [angle])[0]
 

@@ -240,7 +240,7 @@ def sift_descriptor(gaussian_image, x, y, sigma, angle):
     L = np.asarray(gaussian_image, dtype=np.float64)
     h, w = L.shape
     hist = np.zeros((4, 4, 8))
-    radius = min(round(3 * sigma * math.sqrt(2) * 2.5), int(math.ceil(math.hypot(h, w))))
+    radius = round(3 * sigma * math.sqrt(2) * 2.5)
     cx, cy = round(x), round(y)
     cos_a, sin_a = math.cos(angle), math.sin(angle)
     for r in range(max(1, cy - radius), min(h - 2, cy + radius) + 1):

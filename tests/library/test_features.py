@@ -339,6 +339,17 @@ def test_rounding_takes_halves_to_even(x, y, sigma):
     assert features.orientations((xx + yy) * 0.1, 10, 10, 1.2) == pytest.approx([math.radians(40)])
 
 
+@pytest.mark.parametrize(("x", "y", "sigma"), [(14.0, 3.0, 2.0), (-6.0, 4.5, 1.5), (3.0, 20.0, 2.5)])
+def test_descriptor_of_a_keypoint_outside_the_image_takes_every_pixel_of_its_window(x, y, sigma):
+    """The window is the square of radius round(3σ·√2·5/2) about the keypoint, however far
+    from the image it lies: a keypoint 6 columns right of an 8×8 image still reads its
+    column 1 (13 pixels away, within the radius 21 of σ = 2)."""
+    img = np.random.default_rng(0).random((8, 8))
+    got = features.sift_descriptor(img, x, y, sigma, 0.0)
+    np.testing.assert_allclose(got, alt.sift_descriptor(img, x, y, sigma, 0.0), rtol=0, atol=1e-12)
+    assert np.linalg.norm(got) == pytest.approx(1.0)
+
+
 def test_orientations_stay_below_two_pi():
     # the peak in bin 0 with a tiny negative parabola offset: np.mod(-1e-17, 2π) rounds to 2π
     yy, xx = np.mgrid[0:21, 0:21].astype(float)
