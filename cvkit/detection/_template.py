@@ -119,7 +119,9 @@ def match_template(image: ArrayLike, template: ArrayLike, measure: Measure = "zn
     -----
     §6.0.2. With ``I`` the window and ``n = h·w``:
 
-    - ``ssd``: ``Σ I² − 2 Σ I·T + Σ T²`` (clipped at 0 against rounding);
+    - ``ssd``: ``Σ I² − 2 Σ I·T + Σ T²`` (clipped at 0 against rounding), after subtracting
+      the template's rounded mean from image and template (the same value: SSD unchanged, its
+      sums small for an image far from 0);
     - ``ncc``: ``Σ I·T / sqrt(Σ I² · Σ T²)``; invariant to a gain ``I → a·I`` (a > 0);
     - ``zncc``: ``Σ (I − μ_I)(T − μ_T) / sqrt(Σ (I − μ_I)² · Σ (T − μ_T)²)``; invariant to
       gain and offset ``I → a·I + b`` (a > 0).
@@ -169,6 +171,12 @@ def match_template(image: ArrayLike, template: ArrayLike, measure: Measure = "zn
                 out += scratch
         return out
     if measure == "ssd":
+        # Σ (I − T)² does not change when I and T lose the same offset c: taking the
+        # template's mean, rounded (integer images stay integer, so exact), keeps the three
+        # sums small for an image far from 0 (1e6 + small texture loses nothing to rounding)
+        offset = float(np.round(tpl.mean()))
+        if offset != 0.0:
+            img, tpl = img - offset, tpl - offset
         cross = _correlate_valid(img, tpl)
         out = _window_sums(img * img, h, w) - 2.0 * cross + float(np.sum(tpl * tpl))
         return np.maximum(out, 0.0)

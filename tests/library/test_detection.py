@@ -100,6 +100,19 @@ def test_sad_and_ssd_equal_brute_force():
     assert np.allclose(detection.match_template(img, tpl, "ssd"), ssd, rtol=1e-12, atol=1e-6)
 
 
+@pytest.mark.parametrize("offset", [1e4, 1e6, -3e7])
+def test_ssd_of_an_image_far_from_zero_keeps_its_precision(offset):
+    """SSD does not see an offset common to image and template; a faint texture on a large
+    offset is scored as on no offset (the sums do not cancel to rounding noise)."""
+    rng = np.random.default_rng(0)
+    texture = 0.01 * rng.random((30, 40))
+    tpl = texture[10:20, 5:15]
+    direct = np.array([[((texture[i:i + 10, j:j + 10] - tpl) ** 2).sum() for j in range(31)] for i in range(21)])
+    got = detection.match_template(texture + offset, tpl + offset, "ssd")
+    np.testing.assert_allclose(got, direct, rtol=1e-6, atol=1e-12)
+    assert detection.best_match(got, "ssd") == (5, 10)
+
+
 def test_invariances_of_the_measures():
     """What the notes claim: SSD/SAD change under gain and offset, NCC survives a gain only,
     ZNCC survives gain and offset."""
