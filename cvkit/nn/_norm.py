@@ -211,8 +211,8 @@ def dropout_forward(x: ArrayLike, p_keep: float, training: bool,
     out : float64 ndarray
         ``x · mask / p_keep`` in training, a copy of ``x`` in evaluation.
     cache : dict
-        ``{"x", "p_keep", "training", "mask"}``: ``mask`` is the boolean array of kept units
-        (all True in evaluation).
+        ``{"x", "p_keep", "training", "rng", "mask"}``: the arguments (``rng`` as given) and
+        ``mask``, the boolean array of kept units (all True in evaluation).
 
     Notes
     -----
@@ -238,7 +238,7 @@ def dropout_forward(x: ArrayLike, p_keep: float, training: bool,
     else:
         mask = np.ones(x.shape, dtype=bool)
         out = x.copy()
-    return out, {"x": x, "p_keep": p, "training": training, "mask": mask}
+    return out, {"x": x, "p_keep": p, "training": training, "rng": rng, "mask": mask}
 
 
 @algorithm("nn.dropout_backward", section="12.3.6", check="cvkit.nn.checks:dropout_backward")

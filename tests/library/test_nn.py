@@ -336,6 +336,10 @@ def test_dropout_statistics_and_gradient():
     same, eval_cache = nn.dropout_forward(x, 0.7, False, rng=3)
     assert np.array_equal(same, x) and eval_cache["mask"].all()
     assert np.array_equal(nn.dropout_backward(dout, eval_cache), dout)
+    # the cache holds the forward's arguments under their own names (CATALOG), plus the mask
+    assert set(cache) == {"x", "p_keep", "training", "rng", "mask"} and cache["rng"] == 3
+    generator = np.random.default_rng(5)
+    assert nn.dropout_forward(x, 0.5, True, generator)[1]["rng"] is generator
 
 
 # --------------------------------------------------------------------------------------------
