@@ -59,6 +59,15 @@ def _check_params(x: np.ndarray, params: object, x_name: str = "x") -> tuple[dic
             f"without a projection the block must keep the channels: params['w1'] has {f} filters for "
             f"{c} input channels (give w_proj and its batch norm)"
         )
+    # each batch norm's entries, named as the block's caller knows them (params['gamma2'])
+    for suffix in ("1", "2") + (("_proj",) if projection else ()):
+        for key in _BN:
+            name = f"{key}{suffix}"
+            if p[name].shape != (f,):
+                raise ValueError(f"params[{name!r}] must have one entry per output channel ({f},), "
+                                 f"got shape {p[name].shape}")
+        if np.any(p[f"running_var{suffix}"] < 0):
+            raise ValueError(f"params['running_var{suffix}'] must be >= 0 (a variance)")
     # the convolutions' largest arrays (their windows are 9 times the input) must fit in memory
     stride = (2, 2) if projection else (1, 1)
     ho, wo = check_conv_cost(x.shape, p["w1"].shape, stride, (1, 1), (x_name, "params['w1']", x_name))
@@ -153,6 +162,11 @@ def residual_block_forward(x: ArrayLike, params: dict[str, ArrayLike], training:
     training = check_bool(training, "training")
     momentum = check_real(momentum, "momentum", nonnegative=True)
     eps = check_real(eps, "eps", positive=True)
+    stride = 2 if projection else 1
+    per_channel = x.shape[0] * ((x.shape[2] - 1) // stride + 1) * ((x.shape[3] - 1) // stride + 1)
+    if training and per_channel < 2:
+        raise ValueError(f"x must give its batch norms at least 2 values per channel in training: the "
+                         f"{'stride-2 ' if projection else ''}convolutions leave N·H'·W' = {per_channel}")
     out, sub = _forward(x, p, projection, training, momentum, eps)
     cache = {"x": x, "params": p, "training": training, "momentum": momentum, "eps": eps}
     for name, suffix in (("bn1", "1"), ("bn2", "2")) + ((("bn_proj", "_proj"),) if projection else ()):

@@ -606,3 +606,28 @@ def test_backward_rejects_a_wrong_cache_or_gradient():
         nn.relu_backward(np.zeros(3), (np.zeros(3),))
     with pytest.raises(ValueError, match="params"):
         nn.residual_block_forward(np.zeros((1, 2, 3, 3)), {"w1": np.zeros((2, 2, 3, 3))})
+
+
+@pytest.mark.parametrize(("entry", "value", "named"), [
+    ("gamma2", np.ones(3), r"params\['gamma2'\] must have one entry per output channel \(2,\)"),
+    ("beta_proj", np.ones((2, 1)), r"params\['beta_proj'\]"),
+    ("running_var1", -np.ones(2), r"params\['running_var1'\] must be >= 0"),
+    ("running_mean_proj", np.ones(4), r"params\['running_mean_proj'\]"),
+])
+def test_residual_block_names_the_params_entry_at_fault(entry, value, named):
+    """A bad batch-norm entry is reported under the name the block's caller gave it, not under
+    the name of the inner layer's argument (gamma, running_var)."""
+    params = _res_params(_rng(40), 2, 2, projection=True)
+    params[entry] = value
+    with pytest.raises(ValueError, match=named):
+        nn.residual_block_forward(_rng(41).normal(size=(2, 2, 4, 4)), params)
+
+
+def test_residual_block_in_training_needs_two_values_per_channel_after_its_stride():
+    """x of 1×2×2×2 through the stride-2 block leaves one value per channel: batch norm cannot
+    train on it, and the message says so for the block's own x; evaluation runs."""
+    params = _res_params(_rng(42), 2, 2, projection=True)
+    x = _rng(43).normal(size=(1, 2, 2, 2))
+    with pytest.raises(ValueError, match=r"x must give .* at least 2 values per channel .* N·H'·W' = 1"):
+        nn.residual_block_forward(x, params, training=True)
+    assert nn.residual_block_forward(x, params, training=False)[0].shape == (1, 2, 1, 1)
