@@ -194,6 +194,9 @@ def as_labels(y, name: str, n: int | None = None, classes: int | None = None, *,
         raise ValueError(f"{name} must have one label per row ({n}), got {arr.shape[0]}")
     if arr.size and arr.min() < 0:
         raise ValueError(f"{name} must contain labels >= 0, got {int(arr.min())}")
+    if arr.size and (arr.max() >= 2.0 ** 63 if arr.dtype.kind == "f" else
+                     arr.dtype.kind == "u" and arr.max() > np.iinfo(np.int64).max):  # beyond int64
+        raise ValueError(f"{name} must contain labels below 2**63, got {int(arr.max())}")
     if classes is not None and arr.size and arr.max() >= classes:
         raise ValueError(f"{name} must contain labels < {classes} (the number of classes), got {int(arr.max())}")
     return arr.astype(np.int64)

@@ -427,6 +427,18 @@ def test_bad_labels_are_refused(value, kind):
                 learn.cross_entropy(s, y)
 
 
+def test_labels_beyond_int64_are_refused_not_wrapped_around():
+    """uint64 labels of 2**63 and more would turn negative as int64: refused, naming the
+    argument (labels up to 2**63 − 1 still work)."""
+    x = np.array([[0.0], [1.0]])
+    with pytest.raises(ValueError, match="y_train must contain labels below 2\\*\\*63"):
+        learn.knn_predict(x, np.array([2**63 + 5, 1], dtype=np.uint64), np.array([[0.1]]))
+    assert learn.knn_predict(x, np.array([2**63 - 1, 1], dtype=np.uint64), np.array([[0.1]])).tolist() == [2**63 - 1]
+    from cvkit.train import smooth_labels
+    with pytest.raises(ValueError, match="below 2\\*\\*63"):
+        smooth_labels(np.array([2.0**63, 0.0]), 3, 0.1)
+
+
 @SETTINGS
 @given(finite, st.integers(-2, 0))
 def test_bad_hyperparameters_are_refused(lr, count):
