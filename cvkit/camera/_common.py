@@ -12,8 +12,10 @@ from numpy.typing import ArrayLike
 
 from .._validation import as_float_array
 
-#: how far from orthonormal (max |RᵀR − I|) a rotation matrix may be
-ROTATION_TOLERANCE = 1e-6
+#: how far from orthonormal (max |RᵀR − I|) a rotation matrix may be: a rotation typed with
+#: three decimals (cos 30° as 0.866, cos 45° as 0.707: 4e-5, 2e-4) passes, and is used as
+#: given; any matrix that is not a rotation (a scale, a shear, A in R's place) is far beyond
+ROTATION_TOLERANCE = 1e-3
 
 
 def as_points(points: ArrayLike, name: str, dims: int | Sequence[int] | None = None, *, min_dim: int = 1,

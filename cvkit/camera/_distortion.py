@@ -298,7 +298,7 @@ def project_full(points_world: ArrayLike, A: ArrayLike, R: ArrayLike, t: ArrayLi
         Intrinsic matrix (upper triangular, non-zero diagonal; ``A[2, 2]`` is normally 1 and
         is divided out otherwise).
     R : (3, 3) array_like
-        World → camera rotation (orthonormal within 1e-6, det +1).
+        World → camera rotation (orthonormal within 1e-3, det +1; used as given).
     t : (3,) or (3, 1) array_like
         World → camera translation.
     k : sequence of 1 to 3 floats

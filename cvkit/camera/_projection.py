@@ -148,7 +148,7 @@ def extrinsic_matrix(R: ArrayLike, t: ArrayLike) -> np.ndarray:
     Parameters
     ----------
     R : (3, 3) array_like
-        Rotation from the world to the camera frame (orthonormal within 1e-6, det +1).
+        Rotation from the world to the camera frame (orthonormal within 1e-3, det +1; used as given).
     t : (3,) or (3, 1) array_like
         Translation: the world origin expressed in the camera frame (*not* the camera's
         position in the world, which is C = −Rᵀt).
@@ -200,7 +200,7 @@ def projection_matrix(A: ArrayLike, R: ArrayLike, t: ArrayLike) -> np.ndarray:
     A : (3, 3) array_like
         Intrinsic matrix (upper triangular, non-zero diagonal; see :func:`intrinsic_matrix`).
     R : (3, 3) array_like
-        World → camera rotation (orthonormal within 1e-6, det +1).
+        World → camera rotation (orthonormal within 1e-3, det +1; used as given).
     t : (3,) or (3, 1) array_like
         World → camera translation (see :func:`extrinsic_matrix`).
 

@@ -22,7 +22,8 @@ def rotation_homography(A: ArrayLike, R: ArrayLike) -> np.ndarray:
         Intrinsic matrix (upper triangular, non-zero diagonal; skew allowed).
     R : (3, 3) array_like
         Rotation from the original camera frame to the virtual camera's frame (orthonormal
-        within 1e-6, det +1): a point M_C of the first frame has coordinates R·M_C in the second.
+        within 1e-3, det +1; used as given): a point M_C of the first frame has coordinates
+        R·M_C in the second.
 
     Returns
     -------

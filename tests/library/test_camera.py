@@ -489,13 +489,27 @@ def test_scalar_arguments_must_be_real_numbers():
 
 @FAST
 @given(angles=st.tuples(st.floats(-3, 3), st.floats(-3, 3), st.floats(-3, 3)),
-       noise=st.floats(1e-4, 0.5), flip=st.booleans())
+       noise=st.floats(1e-2, 0.5), flip=st.booleans())
 def test_non_rotations_are_refused(angles, noise, flip):
+    """R + n·J (J the anti-identity) is off by at least about 2n/3 in RᵀR − I (RᵀJ + JᵀR has
+    the eigenvalue −2), so n ≥ 0.01 is beyond the 1e-3 tolerance."""
     R = camera.rotation_matrix(*angles)
     bad = R @ np.diag([-1.0, 1.0, 1.0]) if flip else R + noise * np.eye(3)[::-1]
     raises_naming(ValueError, "R", camera.extrinsic_matrix, bad, [0, 0, 1])
     raises_naming(ValueError, "R", camera.projection_matrix, GOOD_A, bad, [0, 0, 1])
     raises_naming(ValueError, "R", camera.project_full, np.ones((2, 3)), GOOD_A, bad, [0, 0, 1])
+
+
+def test_a_rotation_typed_with_three_decimals_is_used_as_given():
+    """cos 30° typed as 0.866 (RᵀR off by 4e-5) or cos 45° as 0.707 (2e-4) is a rotation to
+    the reader: accepted, and the matrices are made with the entries given."""
+    for c, s in ((0.866, 0.5), (0.707, 0.707)):
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        G = camera.extrinsic_matrix(R, [1.0, 2.0, 3.0])
+        np.testing.assert_array_equal(G[:3, :3], R)
+        np.testing.assert_allclose(camera.projection_matrix(GOOD_A, R, [1.0, 2.0, 3.0]),
+                                   GOOD_A @ np.hstack([R, [[1.0], [2.0], [3.0]]]), rtol=1e-15)
+    raises_naming(ValueError, "R", camera.extrinsic_matrix, 1.002 * np.eye(3), [0, 0, 1])  # a 0.2 % scale: 4e-3
 
 
 @pytest.mark.parametrize("t", [[0, 0], np.zeros((3, 3)), np.zeros(4), [0, np.nan, 1]])
