@@ -135,6 +135,13 @@ def match_template(image: ArrayLike, template: ArrayLike, measure: Measure = "zn
     constant (or zero) windows are found exactly, with a sliding minimum and maximum, not from
     rounded sums. Scores are clipped to [−1, 1].
 
+    Precision: the sliding sums of ``zncc`` are taken about the image's mean, so a
+    window whose spread is tiny beside its distance from that mean (a texture of 1e-3 on an
+    offset of 1e6, a region scaled by 1e-8 in an image in [0, 1]) keeps only about
+    ``1e-16·(distance / spread)²`` of relative precision in its score. Images in ordinary
+    ranges (uint8, [0, 1]) are far from that; ``ssd`` subtracts the template's mean first and
+    ``sad`` sums each window directly.
+
     Equals ``cv2.matchTemplate`` with ``TM_SQDIFF`` (ssd), ``TM_CCORR_NORMED`` (ncc) and
     ``TM_CCOEFF_NORMED`` (zncc), and ``skimage.feature.match_template`` (zncc), away from
     flat windows, where those libraries return other conventions (OpenCV 1 or 0, scikit-image
