@@ -182,7 +182,7 @@ def match_template(image: ArrayLike, template: ArrayLike, measure: Measure = "zn
         # template's mean, rounded (integer images stay integer, so exact), keeps the three
         # sums small for an image far from 0 (1e6 + small texture loses nothing to rounding)
         offset = float(np.round(tpl.mean()))
-        if offset != 0.0:
+        if offset != 0.0 and np.isfinite(offset):
             img, tpl = img - offset, tpl - offset
         cross = _correlate_valid(img, tpl)
         out = _window_sums(img * img, h, w) - 2.0 * cross + float(np.sum(tpl * tpl))
