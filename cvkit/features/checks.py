@@ -1181,7 +1181,8 @@ refine_extremum = Check(
 )
 
 
-def _el_variant(dog_slice, row, col, r=10.0, *, ratio_test="curvature", det_check=True, cross=True, invert=False):
+def _el_variant(dog_slice, row, col, r=10.0, *, ratio_test="curvature", det_check=True, cross=True, invert=False,
+                strict=False):
     d = np.asarray(dog_slice, dtype=np.float64)
     i, j = int(row), int(col)
     v = d[i, j]
@@ -1191,7 +1192,7 @@ def _el_variant(dog_slice, row, col, r=10.0, *, ratio_test="curvature", det_chec
     trace, det = dxx + dyy, dxx * dyy - dxy * dxy
     limit = (r + 1.0) ** 2 / r if ratio_test == "curvature" else r
     with np.errstate(all="ignore"):
-        edge = trace * trace / det >= limit
+        edge = trace * trace / det > limit if strict else trace * trace / det >= limit
     if det_check:
         edge = edge or det <= 0
     return bool(not edge if invert else edge)
@@ -1227,7 +1228,17 @@ def _edge_public():
         Case((saddle, *s), {}, "a saddle (curvatures of opposite signs)"),
         Case((between, *t), {}, "ratio 9: trace²/det between r and (r+1)²/r"),
         Case((diagonal, *u), {}, "a diagonal ridge (ratio 30 at 45°: Dxy carries it)"),
+        Case((_edge_boundary(1, transpose=False), 2, 2), {}, "trace²/det exactly (r+1)²/r (the limit itself is edge-like)"),
     ]
+
+
+def _edge_boundary(k: int, transpose: bool) -> np.ndarray:
+    """A 5×5 slice whose centre has the integer curvatures Dxx = 10k, Dyy = k and Dxy = 0, so
+    trace²/det = 121/10 = (r+1)²/r for r = 10 whatever the order of the arithmetic."""
+    boundary = np.zeros((5, 5))
+    boundary[2, 1] = boundary[2, 3] = 5.0 * k
+    boundary[1, 2] = boundary[3, 2] = 0.5 * k
+    return -boundary.T if transpose else boundary
 
 
 def _edge_hidden(rng):
@@ -1253,6 +1264,8 @@ def _edge_hidden(rng):
     for label, kw, extra in specs:
         values, (row, col) = _quadratic_slice(rng, size(), **kw)
         cases.append(Case((values, row, col), extra, label))
+    boundary = _edge_boundary(int(rng.integers(1, 5)), transpose=bool(rng.random() < 0.5))
+    cases.append(Case((boundary, 2, 2), {}, "trace²/det exactly (r+1)²/r (the limit itself is edge-like)"))
     return cases
 
 
@@ -1267,6 +1280,8 @@ is_edge_like = Check(
                 "det ≤ 0 means curvatures of opposite signs (a saddle): reject it as edge-like"),
         Mistake("Hessian without Dxy", _elv(cross=False),
                 "det = Dxx·Dyy − Dxy²: a diagonal edge shows only in the mixed derivative"),
+        Mistake("the limit itself not edge-like (> instead of ≥)", _elv(strict=True),
+                "A point is edge-like when trace²/det ≥ (r+1)²/r: the limit itself counts"),
         Mistake("answer inverted (True for good keypoints)", _elv(invert=True),
                 "Return True when the point is edge-like (to be rejected)"),
     ],
