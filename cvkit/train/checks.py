@@ -40,6 +40,7 @@ import numpy as np
 
 from ..grading import Case, Check, Comparator, Measure, Mismatch, Mistake, Statistics, close, mistake
 from ..grading.casekit import variant
+from ..grading.runtime.adapters import call_draws
 from ..grading.casekit import argument as _arg
 from ..grading.casekit import seed as _seed
 from ..grading.casekit import size as _size
@@ -103,6 +104,35 @@ class StructuredStatistics(Statistics):
         if problem:
             return Mismatch(problem)
         return self.judge(got, expected, case)
+
+
+@dataclass
+class Drawn(Comparator):
+    """A random algorithm's outputs: one call judged by ``single``; a case with ``draws``
+    (many calls, one seed each, :func:`~cvkit.grading.runtime.adapters.call_draws`) judged by
+    the distribution over its draws — ``structure(draw, expected_draw, case)`` checks each
+    draw's form, ``statistics(draws, case)`` gives named numbers of the whole list and
+    ``tolerance(case)`` how far they may be from those of the reference's draws."""
+
+    single: Comparator
+    structure: Callable[[Any, Any, Any], str | None]
+    statistics: Callable[[Any, Any], Any]
+    tolerance: Callable[[Any], Any]
+
+    def describe(self) -> str:
+        return self.single.describe() + "; over many calls: the distribution of the draws"
+
+    def __call__(self, got, expected, case=None):
+        if case is None or case.kwargs.get("draws") is None:
+            return self.single(got, expected, case)
+        count = len(expected)
+        if not isinstance(got, (list, tuple)) or len(got) != count:
+            return Mismatch(f"expected the outputs of {count} calls, got {type(got).__name__}")
+        for index, (draw, reference) in enumerate(zip(got, expected)):
+            problem = self.structure(draw, reference, case)
+            if problem:
+                return Mismatch(f"call {index + 1} of {count} (rng = {case.kwargs['draws'][0] + index}): {problem}")
+        return Statistics(statistics=self.statistics, tolerance=self.tolerance).judge(got, expected, case)
 
 
 # --------------------------------------------------------------------------------------------
@@ -1112,10 +1142,69 @@ def _cutout_tolerance(case):
     return {}  # every statistic is an exact property (tolerance 0)
 
 
-def _cutout_variant(image, size, rng=None, *, half_odd=False, double=False, one_channel=False, fill_mean=False):
+def _cutout_draw_structure(draw, reference, case):
+    """One draw of many: the exact properties of a single call."""
+    mismatch = _CUTOUT_SINGLE(draw, reference, case)
+    return None if mismatch is None else mismatch.message
+
+
+def _cutout_centre(output, case) -> tuple[float | None, float | None]:
+    """The square's centre (row, col) read from the erased rectangle of a correct cutout: the
+    side the border did not clip places it (``None`` where both sides are clipped)."""
+    image = np.asarray(case.args[0], dtype=np.float64)
+    size = int(_arg(case, 1, "size"))
+    changed = np.asarray(output, dtype=np.float64) != image
+    changed = changed if image.ndim == 2 else changed.any(axis=-1)
+    centre = []
+    for axis in (1, 0):
+        hit = np.flatnonzero(changed.any(axis=axis))
+        if hit.size == 0:
+            centre.append(None)
+        elif hit[0] > 0:
+            centre.append(float(hit[0] + size // 2))
+        elif hit[-1] < changed.shape[1 - axis] - 1:
+            centre.append(float(hit[-1] - size + 1 + size // 2))
+        else:
+            centre.append(None)
+    return centre[0], centre[1]
+
+
+_CUTOUT_DRAWS = ("mean row of the square's centre / (H − 1)", "variance of the row of the centre / (H − 1)",
+                 "mean column of the square's centre / (W − 1)", "variance of the column of the centre / (W − 1)",
+                 "share of the draws with the most frequent centre (a uniform centre seldom repeats)")
+
+
+def _cutout_draw_statistics(outputs, case):
+    image = np.asarray(case.args[0])
+    centres = [_cutout_centre(o, case) for o in outputs]
+    stats = []
+    for axis, extent in ((0, image.shape[0]), (1, image.shape[1])):
+        values = np.array([c[axis] for c in centres if c[axis] is not None]) / max(1, extent - 1)
+        stats += [float(values.mean()), float(values.var())] if values.size else [np.nan, np.nan]
+    stats.append(max(centres.count(c) for c in set(centres)) / len(centres) if centres else 0.0)
+    return dict(zip(_CUTOUT_DRAWS, stats))
+
+
+def _cutout_draw_tolerance(case):
+    """Six standard errors of the difference of two samples' mean (variance 1/12) and variance
+    (fourth central moment 1/80) of a uniform centre: a correct version fails about once in 10⁸."""
+    count = case.kwargs["draws"][1]
+    mean, variance = 6.0 * math.sqrt(2.0 / (12.0 * count)), 6.0 * math.sqrt(2.0 * (1 / 80 - 1 / 144) / count)
+    return dict(zip(_CUTOUT_DRAWS, (mean, variance, mean, variance, 0.25)))
+
+
+def _cutout_variant(image, size, rng=None, *, half_odd=False, double=False, one_channel=False, fill_mean=False,
+                    centre="uniform"):
     img = np.array(image, dtype=np.float64, copy=True)
     gen = np.random.default_rng(rng)
     cy, cx = int(gen.integers(0, img.shape[0])), int(gen.integers(0, img.shape[1]))
+    if centre == "middle":
+        cy, cx = img.shape[0] // 2, img.shape[1] // 2
+    elif centre == "corner":  # the drawn point taken as the square's top-left corner
+        cy, cx = cy + size // 2, cx + size // 2
+    elif centre == "inside":  # the square kept whole: a centre drawn away from the border
+        cy = int(gen.integers(size // 2, max(size // 2 + 1, img.shape[0] - size + size // 2 + 1)))
+        cx = int(gen.integers(size // 2, max(size // 2 + 1, img.shape[1] - size + size // 2 + 1)))
     if double:
         size = 2 * size
     if half_odd:  # DeVries' bounds y ± size // 2: an odd size loses a row and a column
@@ -1136,6 +1225,9 @@ _co_half = variant(_cutout_variant, half_odd=True)
 _co_double = variant(_cutout_variant, double=True)
 _co_channel = variant(_cutout_variant, one_channel=True)
 _co_mean = variant(_cutout_variant, fill_mean=True)
+_co_middle = variant(_cutout_variant, centre="middle")
+_co_corner = variant(_cutout_variant, centre="corner")
+_co_inside = variant(_cutout_variant, centre="inside")
 
 
 def _no_zero_image(rng, h, w, channels=None, dtype=np.float64):
@@ -1168,6 +1260,9 @@ def _cutout_hidden(rng):
     cases.append(Case((_no_zero_image(rng, _size(rng, 30, 40), _size(rng, 30, 40)) * 1e6, odd(2, 3)), {"rng": _seed(rng)},
                       "±1e6 values"))
     cases.append(Case((_no_zero_image(rng, _size(rng, 30, 40), _size(rng, 30, 40)), odd(1, 2)), {"rng": _seed(rng)}, "odd size (again)"))
+    height, width, size = _size(rng, 16, 22), _size(rng, 16, 22), odd(3, 5)
+    cases.append(Case((_no_zero_image(rng, height, width), size), {"draws": (_seed(rng), 400)},
+                      f"400 calls, one seed each: the centre uniform over the {height}×{width} image, size {size}"))
     return cases
 
 
@@ -1178,13 +1273,19 @@ def _cutout_public():
         Case((_no_zero_image(g, 24, 24, 3), 7), {"rng": 3}, "colour 24×24 image, size 7"),
         Case((_no_zero_image(g, 30, 30), 4), {"rng": 2}, "even size 4"),
         Case((_no_zero_image(g, 40, 36), 3), {"rng": 5}, "size 3"),
+        Case((_no_zero_image(g, 20, 24), 9), {"draws": (2000, 400)},
+             "400 calls, rng = 2000, 2001, …: the centre uniform over the 20×24 image, size 9"),
     ]
 
+
+_CUTOUT_SINGLE = Statistics(statistics=_cutout_statistics, tolerance=_cutout_tolerance, dtype_kind="f")
 
 cutout = Check(
     public=_cutout_public,
     hidden=_cutout_hidden,
-    compare=Statistics(statistics=_cutout_statistics, tolerance=_cutout_tolerance, dtype_kind="f"),
+    compare=Drawn(single=_CUTOUT_SINGLE, structure=_cutout_draw_structure, statistics=_cutout_draw_statistics,
+                  tolerance=_cutout_draw_tolerance),
+    call=call_draws,
     mistakes=[
         Mistake("odd sizes lose a row and a column (y ± size // 2)", _co_half,
                 "Take exactly `size` rows: from cy − size // 2 to cy − size // 2 + size (exclusive), then clip"),
@@ -1194,6 +1295,12 @@ cutout = Check(
                 "Erase every channel of the square: image[rows, cols] = 0 (or [..., :])"),
         Mistake("square filled with the image mean instead of 0", _co_mean,
                 "Cutout sets the square to 0"),
+        Mistake("square always at the image's centre", _co_middle,
+                "Draw the centre anew each call, uniform over the image: rng.integers(0, H), rng.integers(0, W)"),
+        Mistake("the drawn point used as the top-left corner", _co_corner,
+                "The drawn point is the square's centre: rows cy − size // 2 to cy − size // 2 + size, then clip"),
+        Mistake("square kept inside the image (centre drawn away from the border)", _co_inside,
+                "The centre is uniform over the whole image and the square is clipped where it leaves it"),
     ],
     seeded=True,
 )
@@ -1234,13 +1341,15 @@ def _partner_counts(partners):
     return float(np.bincount(partners, minlength=partners.size).max() > 1) if partners.size else 0.0
 
 
-def _mixup_statistics(output, case):
-    x, y = _mix_inputs(case)
-    xm, ym, lam = np.asarray(output[0], np.float64), np.asarray(output[1], np.float64), float(output[2])
+def _mixup_partners(output, case):
+    """``(partners, decodable, d)``: for each sample the j that best explains
+    x_mixed[i] = λ x[i] + (1 − λ) x[j], whether λ leaves the partners tell-apart, and the
+    squared residuals."""
+    x, _ = _mix_inputs(case)
+    xm, lam = np.asarray(output[0], np.float64), float(output[2])
     n = x.shape[0]
     flat, flat_m = x.reshape(n, -1), xm.reshape(n, -1)
     scale = max(1.0, float(np.abs(x).max()))
-    # for each sample, the partner j that best explains x_mixed[i] = λ x[i] + (1 − λ) x[j]
     rest = flat_m - lam * flat                                            # ≈ (1 − λ) x[j]
     d = ((rest[:, None, :] - (1 - lam) * flat[None, :, :]) ** 2).sum(axis=2)
     partners = np.argmin(d, axis=1)
@@ -1248,12 +1357,47 @@ def _mixup_statistics(output, case):
     # (and do not matter: then y_mixed ≈ y too)
     separation = np.where(np.eye(n, dtype=bool), np.inf, np.linalg.norm(flat[:, None] - flat[None], axis=2))
     decodable = n > 1 and (1 - lam) * float(separation.min()) > 1e-10 * scale
+    return partners, decodable, d
+
+
+def _mixup_statistics(output, case):
+    x, y = _mix_inputs(case)
+    ym, lam = np.asarray(output[1], np.float64), float(output[2])
+    n = x.shape[0]
+    scale = max(1.0, float(np.abs(x).max()))
+    partners, decodable, d = _mixup_partners(output, case)
     return {
         "largest |x_mixed − (λ·x + (1 − λ)·x[partner])|": float(np.sqrt(d[np.arange(n), partners].max())) / scale,
         "largest |y_mixed − (λ·y + (1 − λ)·y[partner])|": float(np.abs(ym - (lam * y + (1 - lam) * y[partners])).max()),
         "some sample is the partner of two samples (1 = yes; a permutation pairs each once)":
             _partner_counts(partners) if decodable else 0.0,
     }
+
+
+def _beta_moments(alpha: float) -> tuple[float, float]:
+    """Variance and fourth central moment of Beta(α, α) (mean 1/2)."""
+    return 1.0 / (4.0 * (2.0 * alpha + 1.0)), 3.0 / (16.0 * (2.0 * alpha + 1.0) * (2.0 * alpha + 3.0))
+
+
+_MIX_DRAWS = ("mean of λ over the draws", "variance of λ over the draws",
+              "share of the draws with the most frequent pairing (a random permutation seldom repeats)")
+
+
+def _mixup_draw_statistics(outputs, case):
+    lams = np.array([float(o[2]) for o in outputs])
+    pairings = [tuple(p) for p, decodable, _ in (_mixup_partners(o, case) for o in outputs) if decodable]
+    most = max(pairings.count(p) for p in set(pairings)) / len(pairings) if pairings else 0.0
+    return dict(zip(_MIX_DRAWS, (float(lams.mean()), float(lams.var()), float(most))))
+
+
+def _mixup_draw_tolerance(case):
+    """Six standard errors of the difference of two independent samples' mean and variance
+    of λ ~ Beta(α, α) (a correct version fails about once in 10⁸ gradings); a pairing that
+    comes back in a quarter of the draws is no random permutation."""
+    count = case.kwargs["draws"][1]
+    variance, fourth = _beta_moments(float(_arg(case, 2, "alpha", 0.2)))
+    return dict(zip(_MIX_DRAWS, (6.0 * math.sqrt(2.0 * variance / count),
+                                 6.0 * math.sqrt(2.0 * (fourth - variance ** 2) / count), 0.25)))
 
 
 def _mix_tolerance(case):
@@ -1268,13 +1412,18 @@ def _mix_tolerance(case):
 
 
 def _mixup_variant(x, y_onehot, alpha=0.2, rng=None, *, labels="mixed", per_sample=False, replace=False,
-                   return_complement=False):
+                   return_complement=False, law="beta", reverse=False):
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y_onehot, dtype=np.float64)
     gen = np.random.default_rng(rng)
     n = x.shape[0]
-    lam = gen.beta(alpha, alpha, n) if per_sample else float(gen.beta(alpha, alpha))
-    perm = gen.integers(0, n, n) if replace else gen.permutation(n)
+    if law == "half":
+        lam = 0.5
+    elif law == "uniform":
+        lam = float(gen.random())
+    else:
+        lam = gen.beta(alpha, alpha, n) if per_sample else float(gen.beta(alpha, alpha))
+    perm = np.arange(n)[::-1] if reverse else gen.integers(0, n, n) if replace else gen.permutation(n)
     lam_x = lam.reshape((-1,) + (1,) * (x.ndim - 1)) if per_sample else lam
     lam_y = lam[:, None] if per_sample else lam
     xm = lam_x * x + (1 - lam_x) * x[perm]
@@ -1293,6 +1442,9 @@ _mx_unmixed = variant(_mixup_variant, labels="unmixed")
 _mx_per_sample = variant(_mixup_variant, per_sample=True)
 _mx_replace = variant(_mixup_variant, replace=True)
 _mx_complement = variant(_mixup_variant, return_complement=True)
+_mx_half = variant(_mixup_variant, law="half")
+_mx_uniform = variant(_mixup_variant, law="uniform")
+_mx_reverse = variant(_mixup_variant, reverse=True)
 
 
 def _onehot(rng, n, c):
@@ -1324,6 +1476,9 @@ def _mixup_hidden(rng):
     n = _size(rng, 20, 30)
     cases.append(Case((rng.random((n, 3)), _onehot(rng, n, 2)), {"alpha": 5.0, "rng": _seed(rng)}, "α = 5, two classes"))
     cases.append(Case((rng.random((2, 4)), np.eye(2)), {"alpha": 1.0, "rng": _seed(rng)}, "a batch of two"))
+    alpha = float(rng.choice([0.3, 0.5, 4.0, 6.0]))
+    cases.append(Case((rng.random((6, 2)), np.eye(3)[[0, 1, 2, 0, 1, 2]]), {"alpha": alpha, "draws": (_seed(rng), 400)},
+                      f"400 calls, one seed each: λ ~ Beta({alpha:g}, {alpha:g}), a fresh permutation each time"))
     return cases
 
 
@@ -1333,24 +1488,34 @@ def _mixup_public():
         Case((g.random((20, 8, 8)), np.eye(10)[g.integers(0, 10, 20)]), {"alpha": 1.0, "rng": 0}, "20 images 8×8, 10 classes, α = 1"),
         Case((g.random((16, 5)), np.eye(4)[g.integers(0, 4, 16)]), {"alpha": 2.0, "rng": 1}, "16 feature vectors, α = 2"),
         Case((g.random((24, 3)), np.eye(3)[g.integers(0, 3, 24)]), {"rng": 7}, "default α = 0.2"),
+        Case((g.random((6, 2)), np.eye(3)[[0, 1, 2, 0, 1, 2]]), {"alpha": 0.3, "draws": (1000, 400)},
+             "400 calls, rng = 1000, 1001, …: λ ~ Beta(0.3, 0.3), a fresh permutation each time"),
     ]
 
 
 mixup = Check(
     public=_mixup_public,
     hidden=_mixup_hidden,
-    compare=StructuredStatistics(structure=_triple_structure, statistics=_mixup_statistics, tolerance=_mix_tolerance),
+    compare=Drawn(single=StructuredStatistics(structure=_triple_structure, statistics=_mixup_statistics,
+                                              tolerance=_mix_tolerance),
+                  structure=_triple_structure, statistics=_mixup_draw_statistics, tolerance=_mixup_draw_tolerance),
+    call=call_draws,
     mistakes=[
         Mistake("labels mixed with λ and 1 − λ swapped", _mx_swapped,
                 "Mix the labels exactly like the inputs: λ·y + (1 − λ)·y[perm]"),
         Mistake("labels not mixed", _mx_unmixed,
                 "The target of a mixed input is the mixed target: λ·y + (1 − λ)·y[perm]"),
+        Mistake("λ fixed at 1/2", _mx_half, "Draw λ ~ Beta(α, α) anew for every batch: rng.beta(alpha, alpha)"),
         Mistake("one λ per sample instead of one per batch", _mx_per_sample,
                 "Draw a single λ ~ Beta(α, α) for the whole batch (and return it)"),
         Mistake("partners drawn with replacement", _mx_replace,
                 "Pair the batch with a random permutation of itself: rng.permutation(N)"),
         Mistake("returns 1 − λ instead of λ", _mx_complement,
                 "Return the λ that multiplies x (and y), the weight of the sample itself"),
+        Mistake("α ignored: λ uniform on [0, 1]", _mx_uniform,
+                "λ follows Beta(α, α): rng.beta(alpha, alpha) (α = 1 alone gives the uniform law)"),
+        Mistake("partners always the batch reversed", _mx_reverse,
+                "Pair the batch with a random permutation, drawn anew each call: rng.permutation(N)"),
     ],
     seeded=True,  # tuples, lists and dicts: the seeded re-run compares them element by element
 )

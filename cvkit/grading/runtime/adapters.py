@@ -15,7 +15,7 @@ from .problems import least_squares_call
 __all__ = ["bind_call", "instance_call", "train_then_predict", "least_squares_call", "call_with_test_function", "TestFunction", "TEST_FUNCTIONS",
            "CACHE_KEYS", "call_relu_forward", "call_sigmoid_forward", "call_leaky_relu_forward", "call_linear_forward",
            "call_conv2d_forward", "call_maxpool2d_forward", "call_global_avg_pool_forward", "call_batchnorm2d_forward",
-           "call_dropout_forward", "call_residual_block_forward"]
+           "call_dropout_forward", "call_residual_block_forward", "call_draws"]
 
 
 def bind_call(call: Callable | None, candidate: Callable) -> Callable:
@@ -159,3 +159,15 @@ call_global_avg_pool_forward = _forward_call("global_avg_pool")
 call_batchnorm2d_forward = _forward_call("batchnorm2d")
 call_dropout_forward = _forward_call("dropout")
 call_residual_block_forward = _forward_call("residual_block")
+
+
+# ---------------------------------------------------------------------------- random algorithms
+def call_draws(candidate, *args, draws=None, **kwargs):
+    """The :attr:`Check.call` of a random algorithm whose draws are judged by their
+    distribution: without ``draws``, one call; with ``draws=(first, count)``, ``count`` calls
+    with ``rng`` = first, first + 1, …, their outputs as a list (one output cannot show that λ
+    follows Beta(α, α) or that a square's centre is uniform; a few hundred can)."""
+    if draws is None:
+        return candidate(*args, **kwargs)
+    first, count = draws
+    return [candidate(*args, **{**kwargs, "rng": int(first) + i}) for i in range(int(count))]
