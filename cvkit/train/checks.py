@@ -1521,6 +1521,47 @@ mixup = Check(
 )
 
 
+def _cutmix_box(output, case):
+    """``(t, b, l, r, partners, pasted_any)``: the box that holds every pasted pixel and, for
+    each sample, the partner whose pixels best explain the box."""
+    x, _ = _mix_inputs(case)
+    xm = np.asarray(output[0], np.float64)
+    n = x.shape[0]
+    height, width = x.shape[-2:]
+    changed = (xm != x).reshape(n, -1, height, width).any(axis=1)
+    union = changed.any(axis=0)
+    if union.any():
+        rows, cols = np.flatnonzero(union.any(axis=1)), np.flatnonzero(union.any(axis=0))
+        t, b, l, r = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    else:
+        return 0, 0, 0, 0, np.arange(n), False
+    box = (Ellipsis, slice(t, b), slice(l, r))
+    d = ((xm[box].reshape(n, -1)[:, None, :] - x[box].reshape(n, -1)[None, :, :]) ** 2).sum(axis=2)
+    return int(t), int(b), int(l), int(r), np.argmin(d, axis=1), True
+
+
+_CUTMIX_DRAWS = ("share of the draws with the most frequent box centre (a uniform centre seldom repeats)",
+                 "share of the draws with the most frequent pairing (a random permutation seldom repeats)")
+
+
+def _cutmix_draw_statistics(outputs, case):
+    centres, pairings = [], []
+    for output in outputs:
+        t, b, l, r, partners, pasted = _cutmix_box(output, case)
+        if pasted:
+            centres.append((t + b, l + r))
+            pairings.append(tuple(partners))
+
+    def most(values):
+        return max(values.count(v) for v in set(values)) / len(values) if values else 0.0
+
+    return dict(zip(_CUTMIX_DRAWS, (most(centres), most(pairings))))
+
+
+def _cutmix_draw_tolerance(case):
+    return dict.fromkeys(_CUTMIX_DRAWS, 0.25)
+
+
 def _cutmix_statistics(output, case):
     x, y = _mix_inputs(case)
     xm, ym, lam = np.asarray(output[0], np.float64), np.asarray(output[1], np.float64), float(output[2])
@@ -1552,20 +1593,23 @@ def _cutmix_statistics(output, case):
     }
 
 
-def _cutmix_variant(x, y_onehot, alpha=1.0, rng=None, *, lam_rule="area", labels="mixed", replace=False, per_sample=False):
+def _cutmix_variant(x, y_onehot, alpha=1.0, rng=None, *, lam_rule="area", labels="mixed", replace=False, per_sample=False,
+                    centred=False, reverse=False):
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y_onehot, dtype=np.float64)
     gen = np.random.default_rng(rng)
     n = x.shape[0]
     height, width = x.shape[-2:]
     lam0 = float(gen.beta(alpha, alpha))
-    perm = gen.integers(0, n, n) if replace else gen.permutation(n)
+    perm = np.arange(n)[::-1] if reverse else gen.integers(0, n, n) if replace else gen.permutation(n)
     cut = math.sqrt(1 - lam0)
     ch, cw = int(height * cut), int(width * cut)
     out = x.copy()
     boxes = []
     for k in range(n if per_sample else 1):
         cy, cx = int(gen.integers(0, height)), int(gen.integers(0, width))
+        if centred:
+            cy, cx = height // 2, width // 2
         y1, y2 = min(max(cy - ch // 2, 0), height), min(max(cy + ch // 2, 0), height)
         x1, x2 = min(max(cx - cw // 2, 0), width), min(max(cx + cw // 2, 0), width)
         boxes.append((y1, y2, x1, x2))
@@ -1589,6 +1633,8 @@ _cm_lam0 = variant(_cutmix_variant, lam_rule="draw")
 _cm_swapped = variant(_cutmix_variant, labels="swapped")
 _cm_replace = variant(_cutmix_variant, replace=True)
 _cm_per_sample = variant(_cutmix_variant, per_sample=True)
+_cm_centred = variant(_cutmix_variant, centred=True)
+_cm_reverse = variant(_cutmix_variant, reverse=True)
 
 
 def _cutmix_hidden(rng):
@@ -1617,6 +1663,9 @@ def _cutmix_hidden(rng):
         n = _size(rng, 16, 24)
         cases.append(Case((rng.random((n, _size(rng, 10, 16), _size(rng, 10, 16))), _onehot(rng, n, 4)),
                           {"alpha": 1.0, "rng": _seed(rng)}, "random box and batch"))
+    size = _size(rng, 12, 16)
+    cases.append(Case((rng.random((6, size, size)), np.eye(3)[[0, 1, 2, 0, 1, 2]]), {"alpha": 1.0, "draws": (_seed(rng), 400)},
+                      "400 calls, one seed each: the box's centre uniform, a fresh permutation each time"))
     return cases
 
 
@@ -1627,13 +1676,18 @@ def _cutmix_public():
         Case((g.random((16, 3, 10, 12)), np.eye(4)[g.integers(0, 4, 16)]), {"alpha": 0.5, "rng": 2}, "(16, 3, 10, 12) batch, α = 0.5"),
         Case((g.random((18, 12, 12)), np.eye(5)[g.integers(0, 5, 18)]), {"rng": 4}, "18 images 12×12"),
         Case((g.random((16, 9, 14)), np.eye(3)[g.integers(0, 3, 16)]), {"alpha": 2.0, "rng": 5}, "16 images 9×14, α = 2"),
+        Case((g.random((6, 12, 14)), np.eye(3)[[0, 1, 2, 0, 1, 2]]), {"alpha": 1.0, "draws": (3000, 400)},
+             "400 calls, rng = 3000, 3001, …: the box's centre uniform, a fresh permutation each time"),
     ]
 
 
 cutmix = Check(
     public=_cutmix_public,
     hidden=_cutmix_hidden,
-    compare=StructuredStatistics(structure=_triple_structure, statistics=_cutmix_statistics, tolerance=_mix_tolerance),
+    compare=Drawn(single=StructuredStatistics(structure=_triple_structure, statistics=_cutmix_statistics,
+                                              tolerance=_mix_tolerance),
+                  structure=_triple_structure, statistics=_cutmix_draw_statistics, tolerance=_cutmix_draw_tolerance),
+    call=call_draws,
     mistakes=[
         Mistake("λ from the side of the box, not its area", _cm_side,
                 "Weight the labels by AREA: λ = 1 − (y2 − y1)·(x2 − x1) / (H·W)"),
@@ -1645,6 +1699,10 @@ cutmix = Check(
                 "Pair the batch with a random permutation of itself: rng.permutation(N)"),
         Mistake("a different box for every sample", _cm_per_sample,
                 "Draw one box for the whole batch (one λ): every sample gets the same box from its partner"),
+        Mistake("box always at the image's centre", _cm_centred,
+                "Draw the box's centre anew each call, uniform over the image: rng.integers(0, H), rng.integers(0, W)"),
+        Mistake("partners always the batch reversed", _cm_reverse,
+                "Pair the batch with a random permutation, drawn anew each call: rng.permutation(N)"),
     ],
     seeded=True,  # tuples, lists and dicts: the seeded re-run compares them element by element
 )
