@@ -985,10 +985,10 @@ def _rrc_tolerance(case):
     }
 
 
-def _rrc_box(image, scale, ratio, gen, *, side=False, inverted=False, square=False):
+def _rrc_box(image, scale, ratio, gen, *, side=False, inverted=False, square=False, corner=False, fixed_area=False):
     height, width = image.shape[:2]
     for _ in range(100):
-        s = gen.uniform(*scale)
+        s = scale[1] if fixed_area else gen.uniform(*scale)
         r = math.exp(gen.uniform(math.log(ratio[0]), math.log(ratio[1])))
         if square:
             r = 1.0
@@ -997,7 +997,8 @@ def _rrc_box(image, scale, ratio, gen, *, side=False, inverted=False, square=Fal
         if inverted:
             w, h = h, w
         if 1 <= w <= width and 1 <= h <= height:
-            return int(gen.integers(0, height - h + 1)), int(gen.integers(0, width - w + 1)), h, w
+            top, left = int(gen.integers(0, height - h + 1)), int(gen.integers(0, width - w + 1))
+            return (0, 0, h, w) if corner else (top, left, h, w)
     return 0, 0, height, width
 
 
@@ -1037,6 +1038,44 @@ _rrc_inverted = variant(_rrc_variant, inverted=True)
 _rrc_square = variant(_rrc_variant, square=True)
 _rrc_nearest = variant(_rrc_variant, nearest=True)
 _rrc_swapped = variant(_rrc_variant, swap_size=True)
+_rrc_corner = variant(_rrc_variant, corner=True)
+_rrc_fixed_area = variant(_rrc_variant, fixed_area=True)
+
+
+def _rrc_draw_structure(draw, reference, case):
+    """One draw of many: the properties of a single call."""
+    mismatch = _RRC_SINGLE(draw, reference, case)
+    return None if mismatch is None else mismatch.message
+
+
+_RRC_DRAWS = ("share of the draws whose crop starts at the top-left corner (a uniform position seldom does)",
+              "variance of the crop's area fraction over the draws")
+
+
+def _rrc_draw_statistics(outputs, case):
+    """Crops read back from the outputs of a coded image (channel 0 holds the row, channel 1
+    the column): with half-pixel centres output pixel u samples row top + (u + 0.5)·h/out_h − 0.5."""
+    image = np.asarray(case.args[0], dtype=np.float64)
+    corner, areas = 0, []
+    for output in outputs:
+        out = np.asarray(output, dtype=np.float64)
+        (a_r, b_r, _), _ = _fit_plane(out[..., 0])
+        (a_c, _, c_c), _ = _fit_plane(out[..., 1])
+        top, left = a_r - 0.5 * b_r + 0.5, a_c - 0.5 * c_c + 0.5
+        corner += top < 0.5 and left < 0.5
+        areas.append(b_r * out.shape[0] * c_c * out.shape[1] / (image.shape[0] * image.shape[1]))
+    return dict(zip(_RRC_DRAWS, (corner / len(outputs), float(np.var(areas)))))
+
+
+def _rrc_draw_tolerance(case):
+    """The area fraction s is uniform in `scale`: six standard errors of the difference of two
+    samples' variance (fourth central moment (b − a)⁴/80), plus the crop's rounding to whole
+    pixels; a corner that comes back in a quarter of the draws is no uniform position."""
+    count = case.kwargs["draws"][1]
+    low, high = _arg(case, 2, "scale", (0.08, 1.0))
+    width = float(high) - float(low)
+    spread = 6.0 * math.sqrt(2.0 * (width ** 4 / 80 - (width ** 2 / 12) ** 2) / count) + 0.002
+    return dict(zip(_RRC_DRAWS, (0.25, spread)))
 
 
 def _rrc_hidden(rng):
@@ -1071,6 +1110,9 @@ def _rrc_hidden(rng):
     cases.append(Case((_plane_image(rng, h, w), (5, 6)), {"scale": (0.9, 1.0), "rng": _seed(rng)}, "scale (0.9, 1): almost the whole image"))
     cases.append(Case((rng.random((_size(rng, 20, 30), _size(rng, 20, 30))), (6, 8)), {"rng": _seed(rng)},
                       "a random image (only the value range is checked)"))
+    h, w = _size(rng, 44, 60), _size(rng, 44, 60)
+    cases.append(Case((_plane_image(rng, h, w, channels=3), (6, 5)), {"scale": (0.1, 0.45), "draws": (_seed(rng), 400)},
+                      "400 calls, one seed each: position uniform, area fraction uniform in (0.1, 0.45)"))
     return cases
 
 
@@ -1082,14 +1124,20 @@ def _rrc_public():
              "wide crops: ratio (1.5, 2.5)"),
         Case((_plane_image(g, 48, 48, channels=3), (9, 6)), {"scale": (0.25, 0.5), "ratio": (0.5, 0.75), "rng": 2},
              "colour, tall crops, (h, w) = (9, 6)"),
+        Case((_plane_image(g, 48, 56, channels=3), (6, 6)), {"scale": (0.1, 0.5), "draws": (4000, 400)},
+             "400 calls, rng = 4000, 4001, …: position uniform, area fraction uniform in (0.1, 0.5)"),
     ]
 
+
+_RRC_SINGLE = Statistics(statistics=_rrc_statistics, tolerance=_rrc_tolerance, dtype_kind="f")
 
 random_resized_crop = Check(
     rules=("integer",),
     public=_rrc_public,
     hidden=_rrc_hidden,
-    compare=Statistics(statistics=_rrc_statistics, tolerance=_rrc_tolerance, dtype_kind="f"),
+    compare=Drawn(single=_RRC_SINGLE, structure=_rrc_draw_structure, statistics=_rrc_draw_statistics,
+                  tolerance=_rrc_draw_tolerance),
+    call=call_draws,
     mistakes=[
         Mistake("scale taken as a fraction of the side, not the area", _rrc_side,
                 "s ~ U(scale) is the fraction of the image's AREA: w = √(s·H·W·r), h = √(s·H·W/r)"),
@@ -1101,6 +1149,11 @@ random_resized_crop = Check(
                 "Blend the two nearest pixels on each axis: (1 − f)·I[i0] + f·I[i0 + 1] with source position (u + 0.5)·h/out_h − 0.5"),
         Mistake("output_size (h, w) read as (w, h)", _rrc_swapped,
                 "output_size is (height, width), like NumPy shapes"),
+        Mistake("crop always at the top-left corner", _rrc_corner,
+                "Draw the crop's top-left corner uniformly among the positions that keep it inside: "
+                "rng.integers(0, H − h + 1), rng.integers(0, W − w + 1)"),
+        Mistake("area fixed at scale[1] (not drawn)", _rrc_fixed_area,
+                "Draw the area fraction anew each call: s ~ U(scale[0], scale[1])"),
     ],
     seeded=True,
 )
