@@ -1869,7 +1869,12 @@ def spec_summary(spec, name):
     shape = _arch.ARCHITECTURES[name][0]
     out_shape, flops = _arch._walk(spec, shape)
     counts = _count_types(spec, {})
-    layers = {kind: int(counts.get(kind, 0)) for kind in ("conv", "bn", "linear", "residual", "concat", "maxpool")}
+    layers = {kind: int(counts.get(kind, 0)) for kind in ("conv", "bn", "linear", "residual", "concat", "maxpool", "relu")}
+    bodies: dict = {}
+    for layer in spec:
+        if isinstance(layer, dict) and layer.get("type") == "residual":
+            _count_types(layer.get("body", []), bodies)
+    layers["relu inside residual bodies"] = int(bodies.get("relu", 0))  # the ReLU after the sum is not
     return {"parameters": int(_arch._parameters(spec)), "flops": int(flops),
             "output_shape": tuple(int(v) for v in out_shape), "layers": layers}
 
@@ -1907,7 +1912,8 @@ def _walk_layers(spec, fn):
                 _walk_layers(branch, fn)
 
 
-def _spec_variant(name, num_classes=1000, *, conv_bias=None, family="", replaced=None, projection_bn=True):
+def _spec_variant(name, num_classes=1000, *, conv_bias=None, family="", replaced=None, projection_bn=True,
+                  relus=True, relu_in_body=False):
     """The reference spec of ``name``, wrong in one way: for a ``name`` starting with
     ``family``, every convolution's bias set to ``conv_bias`` (when not None); ``replaced`` =
     (name, other) builds ``other`` in place of ``name``; no batch norm in the projection
@@ -1923,6 +1929,27 @@ def _spec_variant(name, num_classes=1000, *, conv_bias=None, family="", replaced
         if not projection_bn and layer["type"] == "residual":
             layer["shortcut"] = [l for l in layer["shortcut"] if l["type"] != "bn"]
     _walk_layers(spec, change)
+    if relu_in_body:  # the ReLU after the sum moved to the end of the body (before the sum)
+        moved = []
+        for layer in spec:
+            if layer["type"] == "relu" and moved and moved[-1]["type"] == "residual":
+                moved[-1]["body"].append(dict(layer))
+            else:
+                moved.append(layer)
+        spec = moved
+    if not relus:
+        def strip(layers):
+            kept = []
+            for layer in layers:
+                if layer["type"] == "relu":
+                    continue
+                if layer["type"] == "residual":
+                    layer["body"], layer["shortcut"] = strip(layer["body"]), strip(layer["shortcut"])
+                elif layer["type"] == "concat":
+                    layer["branches"] = [strip(branch) for branch in layer["branches"]]
+                kept.append(layer)
+            return kept
+        spec = strip(spec)
     return spec
 
 
@@ -1931,6 +1958,8 @@ _spec_resnet50_v1 = variant(_spec_variant, replaced=("resnet50", "resnet50_v1"))
 _spec_projection_no_bn = variant(_spec_variant, projection_bn=False)
 _spec_resnet_conv_bias = variant(_spec_variant, family="resnet", conv_bias=True)
 _spec_inception_naive = variant(_spec_variant, replaced=("inception_3a", "inception_3a_naive"))
+_spec_no_relu = variant(_spec_variant, relus=False)
+_spec_relu_in_body = variant(_spec_variant, relu_in_body=True)
 
 
 _SPEC_NAMES = ("vgg16", "resnet18", "resnet50", "inception_3a")
@@ -1964,6 +1993,12 @@ architecture_spec = Check(
         Mistake("Inception 3a without the 1×1 reductions (the naive module)", _spec_inception_naive,
                 "Put 1×1 convolutions (96 and 16 channels) before the 3×3 and 5×5 branches, and a 1×1 (32) after "
                 "the pooling"),
+        Mistake("block's last ReLU inside the body (before the sum)", _spec_relu_in_body,
+                "A residual block adds the shortcut first, then applies the ReLU: put {'type': 'relu'} after the "
+                "residual layer, not at the end of its body"),
+        Mistake("no ReLU layers", _spec_no_relu,
+                "Activations are layers of the spec too: a {'type': 'relu'} after every convolution (or its batch "
+                "norm) and hidden linear layer, as the exercise lists them"),
     ],
 )
 
@@ -2141,16 +2176,16 @@ count_parameters = Check(
 
 
 def _flops_variant(spec, shape, *, single=False, no_stride=False, no_padding=False, no_linear=False,
-                   no_shortcut=False, no_in=False):
+                   no_shortcut=False, no_in=False, pool_stride_one=False):
     flags = dict(single=single, no_stride=no_stride, no_padding=no_padding, no_linear=no_linear,
-                 no_shortcut=no_shortcut, no_in=no_in)
+                 no_shortcut=no_shortcut, no_in=no_in, pool_stride_one=pool_stride_one)
     flops = 0
     for layer in spec:
         kind = layer["type"]
         if kind in ("conv", "maxpool", "avgpool"):
             c, h, w = shape
             kh, kw = _arch._pair(layer["kernel"], "kernel", 1)
-            sh, sw = _arch._pair(layer.get("stride", 1 if kind == "conv" else layer["kernel"]), "stride", 1)
+            sh, sw = _arch._pair(layer.get("stride", 1 if kind == "conv" or pool_stride_one else layer["kernel"]), "stride", 1)
             ph, pw = _arch._pair(layer.get("padding", 0), "padding", 0)
             true_h, true_w = (h + 2 * ph - kh) // sh + 1, (w + 2 * pw - kw) // sw + 1
             if kind == "conv":
@@ -2189,8 +2224,9 @@ def _flops_mistake(flag):
     return wrong
 
 
-_flops_single, _flops_no_stride, _flops_no_padding, _flops_no_linear, _flops_no_shortcut, _flops_no_in = (
-    _flops_mistake(flag) for flag in ("single", "no_stride", "no_padding", "no_linear", "no_shortcut", "no_in"))
+_flops_single, _flops_no_stride, _flops_no_padding, _flops_no_linear, _flops_no_shortcut, _flops_no_in, \
+    _flops_pool_stride_one = (_flops_mistake(flag) for flag in ("single", "no_stride", "no_padding", "no_linear",
+                                                                "no_shortcut", "no_in", "pool_stride_one"))
 
 
 def _flops_hidden(rng):
@@ -2211,6 +2247,9 @@ def _flops_hidden(rng):
                         {"type": "maxpool", "kernel": 3, "stride": 2}, {"type": "flatten"},
                         {"type": "linear", "in": 0, "out": 7}]), (3, 29, 29)), {},
          "stride 3, pooling, linear"),
+        Case((SpecList([_random_conv(rng, 3, 5, kernel=3, padding=1), {"type": "maxpool", "kernel": int(rng.choice([2, 3]))},
+                        _random_conv(rng, 5, 4, kernel=3, padding=1)]), (3, _size(rng, 12, 20), _size(rng, 12, 20))),
+             {}, "pooling without a stride (it defaults to the kernel), then a convolution"),
     ]
 
 
@@ -2235,6 +2274,9 @@ count_flops = Check(
                         {"type": "maxpool", "kernel": 2}, {"type": "flatten"},
                         {"type": "linear", "in": 64, "out": 5}]), (3, 16, 16)), {},
              "stride 2 and padding, pooling, linear"),
+        Case((SpecList([{"type": "conv", "in": 3, "out": 4, "kernel": 3, "padding": 1}, {"type": "maxpool", "kernel": 2},
+                        {"type": "conv", "in": 4, "out": 6, "kernel": 3, "padding": 1}]), (3, 12, 12)), {},
+             "pooling without a stride (it defaults to the kernel), then a convolution"),
     ],
     hidden=lambda rng: _patch_flatten(_flops_hidden(rng)),
     compare=IntegerResult(),
@@ -2251,5 +2293,7 @@ count_flops = Check(
                 "The projection shortcut's 1×1 convolution costs FLOPs too"),
         Mistake("input channels forgotten", _flops_no_in,
                 "Each output value is a dot product over in·kh·kw inputs: 2·out·Ho·Wo·in·kh·kw"),
+        Mistake("pooling stride defaults to 1", _flops_pool_stride_one,
+                "A pooling layer without a stride moves by its kernel (PyTorch's default): a 2×2 pooling halves H and W"),
     ],
 )
