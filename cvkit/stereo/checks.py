@@ -158,7 +158,7 @@ class DisparityMaps(Comparator):
 # the mistakes (a loop over disparities with knobs)
 # --------------------------------------------------------------------------------------------
 def _variant(left, right, max_disparity, block_size=7, cost="sad", *, sign=1, anchor="centre",
-             exclude=True, ties="smallest", wrap=False, means=True, maximise=True, border="reflect"):
+             exclude=True, ties="smallest", wrap=False, means=True, maximise=True, border="reflect", flat_score=0.0):
     """Block matching with one thing done wrong (direct window sums; small images only)."""
     raw_l, raw_r = np.asarray(left), np.asarray(right)
     if wrap and raw_l.dtype == np.uint8 and raw_r.dtype == np.uint8 and cost != "zncc":
@@ -217,7 +217,7 @@ def _variant(left, right, max_disparity, block_size=7, cost="sad", *, sign=1, an
                 num, var_l, var_r = total, total_ll, total_rr
                 flat = np.zeros((height, width), dtype=bool)
             with np.errstate(all="ignore"):
-                score = np.where(~flat & (var_l > 0) & (var_r > 0), num / np.sqrt(var_l * var_r), 0.0)
+                score = np.where(~flat & (var_l > 0) & (var_r > 0), num / np.sqrt(var_l * var_r), flat_score)
             total = -score if maximise else score
         costs[d] = total
     x = np.arange(width)[None, :]
@@ -270,6 +270,21 @@ def _pair(rng, h, w, max_disparity, *, kind="unit", flat_rows=0, gain=1.0, offse
     return left_img, right
 
 
+def _flat_candidates(rng, height, width, edge, shift, *, beaten):
+    """A pair where some right windows are flat (0 left of column ``edge``): with ``beaten`` the
+    rest is the left texture moved by ``shift`` (ZNCC 1 beats a flat window's 0), otherwise an
+    anti-correlated ramp (every other window scores below 0, so the flat ones win)."""
+    rows, cols = np.mgrid[0:height, 0:width]
+    if beaten:
+        left_img = rng.integers(1, 10, (height, width)).astype(np.float64)
+        right = np.where(cols < edge, 0.0, np.roll(left_img, -shift, axis=1))
+    else:  # both vary down the rows only: every right window that is not flat is the same, and
+        # falls as the left one rises (ZNCC between −1 and −0.9: no tie with a flat window's 0)
+        left_img = (rows + 1.0) ** 2
+        right = np.where(cols < edge, 0.0, -(rows + 1.0) ** 3 - 1.0)
+    return left_img, right
+
+
 def _hidden(rng):
     def size(lo, hi):
         return _size(rng, lo, hi)
@@ -287,13 +302,11 @@ def _hidden(rng):
 
     textured("SAD, 3×3 blocks, flat band on top", 3, "sad", (3, 5), (9, 12), (14, 20), flat_rows=4)
     textured("SAD on uint8 images, 5×5 blocks", 5, "sad", (3, 6), (8, 12), (14, 20), kind="uint8")
-    textured("SSD, 5×5 blocks", 5, "ssd", (4, 6), (8, 12), (14, 20))
     textured("SSD on uint8 images, flat band", 3, "ssd", (3, 5), (8, 11), (12, 18), kind="uint8", flat_rows=4)
     d = size(3, 6)
     add(_pair(rng, size(9, 12), size(14, 20), d, gain=_u(rng, 0.5, 0.8, 2),
               offset=_u(rng, 0.1, 0.3, 2)), d,
         "ZNCC, 5×5 blocks, right view darker and offset", block_size=5, cost="zncc")
-    textured("ZNCC, 3×3 blocks, flat band on top", 3, "zncc", (3, 5), (9, 12), (12, 18), flat_rows=4)
     textured("SAD of single pixels (block 1), values 0..9", 1, "sad", (3, 5), (6, 9), (12, 16), kind="int")
     add(_pair(rng, size(6, 9), size(10, 14), 3, kind="big"), 0, "max_disparity = 0", block_size=3, cost="ssd")
     add(_pair(rng, 5, 6, 4, kind="int", flat_rows=0), size(7, 10), "max_disparity larger than the width",
@@ -306,6 +319,10 @@ def _hidden(rng):
     textured("integer values 0..1000, SSD, 5×5 blocks", 5, "ssd", (3, 5), (9, 12), (16, 22), kind="big")
     d = size(3, 5)
     cases.append(Case(_pair(rng, size(9, 12), size(16, 22), d) + (d,), {}, "default block_size 7 and cost 'sad'"))
+    add(_flat_candidates(rng, size(6, 9), size(14, 18), size(4, 7), size(1, 3), beaten=False), size(6, 9),
+        "ZNCC, flat right windows (0) against anti-correlated ones (below 0)", block_size=3, cost="zncc")
+    add(_flat_candidates(rng, size(6, 9), size(14, 18), size(4, 7), size(1, 3), beaten=True), size(6, 9),
+        "ZNCC, flat right windows (0) against the true match (1)", block_size=3, cost="zncc")
     return cases
 
 
@@ -319,6 +336,10 @@ def _public():
         Case((u8_left, u8_right, 3), {"block_size": 5, "cost": "ssd"}, "SSD on uint8 images, 5×5 blocks"),
         Case((z_left, z_right, 4), {"block_size": 3, "cost": "zncc"},
              "ZNCC, right view darker and offset, flat band on top"),
+        Case(_flat_candidates(rng, 7, 16, 6, 2, beaten=False) + (8,), {"block_size": 3, "cost": "zncc"},
+             "ZNCC, flat right windows (0) against anti-correlated ones (below 0)"),
+        Case(_flat_candidates(rng, 7, 16, 6, 2, beaten=True) + (8,), {"block_size": 3, "cost": "zncc"},
+             "ZNCC, flat right windows (0) against the true match (1)"),
     ]
 
 
@@ -344,6 +365,10 @@ block_matching = Check(
                 "Subtract each window's mean before correlating: ZNCC = Σ(L−L̄)(R−R̄) / √(Σ(L−L̄)² Σ(R−R̄)²)"),
         Mistake("zero border instead of reflect101", variant(_variant, border="zero"),
                 "Read outside the images by reflect101 (np.pad(img, r, mode='reflect')), not with zeros"),
+        Mistake("ZNCC of a flat window scored −1 (the worst)", variant(_variant, flat_score=-1.0),
+                "A flat window (all values equal) has no correlation: score it 0, so it beats anti-correlated windows"),
+        Mistake("ZNCC of a flat window scored as the best match", variant(_variant, flat_score=2.0),
+                "A flat window (all values equal) scores 0, not better than a real match: ZNCC = 1 wins"),
     ],
     arg_names=_NAMES,
 )
