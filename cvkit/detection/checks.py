@@ -381,6 +381,11 @@ def _tm(image, template, measure="zncc", *, kind=None):
             return np.where(energy == 0, np.nan, out)
         var = windows.reshape(windows.shape[:2] + (-1,)).var(axis=2)
         return np.where(var <= 1e-12 * np.mean(windows.reshape(windows.shape[:2] + (-1,)) ** 2, axis=2), np.nan, out)
+    if kind == "absolute_flat":  # "no contrast" tested against 1e-6 itself, not against the window's scale
+        flat_w = windows.reshape(windows.shape[:2] + (-1,)).var(axis=2) * h * w <= 1e-6
+        if np.sum((tpl - tpl.mean()) ** 2) <= 1e-6:
+            return np.zeros(flat_w.shape)
+        return np.where(flat_w, 0.0, _match_template(img, tpl, measure))
     if kind == "same":
         out = np.zeros(img.shape)
         valid = _match_template(img, tpl, measure)
@@ -393,7 +398,7 @@ def _applies(kind: str, measure: str) -> bool:
     return {
         "ncc_plain": measure == "ncc", "zncc_no_mean": measure == "zncc", "euclid": measure == "ssd",
         "sad_abs_sum": measure == "sad", "global_mean": measure == "zncc", "nan": measure in ("ncc", "zncc"),
-        "same": True,
+        "same": True, "absolute_flat": measure == "zncc",
     }[kind]
 
 
@@ -410,6 +415,8 @@ def _tm_public():
         Case((img, tpl[:, :2].copy(), "sad"), {}, "3×2 template, sad"),
         Case((zeros, ntpl, "ncc"), {}, "ncc, image with an all-zero block (zero-norm windows score 0)"),
         Case((3.0 * img + 7.0, tpl), {}, "zncc (default), image under gain 3 and offset 7, a constant patch (score 0)"),
+        Case((0.5 + 1e-4 * img, 0.5 + 1e-4 * tpl, "zncc"), {},
+             "zncc, a low-contrast image (0.5 + 1e-4·values): faint is not flat"),
     ]
 
 
@@ -453,7 +460,8 @@ def _tm_hidden(rng):
         Case((zeros, np.zeros((2, 2)), "ncc"), {}, "ncc, all-zero template (every score 0)"),
         Case((t_a, t_a[::-1].copy(), "ncc"), {}, "template as large as the image (a 1×1 map)"),
         Case((row, t_row), {}, "single row 1×N, default measure (zncc)"),
-        Case((u8, t_u8), {"measure": "zncc"}, "uint8, zncc by keyword"),
+        Case((0.5 + 1e-4 * a, 0.5 + 1e-4 * t_a), {"measure": "zncc"},
+             "a low-contrast image (0.5 + 1e-4·values), zncc by keyword: faint is not flat"),
         _tm_int16(rng),
     ]
 
@@ -485,6 +493,9 @@ match_template = Check(
         ("windows without contrast give NaN (0/0)", "nan",
          "Where a window (or the template) has zero norm (ncc) or zero variance (zncc) return 0, "
          "e.g. np.where(denominator > 0, numerator / denominator, 0) under np.errstate"),
+        ("contrast tested against a fixed threshold (faint windows scored 0)", "absolute_flat",
+         "A window is flat only when its variance is tiny next to its own mean square (relative, ≤ 1e-12), "
+         "not below a fixed number: a faint texture still correlates"),
         ("output padded to the image size", "same",
          "Only the placements where the whole template fits: the map is (H − h + 1, W − w + 1), "
          "S[i, j] for the top-left corner at (x=j, y=i)"),

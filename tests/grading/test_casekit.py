@@ -288,7 +288,7 @@ HIDDEN_DIGESTS = {
     "filters.bilateral": "a390085ddf77e411",
     "edges.canny": "062be2ef9126f621",
     "features.harris": "31cf37836cb4a7ce",
-    "detection.match_template": "31653ddb8a6f577e",  # + an int16 SSD case (#35)
+    "detection.match_template": "4047fdb66a62e5ed",  # + an int16 SSD case (#35); a low-contrast ZNCC case (audit 2)
     "camera.distort": "dcfd022f73f116e1",
     "calibration.homography_dlt": "26ee305b00d5dc80",
     "warp.warp_homography": "431356df8390898a",
