@@ -1009,7 +1009,7 @@ _EIGHT = tuple((0, dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc
 
 
 def _de_variant(dog_pyramid, contrast_threshold=0.03, *, neighbours=NEIGHBOURS_26, ties=False, maxima_only=False,
-                rowcol=False, divide=False):
+                rowcol=False, divide=False, at_threshold=False):
     found = []
     for octave, stack in enumerate(dog_pyramid):
         d = np.asarray(stack, dtype=np.float64)
@@ -1018,7 +1018,7 @@ def _de_variant(dog_pyramid, contrast_threshold=0.03, *, neighbours=NEIGHBOURS_2
             continue
         thr = contrast_threshold / (levels - 2) if divide else contrast_threshold
         centre = d[1:-1, 1:-1, 1:-1]
-        is_max = np.abs(centre) > thr
+        is_max = np.abs(centre) >= thr if at_threshold else np.abs(centre) > thr
         is_min = is_max.copy()
         for ds, dr, dc in neighbours:
             other = d[1 + ds: levels - 1 + ds, 1 + dr: h - 1 + dr, 1 + dc: w - 1 + dc]
@@ -1045,6 +1045,16 @@ def _tie_stacks(rng, octaves, levels, h, w):
     return [rng.integers(-3, 4, (levels, max(3, h >> o), max(3, w >> o))).astype(np.float64) for o in range(octaves)]
 
 
+def _threshold_stack(rng, levels, h, w, threshold):
+    """A stack of small integers with two planted strict extrema: one of |D| = threshold
+    exactly (not kept: the contrast must exceed the threshold) and one above it."""
+    d = rng.integers(-1, 2, (levels, h, w)).astype(np.float64)
+    sign = float(rng.choice([-1.0, 1.0]))
+    d[1, 2, 2] = sign * threshold
+    d[levels - 2, h - 3, w - 3] = -sign * (threshold + 1.0)
+    return [d]
+
+
 def _dog_of(rng, h, w, octaves=2, **kwargs):
     img = _blob_image((h, w), _blob_specs(rng, h, w, 2), noise=0.01, rng=rng)
     return _dog_pyramid(_gaussian_pyramid(img, octaves=octaves, **kwargs))
@@ -1055,6 +1065,7 @@ def _dog_extrema_public():
     return [
         Case((_normal_stacks(rng, 2, 5, 9, 11), 1.8), {}, "random DoG stacks (2 octaves), threshold 1.8"),
         Case((_tie_stacks(rng, 1, 4, 7, 9), 1.5), {}, "integer stack with ties, threshold 1.5"),
+        Case((_threshold_stack(rng, 4, 8, 9, 2.0), 2.0), {}, "an extremum of |D| = threshold exactly (not kept) and one above"),
     ]
 
 
@@ -1072,7 +1083,14 @@ def _dog_extrema_hidden(rng):
         Case(([np.zeros((4, _size(rng, 5, 7), _size(rng, 5, 7)))], 0.0), {}, "all zeros: no extremum"),
         Case((_normal_stacks(rng, 1, 4, 3, _size(rng, 8, 11)), 0.5), {}, "3-row levels (one interior row)"),
         Case((_normal_stacks(rng, 2, 4, _size(rng, 8, 10), _size(rng, 8, 10)), 0.0), {}, "threshold 0"),
+        _threshold_case(rng),
     ]
+
+
+def _threshold_case(rng):
+    threshold = float(_size(rng, 2, 4))
+    stacks = _threshold_stack(rng, _size(rng, 3, 5), _size(rng, 7, 10), _size(rng, 7, 10), threshold)
+    return Case((stacks, threshold), {}, "an extremum of |D| = threshold exactly (not kept) and one above")
 
 
 dog_extrema = Check(
@@ -1086,6 +1104,8 @@ dog_extrema = Check(
                 "An extremum must be strictly greater (or smaller) than all 26 neighbours"),
         Mistake("maxima only", _dev(maxima_only=True), "Keep the minima too (strictly below all 26 neighbours)"),
         Mistake("row and col swapped", _dev(rowcol=True), "Rows are (octave, scale, row, col)"),
+        Mistake("contrast equal to the threshold kept (≥ instead of >)", _dev(at_threshold=True),
+                "Keep a sample only when |D| is strictly above the threshold: |D| > contrast_threshold"),
         Mistake("threshold divided by the number of scales", _dev(divide=True),
                 "Use contrast_threshold as given here (SIFT divides by the number of scales before calling this)"),
     ],
