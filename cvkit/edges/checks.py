@@ -1190,13 +1190,13 @@ hysteresis = Check(
 # edges.canny (§4.10)
 # --------------------------------------------------------------------------------------------
 def _canny_variant(image, sigma=1.4, low=0.1, high=0.2, relative=True, *, norm="l2", smooth=True,
-                   nms="interpolate", link="8", as_relative=None):
+                   nms="interpolate", link="8", as_relative=None, guard=True):
     img = np.asarray(image, dtype=np.float64)
     s = _gaussian(img, sigma) if smooth else img
     gx, gy = _sobel(s)
     mag = _magnitude(gx, gy, norm)
     largest = float(mag.max())
-    if not largest > 1e-12 * max(1.0, float(np.abs(img).max())):
+    if guard and not largest > 1e-12 * max(1.0, float(np.abs(img).max())):
         return np.zeros(img.shape, dtype=bool)
     if (relative if as_relative is None else as_relative):
         low, high = low * largest, high * largest
@@ -1240,6 +1240,16 @@ def _absolute_thresholds(image, sigma, low_fraction, high_fraction):
     return round(low_fraction * top, digits), round(high_fraction * top, digits)
 
 
+def _rounding_bumps(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
+    """A constant image with a few pixels higher by 1e-13 of its level, the size of rounding
+    noise: gradients far below 1e-12 of the image (no edges)."""
+    level = float(rng.uniform(0.2, 0.9))
+    img = np.full((h, w), level)
+    for _ in range(3):
+        img[int(rng.integers(2, h - 2)), int(rng.integers(2, w - 2))] = level * (1.0 + 1e-13)
+    return img
+
+
 def _canny_public():
     disk = disk_image((28, 30), centre=(14.3, 13.6), radius=9.3, inside=0.85, outside=0.1)
     rng = np.random.default_rng(4)
@@ -1254,6 +1264,7 @@ def _canny_public():
         Case((u8, 1.2, low, high), {"relative": False}, f"uint8 square, absolute thresholds {low:g} / {high:g}"),
         Case((u8, 1.2), {}, "the uint8 square, default relative thresholds 0.1 / 0.2"),
         Case((step, 1.0, 0.3, 0.6), {}, "straight step edge at 23° (between two NMS directions)"),
+        Case((_rounding_bumps(rng, 12, 14), 1.0), {}, "nearly constant image: bumps of 1e-13 of its level, rounding noise (no edges)"),
     ]
 
 
@@ -1289,8 +1300,8 @@ def _canny_hidden(rng):
              "float square in 0..100, absolute thresholds (magnitude units)"),
         Case((np.round(255 * disk(0.01)).clip(0, 255).astype(np.uint8), _sigma(rng, 1.1, 1.6)), {"low": 0.2, "high": 0.4},
              "uint8 disk, relative thresholds given by keyword"),
-        Case((np.full((_size(rng, 10, 14), _size(rng, 10, 14)), float(rng.uniform(0.2, 0.9))),), {},
-             "constant image (no edges)"),
+        Case((_rounding_bumps(rng, _size(rng, 10, 14), _size(rng, 10, 14)),), {},
+             "nearly constant image: bumps of 1e-13 of its level, rounding noise (no edges)"),
         Case((rng.random((1, _size(rng, 12, 18))), 0.7), {}, "single row 1×N"),
         Case((rng.random((_size(rng, 12, 16), _size(rng, 18, 24))), _sigma(rng, 0.5, 0.9), 0.2, 0.5), {},
              "random texture, small σ"),
@@ -1302,6 +1313,9 @@ canny = Check(
     hidden=_canny_hidden,
     compare=EdgeF1(radius=0, min_f1=0.97),
     mistakes=[
+        Mistake("no flat-image guard (rounding noise becomes edges)", _cv(guard=False),
+                "When the largest magnitude is at most 1e-12·max(1, max|I|) the image is flat: return no edges "
+                "(relative thresholds would otherwise turn rounding noise into edges)"),
         Mistake("L1 magnitude instead of L2", _cv(norm="l1"),
                 "The edge strength is the L2 norm sqrt(gx² + gy²): |gx| + |gy| favours diagonal edges by up to √2"),
         Mistake("thresholds used as absolute values", _cv(as_relative=False),

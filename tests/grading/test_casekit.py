@@ -286,7 +286,7 @@ HIDDEN_DIGESTS = {
     "stereo.block_matching": "ba1018005ed1e896",  # flat right windows against real ones, two ZNCC cases (audit round 2)
     "filters.mean": "1546999614d0afca",
     "filters.bilateral": "a390085ddf77e411",
-    "edges.canny": "062be2ef9126f621",
+    "edges.canny": "d7ee844a168abac3",  # the constant image became one with rounding-size bumps (audit 2)
     "features.harris": "31cf37836cb4a7ce",
     "detection.match_template": "4047fdb66a62e5ed",  # + an int16 SSD case (#35); a low-contrast ZNCC case (audit 2)
     "camera.distort": "dcfd022f73f116e1",
