@@ -1870,7 +1870,7 @@ def spec_summary(spec, name):
     out_shape, flops = _arch._walk(spec, shape)
     counts = _count_types(spec, {})
     layers = {kind: int(counts.get(kind, 0)) for kind in ("conv", "bn", "linear", "residual", "concat", "maxpool", "relu")}
-    bodies: dict = {}
+    bodies = {}
     for layer in spec:
         if isinstance(layer, dict) and layer.get("type") == "residual":
             _count_types(layer.get("body", []), bodies)

@@ -1208,7 +1208,7 @@ def _cutout_centre(output, case) -> tuple[float | None, float | None]:
     size = int(_arg(case, 1, "size"))
     changed = np.asarray(output, dtype=np.float64) != image
     changed = changed if image.ndim == 2 else changed.any(axis=-1)
-    centre = []
+    centre: list[float | None] = []
     for axis in (1, 0):
         hit = np.flatnonzero(changed.any(axis=axis))
         if hit.size == 0:
