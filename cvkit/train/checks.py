@@ -40,10 +40,10 @@ import numpy as np
 
 from ..grading import Case, Check, Comparator, Measure, Mismatch, Mistake, Statistics, close, mistake
 from ..grading.casekit import variant
-from ..grading.runtime.adapters import call_draws
 from ..grading.casekit import argument as _arg
 from ..grading.casekit import seed as _seed
 from ..grading.casekit import size as _size
+from ..grading.runtime.adapters import call_draws
 
 __all__ = [
     "step_decay", "cosine_decay", "warmup", "one_cycle", "sgd_weight_decay_step", "early_stopping",
