@@ -14,7 +14,7 @@
   trusted side of a sandboxed run.
 """
 from .checks import FORBIDDEN_LIBRARIES, Case, Check, Measure, Mistake, instance_call, mistake
-from .compare import Close, Comparator, Mismatch, Statistics, close
+from .compare import Close, Comparator, Drawn, Mismatch, Statistics, close
 from .diagnose import Diagnosis, diagnose
 from .engine import CheckFailed, check, evaluate, hidden_seed, needs_answer
 from .answers import AnswersUnavailable, load_answers
@@ -23,7 +23,7 @@ from .runtime import guard, wire  # noqa: F401  (cvkit.grading.wire, cvkit.gradi
 
 __all__ = [
     "Case", "Check", "Measure", "Mistake", "mistake", "FORBIDDEN_LIBRARIES", "instance_call",
-    "Comparator", "Close", "Statistics", "Mismatch", "close",
+    "Comparator", "Close", "Drawn", "Statistics", "Mismatch", "close",
     "check", "evaluate", "hidden_seed", "needs_answer", "CheckFailed", "diagnose", "Diagnosis",
     "Report", "CaseResult", "MIME_TYPE", "load_answers", "AnswersUnavailable",
 ]

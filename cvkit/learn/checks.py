@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..grading import Case, Check, Comparator, Mismatch, Mistake, close, mistake
+from ..grading import Case, Check, Comparator, Drawn, Mismatch, Mistake, close, mistake
 from ..grading.casekit import variant
 from ..grading.casekit import argument as _arg
 from ..grading.casekit import rounded as _round
@@ -52,7 +52,7 @@ from ..grading.casekit import seed as _seed
 from ..grading.casekit import size as _size
 from ..grading.casekit import uniform as _u
 from ..grading.compare import Close
-from ..grading.runtime.adapters import TEST_FUNCTIONS, TestFunction, call_with_test_function
+from ..grading.runtime.adapters import TEST_FUNCTIONS, TestFunction, call_draws, call_with_test_function
 from ._clustering import _assign, _update
 from ._clustering import kmeans as _kmeans
 from ._common import exact_l1_distances, exact_squared_distances
@@ -626,7 +626,7 @@ class _SGDCase(Case):
 
 
 def _sgd_loop(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None, *, shuffle=True, sign=1.0, sum_steps=False,
-              bias=True, loss_sum=False, one_batch=False):
+              bias=True, loss_sum=False, one_batch=False, shuffle_once=False, replace=False):
     """SGD with switches for the mistakes (built on the reference loss and gradient)."""
     X = np.asarray(X, dtype=np.float64)
     y = np.asarray(y)
@@ -634,8 +634,14 @@ def _sgd_loop(X, y, classes, lr, epochs, batch_size, reg=0.0, rng=None, *, shuff
     gen = np.random.default_rng(rng)
     W, b = np.zeros((classes, d)), np.zeros(classes)
     losses = []
-    for _ in range(epochs):
-        order = gen.permutation(n) if shuffle else np.arange(n)
+    first = gen.permutation(n)
+    for epoch in range(epochs):
+        if replace:
+            order = gen.integers(0, n, n)
+        elif shuffle_once:
+            order = first
+        else:
+            order = (first if epoch == 0 else gen.permutation(n)) if shuffle else np.arange(n)
         total, count, batches = 0.0, 0, 0
         starts = [0] if one_batch else range(0, n, batch_size)
         for start in starts:
@@ -658,6 +664,33 @@ _sgd_summed_steps = variant(_sgd_loop, sum_steps=True)
 _sgd_no_bias = variant(_sgd_loop, bias=False)
 _sgd_loss_sum = variant(_sgd_loop, loss_sum=True)
 _sgd_one_batch = variant(_sgd_loop, one_batch=True)
+_sgd_shuffled_once = variant(_sgd_loop, shuffle_once=True)
+_sgd_with_replacement = variant(_sgd_loop, replace=True)
+
+#: the statistics of a ``draws`` case of sgd_train (many runs, one seed each)
+_SGD_DRAWS = ("different results (W, b) over the runs", "share of the runs that gave the most frequent result")
+
+
+def _sgd_draw_statistics(outputs, case):
+    """Two samples, B = 1: each epoch's order is one of two, so E epochs of fresh shuffles end
+    in 2**E results (W, b), each as likely; one shuffle for all epochs in 2, none in 1."""
+    results = [np.round(np.concatenate([np.ravel(np.asarray(W, dtype=np.float64)),
+                                        np.ravel(np.asarray(b, dtype=np.float64))]), 9).tobytes()
+               for W, b, _ in outputs]
+    counts = Counter(results)
+    return dict(zip(_SGD_DRAWS, (float(len(counts)), max(counts.values()) / len(results))))
+
+
+def _sgd_draw_tolerance(case):
+    return dict(zip(_SGD_DRAWS, (0.0, 0.15)))
+
+
+def _sgd_draws_case(X, y, classes, lr, epochs, first, label):
+    """Many runs on two samples with B = 1 (``draws``): only the distribution of the results
+    over the seeds tells a fresh shuffle per epoch from one shuffle for all (one run's
+    result is judged as finite only: any order is a correct order)."""
+    return _SGDCase((X, y, classes, lr, epochs, 1), {"reg": 0.0, "draws": (first, 400)}, label,
+                    tolerance=float("inf"))
 
 
 def _full_batch_case(rng, label, n=None, d=None, c=None, reg=None, uint8=False):
@@ -721,6 +754,9 @@ def _sgd_hidden(rng):
         _mini_batch_case(rng, "mini-batches on sorted blobs"),
         _small_batch_case(rng, "many small batches (B = 4)", n=4 * _size(rng, 15, 20), d=_size(rng, 2, 4)),
         _small_batch_case(rng, "many small batches (B = 4), 4 classes", n=4 * _size(rng, 15, 20), c=4),
+        _sgd_draws_case(_round(rng.normal(0, 1, (2, _size(rng, 2, 3)))), np.array([0, 1]), _size(rng, 2, 3),
+                        _u(rng, 0.5, 1.5, 2), 3, _seed(rng),
+                        "400 runs on 2 samples, B = 1, 3 epochs, rng = r, r + 1, …: a fresh shuffle each epoch"),
     ]
 
 
@@ -734,17 +770,26 @@ def _sgd_public():
                   np.repeat([0, 1], 100), 2, 1.0, 10, 100), {"reg": 0.0, "rng": 1},
                  "sorted labels, B = N/2: one class per batch unless shuffled", tolerance=0.1),
         _small_batch_case(rng, "64 samples, many small batches (B = 4)", n=64),
+        _sgd_draws_case(np.array([[1.0, 0.5], [-0.5, 1.0]]), np.array([0, 1]), 2, 1.0, 2, 2000,
+                        "400 runs on 2 samples, B = 1, 2 epochs, rng = 2000, 2001, …: a fresh shuffle each epoch"),
     ]
 
 
 sgd_train = Check(
     public=_sgd_public,
     hidden=_sgd_hidden,
-    compare=SGDResult(),
+    compare=Drawn(single=SGDResult(), statistics=_sgd_draw_statistics, tolerance=_sgd_draw_tolerance),
+    call=call_draws,
     mistakes=[
         Mistake("no shuffling (the same batches every epoch)", _sgd_no_shuffle,
                 "Draw a fresh permutation every epoch, order = rng.permutation(N), and cut the batches "
                 "from X[order]: sorted data then still gives mixed batches"),
+        Mistake("one shuffle for all epochs", _sgd_shuffled_once,
+                "Draw the permutation inside the epoch loop, order = rng.permutation(N) at the start of "
+                "every epoch: the same batches every epoch let the model learn their order"),
+        Mistake("samples drawn with replacement, not a shuffle", _sgd_with_replacement,
+                "An epoch visits every sample exactly once: cut the batches from a permutation, "
+                "order = rng.permutation(N), not from rng.integers(0, N, N)"),
         Mistake("gradient ascent (W += lr·dW)", _sgd_ascent,
                 "Step against the gradient: W -= lr * dW and b -= lr * db"),
         Mistake("one mini-batch per epoch instead of ⌈N/B⌉", _sgd_one_batch,

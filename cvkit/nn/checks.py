@@ -40,7 +40,7 @@ from functools import partial
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from ..grading import Case, Check, Comparator, Mismatch, Mistake, close, mistake
+from ..grading import Case, Check, Comparator, Drawn, Mismatch, Mistake, close, mistake
 from ..grading.casekit import distinct, variant
 from ..grading.casekit import rounded as _round
 from ..grading.casekit import seed as _any_seed
@@ -1426,9 +1426,11 @@ class DropoutStatistics(Comparator):
     Two correct versions may keep different units, so the draws are not compared one by one.
     In training: the cache ``mask`` is a boolean array of x's shape whose True entries are
     exactly the non-zero outputs; every kept unit equals ``x / p_keep`` (the *scale* of the kept
-    units); the fraction kept is within 4.5 binomial standard deviations (+ one unit) of the
-    expected one. In evaluation: ``out`` equals ``x``. The numbers are measured on both outputs
-    and compared, so a mistake is recognised by the same numbers ("scale 0.8, expected 1.25").
+    units); the fraction kept is within 4.5 standard deviations (+ one unit) of the reference
+    draw's, the deviation of the difference of two independent binomial fractions (6 for each
+    of a ``draws`` case's many calls, whose distribution :func:`_dropout_draw_statistics`
+    judges). In evaluation: ``out`` equals ``x``. The numbers are measured on both outputs and
+    compared, so a mistake is recognised by the same numbers ("scale 0.8, expected 1.25").
     """
 
     def describe(self) -> str:
@@ -1482,7 +1484,8 @@ class DropoutStatistics(Comparator):
         n = x.size
         mine = self.statistics((out, got[1]), case)
         theirs = self.statistics(expected, case)
-        tolerance = {"fraction of units kept": 4.5 * math.sqrt(p * (1 - p) / n) + 1.0 / n}
+        deviations = 6.0 if case is not None and case.kwargs.get("draws") else 4.5
+        tolerance = {"fraction of units kept": deviations * math.sqrt(2 * p * (1 - p) / n) + 1.0 / n}
         wrong = []
         for name, value in theirs.items():
             have = mine.get(name, float("nan"))
@@ -1532,6 +1535,52 @@ def _dropout_scaled_in_eval(x, p_keep, training, rng=None):
     return (out if training else out * p_keep), cache
 
 
+@mistake("exactly round(p_keep·N) units kept on every call",
+         "Keep each unit on its own with probability p_keep, mask = rng.random(x.shape) < p_keep: "
+         "the number kept then varies from call to call (Binomial(N, p_keep)), as dropout's noise should")
+def _dropout_exact_count(x, p_keep, training, rng=None):
+    x = _f(x)
+    mask = np.zeros(x.size, dtype=bool)
+    if training:
+        mask[np.random.default_rng(rng).permutation(x.size)[:int(round(p_keep * x.size))]] = True
+    else:
+        mask[:] = True
+    mask = mask.reshape(x.shape)
+    return np.where(mask, x / p_keep, 0.0) if training else x.copy(), \
+        {"x": x, "p_keep": p_keep, "training": training, "mask": mask}
+
+
+@mistake("rng ignored: the same units dropped on every call",
+         "Draw the mask from the generator the caller gives, g = np.random.default_rng(rng): a generator "
+         "made with a fixed seed inside the function drops the same units in every training step")
+def _dropout_fixed_seed(x, p_keep, training, rng=None):
+    return _dropout_forward(x, p_keep, training, 0)
+
+
+#: the statistics of a dropout ``draws`` case (many calls, one seed each)
+_DROPOUT_DRAWS = ("variance of the number of units kept per call",
+                  "mean fraction of units kept over the calls",
+                  "share of the calls that drew the most frequent mask")
+
+
+def _dropout_draw_statistics(outputs, case):
+    kept = [np.asarray(out, dtype=np.float64) != 0 for out, _ in outputs]
+    counts = np.array([mask.sum() for mask in kept], dtype=np.float64)
+    masks = [mask.tobytes() for mask in kept]
+    most = max(masks.count(m) for m in set(masks)) / len(masks)
+    return dict(zip(_DROPOUT_DRAWS, (float(counts.var()), float(counts.mean()) / kept[0].size, most)))
+
+
+def _dropout_draw_tolerance(case):
+    """Six standard errors of the difference between two independent sets of m draws: the
+    count's variance σ² = N·p(1−p) has a standard error of about σ²·√(2/m) per set."""
+    n = _f(_dropout_arg(case, 0, "x")).size
+    p = float(_dropout_arg(case, 1, "p_keep"))
+    m = int(case.kwargs["draws"][1])
+    variance = n * p * (1 - p)
+    return dict(zip(_DROPOUT_DRAWS, (6 * variance * 2 / math.sqrt(m), 6 * math.sqrt(2 * p * (1 - p) / (n * m)), 0.25)))
+
+
 def _nonzero(rng, shape, scale=1.0):
     x = _normal(rng, shape, scale, 3)
     x[x == 0] = 0.5
@@ -1542,7 +1591,8 @@ def _p(rng, lo=0.6, hi=0.9) -> float:
     return _u(rng, lo, hi, 2)
 
 
-def _dropout_hidden(rng):
+def _dropout_single_hidden(rng):
+    """The hidden cases of one call each (the backward pass takes them too)."""
     return [
         Case((_nonzero(rng, (20, 40)), _p(rng), True), {"rng": _seed(rng)}, "(N, D) activations, training"),
         Case((_nonzero(rng, (4, 5, 6, 6)), _p(rng), True), {"rng": _seed(rng)}, "feature maps, training"),
@@ -1557,17 +1607,27 @@ def _dropout_hidden(rng):
     ]
 
 
+def _dropout_hidden(rng):
+    return _dropout_single_hidden(rng) + [
+        Case((_nonzero(rng, (5, _size(rng, 6, 10))), _p(rng, 0.4, 0.7), True), {"draws": (_seed(rng), 400)},
+             "400 calls, rng = r, r + 1, …: each unit kept on its own, a fresh mask each call"),
+    ]
+
+
 dropout_forward = Check(
     public=[
         Case((_distinct((20, 30), seed=81, offset=0.125), 0.8, True), {"rng": 0}, "p_keep 0.8, training"),
         Case((_distinct((4, 3, 5, 5), seed=82, offset=0.125), 0.3, True), {"rng": 1}, "p_keep 0.3, training"),
         Case((_distinct((4, 6), seed=83, offset=0.125), 0.7, False), {"rng": 2}, "evaluation"),
+        Case((_distinct((5, 8), seed=84, offset=0.125), 0.6, True), {"draws": (4000, 400)},
+             "400 calls, rng = 4000, 4001, …: each unit kept on its own, a fresh mask each call"),
     ],
     hidden=_dropout_hidden,
-    compare=DropoutStatistics(),
+    compare=Drawn(single=DropoutStatistics(), statistics=_dropout_draw_statistics, tolerance=_dropout_draw_tolerance),
     call=call_dropout_forward,
     seeded=True,
-    mistakes=[_dropout_scaled_by_p, _dropout_p_is_drop, _dropout_not_scaled, _dropout_in_eval, _dropout_scaled_in_eval],
+    mistakes=[_dropout_scaled_by_p, _dropout_p_is_drop, _dropout_not_scaled, _dropout_in_eval, _dropout_scaled_in_eval,
+              _dropout_exact_count, _dropout_fixed_seed],
 )
 
 
@@ -1602,7 +1662,7 @@ def _dropout_backward_cases(cases, rng):
 
 
 def _dropout_backward_hidden(rng):
-    cases = _dropout_backward_cases(_dropout_hidden(rng), rng)
+    cases = _dropout_backward_cases(_dropout_single_hidden(rng), rng)
     return [c for c in cases if "1-D" not in c.label]
 
 

@@ -38,7 +38,7 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
-from ..grading import Case, Check, Comparator, Measure, Mismatch, Mistake, Statistics, close, mistake
+from ..grading import Case, Check, Comparator, Drawn, Measure, Mismatch, Mistake, Statistics, close, mistake
 from ..grading.casekit import variant
 from ..grading.casekit import argument as _arg
 from ..grading.casekit import seed as _seed
@@ -104,36 +104,6 @@ class StructuredStatistics(Statistics):
         if problem:
             return Mismatch(problem)
         return self.judge(got, expected, case)
-
-
-@dataclass
-class Drawn(Comparator):
-    """A random algorithm's outputs: one call judged by ``single``; a case with ``draws``
-    (many calls, one seed each, :func:`~cvkit.grading.runtime.adapters.call_draws`) judged
-    draw by draw by ``single`` too, then by the distribution over its draws —
-    ``statistics(draws, case)`` gives named numbers of the whole list and ``tolerance(case)``
-    how far they may be from those of the reference's draws."""
-
-    single: Comparator
-    statistics: Callable[[Any, Any], Any]
-    tolerance: Callable[[Any], Any]
-
-    def describe(self) -> str:
-        return self.single.describe() + "; over many calls: the distribution of the draws"
-
-    def __call__(self, got, expected, case=None):
-        if case is None or case.kwargs.get("draws") is None:
-            return self.single(got, expected, case)
-        count = len(expected)
-        if not isinstance(got, (list, tuple)) or len(got) != count:
-            return Mismatch(f"expected the outputs of {count} calls, got {type(got).__name__}")
-        for index, (draw, reference) in enumerate(zip(got, expected)):
-            mismatch = self.single(draw, reference, case)
-            if mismatch is not None:
-                mismatch.message = f"call {index + 1} of {count} (rng = {case.kwargs['draws'][0] + index}): " \
-                    + mismatch.message
-                return mismatch
-        return Statistics(statistics=self.statistics, tolerance=self.tolerance).judge(got, expected, case)
 
 
 # --------------------------------------------------------------------------------------------

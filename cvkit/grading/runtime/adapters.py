@@ -135,12 +135,16 @@ def _select(result, layer: str):
     return result
 
 
-def _forward_call(layer: str) -> Callable:
+def _forward_call(layer: str, random: bool = False) -> Callable:
     """The :attr:`Check.call` of ``layer``'s forward: ``(out, cache with the entries
-    CACHE_KEYS[layer] names)``. It carries a module-level name (``call_<layer>_forward``,
-    assigned below) so that the trusted grader can send that name to the sandbox."""
+    CACHE_KEYS[layer] names)``; a ``random`` layer's also takes ``draws`` (:func:`call_draws`:
+    a list of such pairs, one per seed). It carries a module-level name
+    (``call_<layer>_forward``, assigned below) so that the trusted grader can send that name to
+    the sandbox."""
 
     def call(candidate, *args, **kwargs):
+        if random:
+            return call_draws(lambda *a, **k: _select(candidate(*a, **k), layer), *args, **kwargs)
         return _select(candidate(*args, **kwargs), layer)
 
     call.__name__ = call.__qualname__ = f"call_{layer}_forward"
@@ -157,7 +161,7 @@ call_conv2d_forward = _forward_call("conv2d")
 call_maxpool2d_forward = _forward_call("maxpool2d")
 call_global_avg_pool_forward = _forward_call("global_avg_pool")
 call_batchnorm2d_forward = _forward_call("batchnorm2d")
-call_dropout_forward = _forward_call("dropout")
+call_dropout_forward = _forward_call("dropout", random=True)
 call_residual_block_forward = _forward_call("residual_block")
 
 
