@@ -49,7 +49,7 @@ class Diagnosis:
     ``kind`` for programs (``"shift"``, ``"transposed"``, ``"flip"``, ``"channels"``, ``"order"``,
     ``"zeros"``, ``"sign"``, ``"scale"``, ``"offset"``, ``"affine"``, ``"rounding"``,
     ``"clipping"``, ``"wraparound"``, ``"precision"``, ``"nonfinite"``, ``"missing_nonfinite"``,
-    ``"border"``, ``"channel_only"``)."""
+    ``"border"``, ``"edge_entries"`` (the same place in an output that is no image), ``"channel_only"``)."""
 
     kind: str
     what: str
@@ -517,8 +517,25 @@ def _scale_diagnosis(c: float) -> Diagnosis:
                      "number of values or by the sum of the weights, a unit (255 vs 1)")
 
 
-def _partial(a: np.ndarray, e: np.ndarray, bad: np.ndarray) -> Diagnosis | None:
-    """Facts that locate the error when no transformation explains it."""
+def _is_image(shape: tuple, image: bool | tuple[int, ...]) -> bool:
+    """Whether an output of this ``shape`` is a picture whose edges are an image's border:
+    ``image`` True (not known: any image-like shape), False (the case has no input image) or
+    the input image's shape — then the output has its rows and columns (filters, edges) or is
+    a crop of them at least 5×5 (``output="valid"``); a 4×4 matrix made from a 3×3 one, a
+    kernel made from σ or a matrix made from points is not."""
+    if len(shape) < 2 or min(shape[:2]) < 3 or not _image_like(shape):
+        return False
+    if image is True or image is False:
+        return image
+    rows, cols = shape[:2]
+    if len(image) < 2 or rows > image[0] or cols > image[1]:
+        return False
+    return (rows, cols) == tuple(image[:2]) or min(rows, cols) >= 5
+
+
+def _partial(a: np.ndarray, e: np.ndarray, bad: np.ndarray, image: bool | tuple[int, ...] = True) -> Diagnosis | None:
+    """Facts that locate the error when no transformation explains it (``image``: see
+    :func:`_is_image`; an output that is no image gets the place, not the border's advice)."""
     with np.errstate(all="ignore"):
         nonfinite = bad & ~np.isfinite(a) & np.isfinite(e)
         missing = bad & np.isfinite(a) & ~np.isfinite(e)
@@ -545,6 +562,14 @@ def _partial(a: np.ndarray, e: np.ndarray, bad: np.ndarray) -> Diagnosis | None:
     if e.ndim >= 2 and min(e.shape[:2]) >= 3 and _image_like(e.shape):
         spatial = _spatial(bad)
         frame = _frame(spatial)
+        if frame is not None and not _is_image(e.shape, image):
+            text, all_sides = _frame_words(*frame)
+            what = ("only the entries at the edges of the result (its first and last rows and columns) are wrong, "
+                    "the inner ones are right" if all_sides else
+                    f"only {text} of the result {'is' if ' and ' not in text else 'are'} wrong, the rest is right")
+            return Diagnosis("edge_entries", what,
+                             "look at how those entries are computed or filled in, apart from the others (a term "
+                             "left out, an index one off, a value left at its start)")
         if frame is not None:
             text, all_sides = _frame_words(*frame)
             if all_sides:
@@ -566,7 +591,8 @@ def _partial(a: np.ndarray, e: np.ndarray, bad: np.ndarray) -> Diagnosis | None:
     return None
 
 
-def diagnose(got: Any, expected: Any, *, rtol: float = 1e-7, atol: float | None = None) -> Diagnosis | None:
+def diagnose(got: Any, expected: Any, *, rtol: float = 1e-7, atol: float | None = None,
+             image: bool | tuple[int, ...] = True) -> Diagnosis | None:
     """What a wrong output is, in plain words, or None.
 
     ``rtol``/``atol`` say when two values are equal (``atol`` default ``1e-10·max(1, max|e|)``;
@@ -574,7 +600,9 @@ def diagnose(got: Any, expected: Any, *, rtol: float = 1e-7, atol: float | None 
     so that a different order of summation does not hide them). Tuples and lists of arrays
     are diagnosed element by element ("result [1]: ..."), and a pair returned in the wrong
     order is named. None when the output equals the expected one, when nothing simple explains
-    the difference, or when two explanations fit equally well.
+    the difference, or when two explanations fit equally well. ``image`` is the shape of the
+    case's input image (False: it has none; True, the default: not known): only an output
+    that is an image of it is told about its border.
     """
     if isinstance(expected, (tuple, list)) and not isinstance(expected, np.ndarray):
         if not isinstance(got, (tuple, list)) or len(got) != len(expected):
@@ -606,7 +634,7 @@ def diagnose(got: Any, expected: Any, *, rtol: float = 1e-7, atol: float | None 
                         return Diagnosis("order", what, "return the results in the order the exercise states")
         for i, ((part, expected_part), ok) in enumerate(zip(parts, same)):
             if not ok:
-                found = diagnose(part, expected_part, rtol=rtol, atol=atol)
+                found = diagnose(part, expected_part, rtol=rtol, atol=atol, image=image)
                 if found is None:
                     return None
                 return Diagnosis(found.kind, f"result [{i}]: {found.what}", found.hint)
@@ -635,7 +663,7 @@ def diagnose(got: Any, expected: Any, *, rtol: float = 1e-7, atol: float | None 
         return exact[0]
     if exact or bad is None:
         return None  # ambiguous, or a shape that nothing explains
-    return _partial(a, e, bad)
+    return _partial(a, e, bad, image)
 
 
 # --------------------------------------------------------------------------------------------

@@ -237,10 +237,18 @@ def _diagnosable(spec: Check) -> bool:
     return not spec.seeded and not isinstance(compare, Statistics) and bool(getattr(compare, "elementwise", False))
 
 
-def _diagnosis(spec: Check, got: Any, expected: Any) -> str | None:
+def _input_image(case: Case | None) -> bool | tuple[int, ...]:
+    """The shape of the case's input image (its first argument, an array of two or more
+    dimensions), else False: only an output that is an image of it has an image's border."""
+    first = case.args[0] if case is not None and case.args else None
+    return tuple(first.shape) if isinstance(first, np.ndarray) and first.ndim >= 2 else False
+
+
+def _diagnosis(spec: Check, got: Any, expected: Any, case: Case | None = None) -> str | None:
     """The shape of the error of a failing output (:func:`cvkit.grading.diagnose.diagnose`)."""
     if not _diagnosable(spec):
         return None
+    image = _input_image(case)
     compare = spec.compare
     if getattr(compare, "normalises", False):
         got, expected = _normalised(compare, got), _normalised(compare, expected)
@@ -251,12 +259,12 @@ def _diagnosis(spec: Check, got: Any, expected: Any) -> str | None:
     try:
         with np.errstate(all="ignore"):
             if isinstance(expected, (tuple, list)) and not isinstance(expected, np.ndarray):
-                found = diagnose(got, expected, rtol=rtol)
+                found = diagnose(got, expected, rtol=rtol, image=image)
             else:
                 e = np.asarray(expected, dtype=np.float64)
                 finite = np.abs(e[np.isfinite(e)])
                 scale = max(1.0, float(finite.max())) if finite.size else 1.0
-                found = diagnose(got, expected, rtol=rtol, atol=atol * scale)
+                found = diagnose(got, expected, rtol=rtol, atol=atol * scale, image=image)
     except Exception:
         return None
     return str(found) if found is not None else None
@@ -756,7 +764,7 @@ class _Evaluation:
             self._vote(found, mistake)
         if not found and mismatch is not None:
             # no named mistake fits: say what the wrong output looks like (shifted, transposed...)
-            result.diagnosis = _diagnosis(self.spec, outcome.value, expected)
+            result.diagnosis = _diagnosis(self.spec, outcome.value, expected, case)
 
     def _vote(self, found: list[Mistake], mistake: Mistake) -> None:
         """One case's vote for a mistake of the bank."""

@@ -495,3 +495,43 @@ def test_instructor_summary_lists_each_student_and_exercise_once_in_plain_words(
     assert notes[1].strip() == "ann · median: your output is shifted by 1 row down and 1 column right"
     assert notes[2].strip() == "ann · bilinear: mistake “x and y swapped (image[x, y])”"
     assert not TECHNICAL.search(table)
+
+
+def test_the_border_advice_is_given_only_for_an_image_of_the_input():
+    """A wrong last column of a 4×4 matrix is told where it is, without the advice about an
+    image's border; a filtered image of the input's shape, or a valid crop of it, gets it."""
+    e = np.arange(16.0).reshape(4, 4)
+    got = e.copy()
+    got[:3, 3] += 1.0
+    for image in (False, (3, 3), (5, 2)):  # no input image; a 3×3 matrix; points
+        found = diagnose(got, e, image=image)
+        assert found.kind == "edge_entries" and found.what == "only the last column of the result is wrong, " \
+            "the rest is right", image
+        assert "outside the image" not in str(found) and "border" not in str(found)
+    ring = e.copy()
+    ring[0] += 1.0
+    ring[-1] += 1.0
+    ring[:, 0] += 1.0
+    ring[:, -1] += 1.0
+    assert "first and last rows and columns" in diagnose(ring, e, image=False).what
+    picture = np.random.default_rng(1).random((9, 8))
+    wrong = picture.copy()
+    wrong[:, -1] = 0.0
+    for image in ((9, 8), (9, 8, 3), (12, 10), True):  # the image itself; its colour source; a crop of it; unknown
+        assert diagnose(wrong, picture, image=image).kind == "border", image
+    assert diagnose(wrong, picture, image=(9, 7)).kind == "edge_entries"  # larger than its input: no image of it
+
+
+def test_a_wrong_translation_column_is_not_called_a_border_error():
+    def extrinsic_matrix(R, t):
+        G = np.eye(4)
+        G[:3, :3] = R
+        G[:3, 3] = -np.asarray(t, dtype=float)  # the camera's centre, not t
+        return G
+
+    report = evaluate("camera.extrinsic_matrix", extrinsic_matrix)
+    failed = [c for c in report.cases if not c.passed]
+    assert failed
+    for case in failed:
+        text = f"{case.message} {case.diagnosis or ''} {case.hint or ''}"
+        assert "outside the image" not in text and "border" not in text, text
