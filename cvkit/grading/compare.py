@@ -392,20 +392,60 @@ class Statistics(Comparator):
         return None
 
 
+def _output_key(value: Any) -> Any:
+    """A hashable stand-in for an output, equal for equal outputs (arrays by dtype, shape and
+    bytes; tuples, lists and dicts element by element)."""
+    if isinstance(value, np.ndarray) or isinstance(value, np.generic):
+        arr = np.asarray(value)
+        return ("array", arr.dtype.str, arr.shape, arr.tobytes())
+    if isinstance(value, (tuple, list)):
+        return (type(value).__name__, tuple(_output_key(v) for v in value))
+    if isinstance(value, dict):
+        return ("dict", tuple((repr(k), _output_key(v)) for k, v in value.items()))
+    return ("value", repr(value))
+
+
+#: the statistic every ``draws`` case has: how often one output comes back
+REPEATS = "share of the calls that gave the most frequent result"
+
+
+def repeat_share(outputs: Sequence[Any]) -> float:
+    """The share of ``outputs`` equal to the most frequent one: about 1/len for a function that
+    draws afresh on every call, 1 for one that ignores ``rng`` (a generator with a fixed seed)."""
+    keys = [_output_key(output) for output in outputs]
+    counts: dict[Any, int] = {}
+    for key in keys:
+        counts[key] = counts.get(key, 0) + 1
+    return max(counts.values()) / len(keys) if keys else 0.0
+
+
 @dataclass
 class Drawn(Comparator):
     """A random algorithm's outputs: one call judged by ``single``; a case with ``draws``
     (many calls, one seed each, :func:`~cvkit.grading.runtime.adapters.call_draws`) judged
-    draw by draw by ``single`` too, then by the distribution over its draws —
-    ``statistics(draws, case)`` gives named numbers of the whole list and ``tolerance(case)``
-    how far they may be from those of the reference's draws."""
+    draw by draw by ``single`` too, then by the distribution over its draws: always
+    :data:`REPEATS` (within 0.25 of the reference's: a function that ignores ``rng`` gives one
+    output every time), and ``statistics(draws, case)``, named numbers of the whole list whose
+    ``tolerance(case)`` says how far they may be from those of the reference's draws."""
 
     single: Comparator
-    statistics: Callable[[Any, Any], Any]
-    tolerance: Callable[[Any], Any]
+    statistics: Callable[[Any, Any], Any] | None = None
+    tolerance: Callable[[Any], Any] | None = None
 
     def describe(self) -> str:
         return self.single.describe() + "; over many calls: the distribution of the draws"
+
+    def _statistics(self, outputs: Any, case: Any) -> dict[str, float]:
+        found = {REPEATS: repeat_share(outputs)}
+        if self.statistics is not None:
+            found.update(self.statistics(outputs, case))
+        return found
+
+    def _tolerance(self, case: Any) -> dict[str, float]:
+        allowed = {REPEATS: 0.25}
+        if self.tolerance is not None:
+            allowed.update(self.tolerance(case))
+        return allowed
 
     def __call__(self, got, expected, case=None):
         if case is None or case.kwargs.get("draws") is None:
@@ -419,4 +459,4 @@ class Drawn(Comparator):
                 mismatch.message = f"call {index + 1} of {count} (rng = {case.kwargs['draws'][0] + index}): " \
                     + mismatch.message
                 return mismatch
-        return Statistics(statistics=self.statistics, tolerance=self.tolerance).judge(got, expected, case)
+        return Statistics(statistics=self._statistics, tolerance=self._tolerance).judge(got, expected, case)

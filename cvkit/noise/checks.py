@@ -19,11 +19,14 @@ import math
 
 import numpy as np
 
-from ..grading import Case, Check, Mistake, Statistics, mistake
+from ..grading import Case, Check, Drawn, Statistics, mistake
 from ..grading.casekit import argument as _arg
 from ..grading.casekit import seed as _seed
 from ..grading.casekit import size as _size
 from ..grading.casekit import uniform as _u
+from ..grading.runtime.adapters import call_draws
+from . import add_gaussian as _add_gaussian
+from . import add_salt_and_pepper as _add_salt_and_pepper
 
 __all__ = ["add_gaussian", "add_salt_and_pepper"]
 
@@ -114,6 +117,13 @@ def _g_same_for_channels(image, sigma, rng=None):
     return img + (noise[..., None] if img.ndim == 3 else noise)
 
 
+@mistake("rng ignored: the same noise on every call",
+         "Draw from the generator the caller gives, np.random.default_rng(rng): a generator made with a "
+         "fixed seed inside the function adds the same noise to every image")
+def _g_fixed_seed(image, sigma, rng=None):
+    return _add_gaussian(image, sigma, rng=0)
+
+
 def _unit_image(rng, h, w, channels=None):
     shape = (h, w) if channels is None else (h, w, channels)
     return rng.random(shape)
@@ -140,6 +150,8 @@ def _gaussian_hidden(rng):
         Case((_unit_image(rng, 64, 64), sigma_small), {"rng": np.random.default_rng(_seed(rng))},
              "rng given as a numpy Generator"),
         Case((_unit_image(rng, 16, 20), 0.0), {"rng": _seed(rng)}, "σ = 0 (the image, as float)"),
+        Case((_unit_image(rng, 16, _size(rng, 16, 24)), _u(rng, 0.05, 0.2)), {"draws": (_seed(rng), 20)},
+             "20 calls, rng = r, r + 1, …: fresh noise on every call"),
     ]
 
 
@@ -150,10 +162,13 @@ add_gaussian = Check(
         Case((np.random.default_rng(101).random((40, 40, 3)), 0.2), {"rng": 1}, "colour 40×40×3 image, σ = 0.2"),
         Case((np.random.default_rng(102).integers(0, 256, (64, 64), dtype=np.uint8), 20.0), {"rng": 2},
              "uint8 64×64 image, σ = 20"),
+        Case((np.random.default_rng(103).random((16, 16)), 0.1), {"draws": (300, 20)},
+             "20 calls, rng = 300, 301, …: fresh noise on every call"),
     ],
     hidden=_gaussian_hidden,
-    compare=Statistics(statistics=_gaussian_statistics, tolerance=_gaussian_tolerance, dtype_kind="f"),
-    mistakes=[_g_variance, _g_clipped, _g_uniform, _g_one_value, _g_same_for_channels],
+    compare=Drawn(single=Statistics(statistics=_gaussian_statistics, tolerance=_gaussian_tolerance, dtype_kind="f")),
+    call=call_draws,
+    mistakes=[_g_variance, _g_clipped, _g_uniform, _g_one_value, _g_same_for_channels, _g_fixed_seed],
     seeded=True,
 )
 
@@ -261,6 +276,13 @@ def _sp_with_replacement(image, amount, rng=None, low=0.0, high=1.0):
     return img
 
 
+@mistake("rng ignored: the same pixels replaced on every call",
+         "Draw from the generator the caller gives, np.random.default_rng(rng): a generator made with a "
+         "fixed seed inside the function hits the same pixels of every image")
+def _sp_fixed_seed(image, amount, rng=None, low=0.0, high=1.0):
+    return _add_salt_and_pepper(image, amount, rng=0, low=low, high=high)
+
+
 def _inner_image(rng, h, w, channels=None, lo=0.05, hi=0.95):
     """Values never equal to low or high, so every replaced pixel shows."""
     shape = (h, w) if channels is None else (h, w, channels)
@@ -288,6 +310,8 @@ def _sp_hidden(rng):
         Case((_inner_image(rng, 64, 64, lo=0.3, hi=0.7), 0.5), {"rng": _seed(rng), "low": 0.25, "high": 0.75},
              "amount 0.5, low = 0.25, high = 0.75"),
         Case((_inner_image(rng, 1, 4096), 0.1), {"rng": _seed(rng)}, "single-row 1×4096 image"),
+        Case((_inner_image(rng, 16, _size(rng, 16, 24)), _u(rng, 0.1, 0.3)), {"draws": (_seed(rng), 20)},
+             "20 calls, rng = r, r + 1, …: other pixels on every call"),
     ]
 
 
@@ -299,9 +323,12 @@ add_salt_and_pepper = Check(
              "colour 48×48×3 image, amount 0.15"),
         Case((np.random.default_rng(202).integers(1, 255, (64, 64), dtype=np.uint8), 0.2),
              {"rng": 2, "low": 0.0, "high": 255.0}, "uint8 image, amount 0.2, low = 0, high = 255"),
+        Case((np.random.default_rng(203).uniform(0.05, 0.95, (16, 16)), 0.2), {"draws": (400, 20)},
+             "20 calls, rng = 400, 401, …: other pixels on every call"),
     ],
     hidden=_sp_hidden,
-    compare=Statistics(statistics=_sp_statistics, tolerance=_sp_tolerance, dtype_kind="f"),
-    mistakes=[_sp_twice, _sp_only_salt, _sp_per_channel, _sp_fixed_values, _sp_with_replacement],
+    compare=Drawn(single=Statistics(statistics=_sp_statistics, tolerance=_sp_tolerance, dtype_kind="f")),
+    call=call_draws,
+    mistakes=[_sp_twice, _sp_only_salt, _sp_per_channel, _sp_fixed_values, _sp_with_replacement, _sp_fixed_seed],
     seeded=True,
 )

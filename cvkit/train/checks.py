@@ -788,14 +788,14 @@ def _sdepth_tolerance(case):
     }
 
 
-def _sdepth_with(keep_rule, train_scale=1.0, eval_scale=None):
+def _sdepth_with(keep_rule, train_scale=1.0, eval_scale=None, fixed_seed=False):
     def wrong(x, residual, survival_prob, training, rng=None):
         x = np.asarray(x, dtype=np.float64)
         r = np.asarray(residual, dtype=np.float64)
         p = float(survival_prob)
         if not training:
             return x + (p if eval_scale is None else eval_scale(p)) * r
-        keep = keep_rule(np.random.default_rng(rng), x.shape, p)
+        keep = keep_rule(np.random.default_rng(0 if fixed_seed else rng), x.shape, p)
         return x + np.where(keep, r * train_scale(p) if callable(train_scale) else r * train_scale, 0.0)
     return wrong
 
@@ -810,6 +810,32 @@ _sdp_batch = _sdepth_with(lambda g, s, p: np.full((1,) * len(s), g.random() < p)
 _sdp_elements = _sdepth_with(lambda g, s, p: g.random(s) < p)
 _sdp_eval_full = _sdepth_with(_per_sample, eval_scale=lambda p: 1.0)
 _sdp_inverted = _sdepth_with(_per_sample, train_scale=lambda p: 1.0 / p, eval_scale=lambda p: 1.0)
+_sdp_fixed_seed = _sdepth_with(_per_sample, fixed_seed=True)
+
+
+def _exactly_kept(gen, shape, p):
+    keep = np.zeros(shape[0], dtype=bool)
+    keep[gen.permutation(shape[0])[:int(round(p * shape[0]))]] = True
+    return keep.reshape((-1,) + (1,) * (len(shape) - 1))
+
+
+_sdp_exact_count = _sdepth_with(_exactly_kept)
+
+#: the statistic of a stochastic-depth ``draws`` case (many calls, one seed each)
+_SDEPTH_DRAWS = "variance of the number of samples kept per call"
+
+
+def _sdepth_draw_statistics(outputs, case):
+    n = _sdepth_args(case)[0].shape[0]
+    kept = [n * _sdepth_statistics(output, case)["fraction of samples with the branch kept"] for output in outputs]
+    return {_SDEPTH_DRAWS: float(np.var(kept))}
+
+
+def _sdepth_draw_tolerance(case):
+    """Six standard errors of the difference of two sample variances of m binomial counts
+    (σ² = N·p(1−p), each with a standard error of about σ²·√(2/m))."""
+    x, _, p, _ = _sdepth_args(case)
+    return {_SDEPTH_DRAWS: 6 * 2 * x.shape[0] * p * (1 - p) / math.sqrt(case.kwargs["draws"][1])}
 
 
 def _sdepth_hidden(rng):
@@ -838,6 +864,9 @@ def _sdepth_hidden(rng):
     cases.append(Case((x, r, 0.0, True), {"rng": _seed(rng)}, "p = 0: always dropped"))
     x, r = pair(_size(rng, 1500, 2000), 2)
     cases.append(Case((x, r, 0.9, True), {"rng": _seed(rng)}, "training, p = 0.9"))
+    x, r = pair(_size(rng, 24, 40), 2)
+    cases.append(Case((x, r, _round(rng.uniform(0.3, 0.7), 2), True), {"draws": (_seed(rng), 500)},
+                      "500 calls, rng = r, r + 1, …: each sample's coin on its own, fresh on every call"))
     return cases
 
 
@@ -850,13 +879,17 @@ def _sdepth_public():
         Case((x1, r1, 0.8, True), {"rng": 0}, "training, 1000 samples of 3 values, p = 0.8"),
         Case((x2, r2, 0.3, True), {"rng": 1}, "training, 800 samples of 2×2, p = 0.3"),
         Case((x3, r3, 0.7, False), {}, "evaluation, p = 0.7"),
+        Case((x1[:32], r1[:32], 0.5, True), {"draws": (700, 500)},
+             "500 calls, rng = 700, 701, …: each sample's coin on its own, fresh on every call"),
     ]
 
 
 stochastic_depth = Check(
     public=_sdepth_public,
     hidden=_sdepth_hidden,
-    compare=Statistics(statistics=_sdepth_statistics, tolerance=_sdepth_tolerance, dtype_kind="f"),
+    compare=Drawn(single=Statistics(statistics=_sdepth_statistics, tolerance=_sdepth_tolerance, dtype_kind="f"),
+                  statistics=_sdepth_draw_statistics, tolerance=_sdepth_draw_tolerance),
+    call=call_draws,
     mistakes=[
         Mistake("survival and drop probability swapped", _sdp_swapped,
                 "survival_prob is the probability of KEEPING the branch: keep = rng.random(N) < survival_prob"),
@@ -868,6 +901,12 @@ stochastic_depth = Check(
                 "At test time use the expectation of the training output: x + p·residual"),
         Mistake("inverted scaling (residual / p in training)", _sdp_inverted,
                 "This chapter's convention (Huang et al.): x + residual for a kept sample in training, x + p·residual at test time"),
+        Mistake("exactly round(p·N) samples kept on every call", _sdp_exact_count,
+                "Toss one coin per sample, keep = rng.random(N) < survival_prob: how many samples keep their "
+                "branch varies from call to call (Binomial(N, p))"),
+        Mistake("rng ignored: the same samples kept on every call", _sdp_fixed_seed,
+                "Draw from the generator the caller gives, np.random.default_rng(rng): a generator made with a "
+                "fixed seed inside the function keeps the same samples in every training step"),
     ],
     seeded=True,
 )
@@ -1809,8 +1848,8 @@ def _rs_tolerance(case):
 
 
 def _rs_variant(space, trials, rng=None, *, log_as_uniform=False, exponents=False, shared=False, last_missing=False,
-                uniform_as_log=False):
-    gen = np.random.default_rng(rng)
+                uniform_as_log=False, fixed_seed=False):
+    gen = np.random.default_rng(0 if fixed_seed else rng)
     draws = 1 if shared else trials
     columns = {}
     for name, spec in space.items():
@@ -1834,6 +1873,7 @@ _rs_exponents = variant(_rs_variant, exponents=True)
 _rs_shared = variant(_rs_variant, shared=True)
 _rs_last_missing = variant(_rs_variant, last_missing=True)
 _rs_uniform_log = variant(_rs_variant, uniform_as_log=True)
+_rs_fixed_seed = variant(_rs_variant, fixed_seed=True)
 
 
 def _rs_hidden(rng):
@@ -1857,6 +1897,8 @@ def _rs_hidden(rng):
     cases.append(Case(({"x": {"low": -3.0, "high": 2.0}}, 1000), {"rng": _seed(rng)}, "a uniform range with negative low"))
     cases.append(Case(({"only": ["a"], "lr": lr_range()}, 500), {"rng": _seed(rng)}, "a single choice"))
     cases.append(Case(({"lr": lr_range(), "m": [0.0, 0.9]}, 0), {"rng": _seed(rng)}, "zero trials: an empty list"))
+    cases.append(Case(({"lr": lr_range(), "width": [32, 64, 128]}, 4), {"draws": (_seed(rng), 20)},
+                      "20 searches of 4 trials, rng = r, r + 1, …: other settings for another seed"))
     return cases
 
 
@@ -1868,9 +1910,12 @@ random_search = Check(
              "a uniform and a log-uniform range"),
         Case(({"opt": ["sgd", "adam"], "scale": {"low": 1.0, "high": 10.0, "log": False}}, 1000), {"rng": 2},
              "string choices and a range with 'log': False"),
+        Case(({"lr": {"low": 1e-4, "high": 1e-1, "log": True}, "batch": [16, 32, 64]}, 4), {"draws": (500, 20)},
+             "20 searches of 4 trials, rng = 500, 501, …: other settings for another seed"),
     ],
     hidden=_rs_hidden,
-    compare=StructuredStatistics(structure=_rs_structure, statistics=_rs_statistics, tolerance=_rs_tolerance),
+    compare=Drawn(single=StructuredStatistics(structure=_rs_structure, statistics=_rs_statistics, tolerance=_rs_tolerance)),
+    call=call_draws,
     mistakes=[
         Mistake("log-uniform range sampled uniformly", _rs_log_uniform,
                 "With 'log': True draw the LOGARITHM uniformly: exp(rng.uniform(log(low), log(high)))"),
@@ -1882,6 +1927,9 @@ random_search = Check(
                 "rng.integers(0, n) already excludes n: use rng.integers(0, len(choices)) (or rng.choice)"),
         Mistake("uniform range sampled log-uniformly", _rs_uniform_log,
                 "Without 'log' (or with 'log': False) the value is uniform on [low, high]: rng.uniform(low, high)"),
+        Mistake("rng ignored: the same search for every seed", _rs_fixed_seed,
+                "Draw from the generator the caller gives, np.random.default_rng(rng): a generator made with a "
+                "fixed seed inside the function returns the same settings on every call"),
     ],
     seeded=True,  # tuples, lists and dicts: the seeded re-run compares them element by element
 )

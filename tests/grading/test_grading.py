@@ -373,6 +373,30 @@ def test_statistics_comparator():
     assert "dtype mismatch" in cmp(np.round(a).astype(int), b).message
 
 
+def test_drawn_judges_each_draw_and_how_often_a_result_comes_back():
+    """A ``draws`` case: every draw by the single comparator (its message names the call and
+    its seed), then the share of the most frequent result, whatever the output's form."""
+    from cvkit.grading import Drawn
+    from cvkit.grading.compare import REPEATS, repeat_share
+
+    single = close(rtol=0.0, atol=10.0)
+    cmp = Drawn(single=single)
+    case = Case((), {"draws": (7, 40)})
+    fresh = [np.random.default_rng(seed).normal(size=3) for seed in range(7, 47)]
+    fixed = [np.random.default_rng(0).normal(size=3) for _ in range(40)]
+    assert cmp(fresh, fresh, case) is None and cmp(fresh[0], fresh[1], Case((), {"rng": 1})) is None
+    message = cmp(fixed, fresh, case).message
+    assert REPEATS in message and "yours 1, expected 0.025" in message
+    far = fresh[:5] + [fresh[5] + 100] + fresh[6:]
+    assert cmp(far, fresh, case).message.startswith("call 6 of 40 (rng = 12): ")
+    assert "outputs of 40 calls" in cmp(fresh[:39], fresh, case).message
+    assert repeat_share([]) == 0.0
+    nested = [(np.zeros(2), {"mask": np.ones(2, bool), "p": 0.5}), (np.zeros(2), {"mask": np.ones(2, bool), "p": 0.5}),
+              (np.zeros(2), {"mask": np.zeros(2, bool), "p": 0.5}), [np.zeros(2), {"mask": np.ones(2, bool), "p": 0.5}]]
+    assert repeat_share(nested) == 0.5  # a list is not the tuple it looks like; equal dicts are equal
+    assert repeat_share([np.zeros(2), np.zeros(2, np.float32), np.zeros(3), 0.0]) == 0.25
+
+
 def test_switching_off_the_watch_is_caught():
     import sys as _sys
 
