@@ -520,17 +520,14 @@ def _scale_diagnosis(c: float) -> Diagnosis:
 def _is_image(shape: tuple, image: bool | tuple[int, ...]) -> bool:
     """Whether an output of this ``shape`` is a picture whose edges are an image's border:
     ``image`` True (not known: any image-like shape), False (the case has no input image) or
-    the input image's shape — then the output has its rows and columns (filters, edges) or is
-    a crop of them at least 5×5 (``output="valid"``); a 4×4 matrix made from a 3×3 one, a
-    kernel made from σ or a matrix made from points is not."""
+    the shape of the case's first argument, which is an image when it is at least 4×4 (a
+    filtered, padded or cropped image of it is one too); a 4×4 matrix made from a 3×3 rotation,
+    a kernel made from σ or a matrix made from (N, 2) points is not."""
     if len(shape) < 2 or min(shape[:2]) < 3 or not _image_like(shape):
         return False
     if image is True or image is False:
         return image
-    rows, cols = shape[:2]
-    if len(image) < 2 or rows > image[0] or cols > image[1]:
-        return False
-    return (rows, cols) == tuple(image[:2]) or min(rows, cols) >= 5
+    return len(image) >= 2 and min(image[:2]) >= 4
 
 
 def _partial(a: np.ndarray, e: np.ndarray, bad: np.ndarray, image: bool | tuple[int, ...] = True) -> Diagnosis | None:

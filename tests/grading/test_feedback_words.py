@@ -499,7 +499,7 @@ def test_instructor_summary_lists_each_student_and_exercise_once_in_plain_words(
 
 def test_the_border_advice_is_given_only_for_an_image_of_the_input():
     """A wrong last column of a 4×4 matrix is told where it is, without the advice about an
-    image's border; a filtered image of the input's shape, or a valid crop of it, gets it."""
+    image's border; an output computed from an image (filtered, padded, cropped) gets it."""
     e = np.arange(16.0).reshape(4, 4)
     got = e.copy()
     got[:3, 3] += 1.0
@@ -517,9 +517,9 @@ def test_the_border_advice_is_given_only_for_an_image_of_the_input():
     picture = np.random.default_rng(1).random((9, 8))
     wrong = picture.copy()
     wrong[:, -1] = 0.0
-    for image in ((9, 8), (9, 8, 3), (12, 10), True):  # the image itself; its colour source; a crop of it; unknown
+    # the image itself; its colour source; a crop of it; a padded 5×4 image; not known
+    for image in ((9, 8), (9, 8, 3), (12, 10), (5, 4), True):
         assert diagnose(wrong, picture, image=image).kind == "border", image
-    assert diagnose(wrong, picture, image=(9, 7)).kind == "edge_entries"  # larger than its input: no image of it
 
 
 def test_a_wrong_translation_column_is_not_called_a_border_error():
