@@ -598,8 +598,9 @@ def diagnose(got: Any, expected: Any, *, rtol: float = 1e-7, atol: float | None 
     are diagnosed element by element ("result [1]: ..."), and a pair returned in the wrong
     order is named. None when the output equals the expected one, when nothing simple explains
     the difference, or when two explanations fit equally well. ``image`` is the shape of the
-    case's input image (False: it has none; True, the default: not known): only an output
-    that is an image of it is told about its border.
+    case's first argument (False: it is no array; True, the default: not known): only an
+    output computed from an image (an input of at least 4×4) is told about an image's border,
+    any other just where its wrong entries are.
     """
     if isinstance(expected, (tuple, list)) and not isinstance(expected, np.ndarray):
         if not isinstance(got, (tuple, list)) or len(got) != len(expected):

@@ -238,8 +238,8 @@ def _diagnosable(spec: Check) -> bool:
 
 
 def _input_image(case: Case | None) -> bool | tuple[int, ...]:
-    """The shape of the case's input image (its first argument, an array of two or more
-    dimensions), else False: only an output that is an image of it has an image's border."""
+    """The shape of the case's first argument when it is an array of two or more dimensions
+    (perhaps an image: :func:`cvkit.grading.diagnose.diagnose` decides), else False."""
     first = case.args[0] if case is not None and case.args else None
     return tuple(first.shape) if isinstance(first, np.ndarray) and first.ndim >= 2 else False
 
