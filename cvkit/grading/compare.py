@@ -459,4 +459,9 @@ class Drawn(Comparator):
                 mismatch.message = f"call {index + 1} of {count} (rng = {case.kwargs['draws'][0] + index}): " \
                     + mismatch.message
                 return mismatch
-        return Statistics(statistics=self._statistics, tolerance=self._tolerance).judge(got, expected, case)
+        mismatch = Statistics(statistics=self._statistics, tolerance=self._tolerance).judge(got, expected, case)
+        if mismatch is not None and count > 1 and repeat_share(got) == 1.0 and repeat_share(expected) < 0.5:
+            mismatch.message += (f"\nAll {count} calls returned the same result, whatever the seed: draw every random "
+                                 "number from np.random.default_rng(rng), not from a generator with a fixed seed "
+                                 "(nor from np.random.seed)")
+        return mismatch

@@ -387,6 +387,11 @@ def test_drawn_judges_each_draw_and_how_often_a_result_comes_back():
     assert cmp(fresh, fresh, case) is None and cmp(fresh[0], fresh[1], Case((), {"rng": 1})) is None
     message = cmp(fixed, fresh, case).message
     assert REPEATS in message and "yours 1, expected 0.025" in message
+    assert message.endswith("All 40 calls returned the same result, whatever the seed: draw every random number "
+                            "from np.random.default_rng(rng), not from a generator with a fixed seed (nor from "
+                            "np.random.seed)")
+    half = cmp(fixed[:20] + fresh[:20], fresh, case).message  # repeats, but not one result every time
+    assert REPEATS in half and "All 40 calls" not in half
     far = fresh[:5] + [fresh[5] + 100] + fresh[6:]
     assert cmp(far, fresh, case).message.startswith("call 6 of 40 (rng = 12): ")
     assert "outputs of 40 calls" in cmp(fresh[:39], fresh, case).message
