@@ -13,6 +13,7 @@ not one), :func:`tuple_problem`, :func:`shape_mismatch` with :func:`shape_advice
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Callable, ClassVar, Mapping, Sequence
 
@@ -417,6 +418,13 @@ def repeat_share(outputs: Sequence[Any]) -> float:
     for key in keys:
         counts[key] = counts.get(key, 0) + 1
     return max(counts.values()) / len(keys) if keys else 0.0
+
+
+def binomial_variance_tolerance(n: int, p: float, calls: int) -> float:
+    """How far the variance of m = ``calls`` kept counts may be from the reference's when each of
+    ``n`` items is kept with probability ``p``: six standard errors of the difference of two
+    sample variances (σ² = n·p(1−p), each with a standard error of about σ²·√(2/m))."""
+    return 6 * 2 * n * p * (1 - p) / math.sqrt(calls)
 
 
 @dataclass

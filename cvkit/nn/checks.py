@@ -42,6 +42,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ..grading import Case, Check, Comparator, Drawn, Mismatch, Mistake, close, mistake
 from ..grading.casekit import distinct, variant
+from ..grading.compare import binomial_variance_tolerance
 from ..grading.casekit import rounded as _round
 from ..grading.casekit import seed as _any_seed
 from ..grading.casekit import size as _size
@@ -1567,13 +1568,11 @@ def _dropout_draw_statistics(outputs, case):
 
 
 def _dropout_draw_tolerance(case):
-    """Six standard errors of the difference between two independent sets of m draws: the
-    count's variance σ² = N·p(1−p) has a standard error of about σ²·√(2/m) per set."""
+    """Six standard errors of the difference between two independent sets of m draws."""
     n = _f(_dropout_arg(case, 0, "x")).size
     p = float(_dropout_arg(case, 1, "p_keep"))
     m = int(case.kwargs["draws"][1])
-    variance = n * p * (1 - p)
-    return dict(zip(_DROPOUT_DRAWS, (6 * variance * 2 / math.sqrt(m), 6 * math.sqrt(2 * p * (1 - p) / (n * m)))))
+    return dict(zip(_DROPOUT_DRAWS, (binomial_variance_tolerance(n, p, m), 6 * math.sqrt(2 * p * (1 - p) / (n * m)))))
 
 
 def _nonzero(rng, shape, scale=1.0):

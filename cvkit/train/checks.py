@@ -40,6 +40,7 @@ import numpy as np
 
 from ..grading import Case, Check, Comparator, Drawn, Measure, Mismatch, Mistake, Statistics, close, mistake
 from ..grading.casekit import variant
+from ..grading.compare import binomial_variance_tolerance
 from ..grading.casekit import argument as _arg
 from ..grading.casekit import seed as _seed
 from ..grading.casekit import size as _size
@@ -832,10 +833,8 @@ def _sdepth_draw_statistics(outputs, case):
 
 
 def _sdepth_draw_tolerance(case):
-    """Six standard errors of the difference of two sample variances of m binomial counts
-    (σ² = N·p(1−p), each with a standard error of about σ²·√(2/m))."""
     x, _, p, _ = _sdepth_args(case)
-    return {_SDEPTH_DRAWS: 6 * 2 * x.shape[0] * p * (1 - p) / math.sqrt(case.kwargs["draws"][1])}
+    return {_SDEPTH_DRAWS: binomial_variance_tolerance(x.shape[0], p, int(case.kwargs["draws"][1]))}
 
 
 def _sdepth_hidden(rng):
