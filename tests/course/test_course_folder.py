@@ -97,6 +97,13 @@ def semester(tmp_path_factory):
     return {"folder": folder, "course": course, "seen": seen}
 
 
+# the formgrader's own flags: its grade and comment models fetched and bound to the inputs
+# (its ``loaded`` flag stays false here: with no MathJax offline, its init stops half-way)
+FORMGRADER_READY = """() => window.formgrader
+    && formgrader.grades && formgrader.grades.loaded
+    && formgrader.comments && formgrader.comments.loaded"""
+
+
 def _mark_in_the_formgrader(course: Course, place: Path) -> dict:
     """The formgrader of a JupyterLab started in the course folder, in Chromium: its assignment
     list, then ada's written answer marked by typing the score and the comment."""
@@ -119,6 +126,10 @@ def _mark_in_the_formgrader(course: Course, place: Path) -> dict:
         reply = page.goto(f"{url}/formgrader/api/assignments")
         done["assignments"] = {a["name"]: a["duedate"] for a in json.loads(reply.text())}
         page.goto(f"{url}/formgrader/submissions/{notebook_id}/?index=0")
+        # the inputs are in the page before its script has fetched the grade and comment models
+        # and bound them; a field typed into earlier is never saved, as for a grader who types
+        # before the page has finished loading
+        page.wait_for_function(FORMGRADER_READY)
         score = page.locator("input.score#question_99_1")
         score.fill("1.5")
         score.press("Tab")  # the formgrader saves a field when it loses focus
