@@ -25,6 +25,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._validation import as_float_array
 from ..registry import algorithm
 
 __all__ = ["find_lines", "F1_SCALE", "BUDGET_SECONDS", "RHO_TOLERANCE", "THETA_TOLERANCE", "line_votes",
@@ -84,6 +85,8 @@ def find_lines(edges: ArrayLike) -> np.ndarray:
     ----------
     edges : (H, W) array_like of bool
         An edge map: a few long, broken lines among noise pixels and short stray segments.
+        Every nonzero pixel is an edge pixel, as for :func:`hough_lines` (a numeric map is
+        accepted; text, NaN or inf raise, as there).
 
     Returns
     -------
@@ -92,8 +95,6 @@ def find_lines(edges: ArrayLike) -> np.ndarray:
         θ in [−π/2, π/2): the peaks of the accumulator with at least 45 votes, each suppressing
         its neighbours within 8° and 8 pixels.
     """
-    mask = np.asarray(edges)
-    if mask.ndim != 2:
-        raise ValueError(f"edges must be a 2-D edge map, got shape {mask.shape}")
+    mask = as_float_array(edges, "edges", ndim=2)
     votes, thetas, rhos = line_votes(mask != 0)
     return strongest_peaks(votes, thetas, rhos, threshold=45)

@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._validation import as_image
 from ..registry import algorithm
 from ._canny import _components, _maxima
 
@@ -113,7 +114,8 @@ def detect_outlines(image: ArrayLike) -> np.ndarray:
     Parameters
     ----------
     image : (H, W) array_like
-        A grey picture (flat shapes on a smoothly shaded background, plus white noise).
+        A grey picture (flat shapes on a smoothly shaded background, plus white noise): real
+        numbers, all finite (``ValueError`` or ``TypeError`` otherwise, as for every image).
 
     Returns
     -------
@@ -122,8 +124,6 @@ def detect_outlines(image: ArrayLike) -> np.ndarray:
         deviation that the noise alone gives one smoothed Sobel component (the noise estimated
         with :func:`noise_level`).
     """
-    img = np.asarray(image, dtype=np.float64)
-    if img.ndim != 2:
-        raise ValueError(f"image must be a 2-D grey picture, got shape {img.shape}")
+    img = as_image(image, "image", color=False)
     unit = sobel_noise(2.0) * max(noise_level(img), 1e-12)
     return outline_canny(img, 2.0, 3.0 * unit, 6.0 * unit)

@@ -458,3 +458,17 @@ def test_other_bad_arguments_name_the_argument():
     with pytest.raises(ValueError, match="inside the template"):
         detection.shape_match(img, {"points": np.array([[5.0, 0.0]]), "directions": np.array([[1.0, 0.0]]),
                                     "shape": (3, 3)})
+
+
+def test_find_lines_refuses_what_hough_lines_refuses():
+    # text, NaN and a 1-D map were taken as edge maps before ("False" is a non-empty string)
+    edges = np.zeros((20, 20), bool)
+    edges[:, 5] = True
+    with pytest.raises(TypeError, match="edges"):
+        detection.find_lines(edges.astype(str))
+    with pytest.raises(ValueError, match="edges.*finite"):
+        detection.find_lines(np.where(edges, np.nan, 0.0))
+    with pytest.raises(ValueError, match="edges.*2 dimensions"):
+        detection.find_lines(edges.ravel())
+    # a 0/1 numeric map is still an edge map, found as its bool twin
+    np.testing.assert_array_equal(detection.find_lines(edges.astype(np.uint8)), detection.find_lines(edges))

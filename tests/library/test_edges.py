@@ -756,3 +756,18 @@ def test_no_warnings_on_zero_gradients():
         assert edges.non_max_suppression(np.ones((6, 7)), zeros, zeros, interpolate=False).all()
         assert not edges.canny(zeros).any()
         edges.direction(zeros, zeros)
+
+
+def test_detect_outlines_refuses_a_picture_that_is_not_one():
+    picture = np.random.default_rng(0).random((24, 24))
+    with pytest.raises(TypeError, match="image"):
+        edges.detect_outlines(picture.astype(str))   # numeric text was parsed as numbers before
+    spoiled = picture.copy()
+    spoiled[3, 4] = np.nan
+    with pytest.raises(ValueError, match="image.*finite"):
+        edges.detect_outlines(spoiled)
+    with pytest.raises(ValueError, match="image"):
+        edges.detect_outlines(np.stack([picture] * 3, axis=-1))
+    before = picture.copy()
+    edges.detect_outlines(picture)
+    np.testing.assert_array_equal(picture, before)
