@@ -2104,6 +2104,11 @@ def _ih_hidden(rng):
 intrinsics_from_homographies = Check(
     public=_ih_public,
     hidden=_ih_hidden,
+    refusals=[
+        Case(([np.array([[1.0, 0.1, 5.0], [0.05, 1.0, 3.0], [0.001, 0.002, 1.0]]),
+               np.array([[0.9, -0.2, 2.0], [0.1, 1.1, -4.0], [-0.002, 0.001, 1.0]])],), {},
+             "two homographies: fewer than the 3 needed", raises="ValueError"),
+    ],
     compare=FloatClose(rtol=1e-6, atol=1e-6),
     mistakes=[_ih_wrong_order, _ih_rows, _ih_no_skew, _ih_orthogonality, _ih_plus, _ih_cholesky_not_inverted],
 )

@@ -765,6 +765,10 @@ decompose_projection = Check(
              "P = −2·A[R|t] (negative multiple)"),
     ],
     hidden=_dp_hidden,
+    refusals=[
+        Case((np.array([[800.0, 0.0, 0.0, 10.0], [0.0, 800.0, 0.0, 20.0], [0.0, 0.0, 0.0, 1.0]]),), {},
+             "a left 3×3 block with a zero column (singular)", raises="ValueError"),
+    ],
     compare=Parts(names=("A", "R", "t"), inner=FloatClose(rtol=1e-7, atol=1e-8)),
     mistakes=[_dp_no_diag_fix_numpy, _dp_no_diag_fix_scipy, _dp_no_det_fix, _dp_not_normalised, _dp_last_column,
               _dp_centre, _dp_qr],

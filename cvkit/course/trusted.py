@@ -25,7 +25,7 @@ from nbformat.v4 import new_output
 
 from .. import registry
 from ..grading.checks import FORBIDDEN_LIBRARIES, Case, Check, call_target
-from ..grading.engine import arg_names, evaluate, hidden_seed
+from ..grading.engine import arg_names, evaluate, hidden_seed, refusal_words
 from ..grading.served import served_helpers
 from ..grading.report import CaseResult, Report, cascade_report
 from ..grading.runtime.cells import cell_source, cells_of, is_code, is_solution, is_test_cell, nbgrader_metadata
@@ -323,14 +323,15 @@ class _Plan:
             for case in report.cases:
                 outcome = found.get((case.index, 0))
                 if outcome is not None:
-                    hidden_view(case, outcome, self.cells, self.spec.time_limit, names)
+                    hidden_view(case, outcome, self.cells, self.spec.time_limit, names,
+                                refusal=self.cases[case.index].raises)
         return report
 
 
 def _draw_cases(spec: Check, hidden: bool, seed: int | None) -> list[Case]:
     """The one place where trusted grading draws a check call's cases: the public cases, or
-    the hidden cases drawn from ``seed``."""
-    return spec.hidden_cases(np.random.default_rng(seed)) if hidden else spec.public_cases()
+    the hidden cases drawn from ``seed`` and the check's refusals."""
+    return spec.graded_hidden_cases(np.random.default_rng(seed)) if hidden else spec.public_cases()
 
 
 def _plan(call: CheckCall, student: str, salt: str, version: str | None = None, cells: Sequence[str] = ()) -> _Plan:
@@ -345,7 +346,7 @@ def _plan(call: CheckCall, student: str, salt: str, version: str | None = None, 
     keys: list[tuple[int, int]] = []
     requests: list[BoxCall] = []
     for index, case in enumerate(cases):
-        for attempt in ((0, 1) if spec.seeded else (0,)):
+        for attempt in ((0, 1) if spec.seeded and case.raises is None else (0,)):
             keys.append((index, attempt))
             requests.append(BoxCall(
                 # one check call: after a case that does not return in time, the sandbox runs none
@@ -470,12 +471,14 @@ def _own_traceback(text: str | None, cells: Sequence[str], exception: str, timed
 
 
 def hidden_view(case: CaseResult, outcome: Outcome, cells: Sequence[str], time_limit: float,
-                arg_names: set) -> None:
+                arg_names: set, refusal: str | None = None) -> None:
     """What a student is shown of a failing hidden case, cut to what is theirs: the type of
     their error and the line of their code that raised it, never a message, a print, a
     warning's text or a name their code made up — each could carry a hidden input recorded
     by another exercise. Texts the grader wrote itself (``outcome.from_grader``: a time limit
-    measured outside, a worker that died) stay; so do the comparison's own words."""
+    measured outside, a worker that died) stay; so do the comparison's own words. A case of
+    bad input (``refusal``: the error it requires) that raised another error says which, by a
+    safe name."""
     case.stdout = case.stderr = ""
     case.warnings = sorted({_safe_name(str(w).partition(":")[0], "Warning") for w in case.warnings})
     exception = _safe_name(outcome.exception, "an exception")
@@ -492,6 +495,8 @@ def hidden_view(case: CaseResult, outcome: Outcome, cells: Sequence[str], time_l
             case.message = "returned something the grader cannot read (details are not shown for hidden cases)"
         else:
             case.message = f"raised {exception} ({HIDDEN_MESSAGE_NOTE})"
+    elif refusal is not None and outcome.error is not None and not case.passed and not outcome.from_grader:
+        case.message = f"raised {exception}, but {refusal_words(refusal, case.label)}"
     elif outcome.error is None and outcome.forbidden_calls and case.message.startswith("calls "):
         names = sorted({_safe_call(str(call)) for call in outcome.forbidden_calls})
         case.message = "calls " + ", ".join(names) + ", which would do the exercise for you: write it with NumPy"

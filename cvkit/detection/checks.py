@@ -664,6 +664,9 @@ shape_model = Check(
              "anti-aliased disk, threshold 0.9"),
     ],
     hidden=_sm_hidden,
+    refusals=[
+        Case((np.full((9, 9), 0.5), 0.1), {}, "a flat template: no pixel above the threshold", raises="ValueError"),
+    ],
     compare=ShapeModelClose(atol=1e-9),
     mistakes=_bank(_sm, [
         ("points as (row, col) instead of (x, y)", "rowcol",

@@ -1169,6 +1169,9 @@ hysteresis = Check(
                         [0.0, 0.5, 0.55, 0.0, 0.8]]), 0.3, 0.75), {}, "4×5 float magnitudes"),
     ],
     hidden=_hysteresis_hidden,
+    refusals=[
+        Case((np.linspace(0.0, 1.0, 64).reshape(8, 8), 0.6, 0.3), {}, "low above high", raises="ValueError"),
+    ],
     compare=_EXACT_BOOL,
     mistakes=[
         Mistake("4-connected linking", _hyst(connectivity=4),

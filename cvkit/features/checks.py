@@ -824,6 +824,10 @@ gaussian_pyramid = Check(
              "rectangles, σ0 = 1.8, 2 scales, no upsampling"),
     ],
     hidden=_gp_hidden,
+    refusals=[
+        Case((np.linspace(0.0, 1.0, 256).reshape(16, 16),), {"sigma0": 0.9, "octaves": 2},
+             "σ0 = 0.9 not above the blur of the doubled input (2·assumed_blur = 1)", raises="ValueError"),
+    ],
     compare=_LINEAR,
     mistakes=[
         Mistake("each level blurred by its total σ, not the increment", _gpv(levels="total"),
@@ -1187,6 +1191,11 @@ def _refine_hidden(rng):
 refine_extremum = Check(
     public=_refine_public,
     hidden=_refine_hidden,
+    refusals=[
+        Case((np.arange(5 * 8 * 8, dtype=np.float64).reshape(5, 8, 8) % 7, 0, 3, 3), {},
+             "a sample on the first level of the stack (no level below)", raises="ValueError"),
+        Case((np.ones((5, 8, 8)), 2, 3, 3), {}, "a flat stack: the Hessian is singular", raises="ValueError"),
+    ],
     compare=close(rtol=1e-7, atol=1e-9, kind="f", scaled=True),
     mistakes=[
         Mistake("offset sign flipped (+H⁻¹∇D)", _rev(sign=1.0),
@@ -1764,6 +1773,10 @@ def _match_hidden(rng):
 match_ratio = Check(
     public=_match_public,
     hidden=_match_hidden,
+    refusals=[
+        Case((np.eye(4, 8), np.ones((1, 8))), {}, "desc2 with a single row: no second-nearest neighbour",
+             raises="ValueError"),
+    ],
     compare=IndexRows(columns=2, names="(i, j)", order="in increasing i"),
     mistakes=[
         Mistake("ratio test on squared distances", _mrv(squared=True),

@@ -8,6 +8,7 @@ import numpy as np
 
 from .compare import Comparator
 from .runtime.adapters import bind_call, instance_call  # noqa: F401  (re-exported)
+from .runtime.guard import ERROR_KINDS
 from .runtime.wire import DEFAULT_TIME_LIMIT
 
 #: libraries that would do a Chapter's exercise for the student (module-name prefixes)
@@ -46,11 +47,16 @@ class Case:
     """One call of the algorithm: positional ``args`` and keyword ``kwargs``.
 
     ``label`` says in a few words what the case probes ("asymmetric kernel, zero border").
+    ``raises`` (``"ValueError"`` or ``"TypeError"``) makes it a case of bad input, which the
+    contract says the function refuses: the call must raise that error (or a subclass of it),
+    whatever it says; its label says what is wrong with the input ("k larger than the number
+    of distinct points"). See :attr:`Check.refusals`.
     """
 
     args: tuple = ()
     kwargs: dict = field(default_factory=dict)
     label: str = ""
+    raises: str | None = None
 
     def describe(self, names: Sequence[str] = ()) -> str:
         parts = []
@@ -203,6 +209,13 @@ class Check:
         What a measured check measures (an accuracy in %): each case's value goes into the
         report's data (:attr:`~cvkit.grading.report.CaseResult.measure`), which the course's
         opt-in leaderboards rank (:mod:`cvkit.course.leaderboard`).
+    refusals : list of Case, optional
+        Bad inputs the catalog's contract says the algorithm refuses, each a :class:`Case` with
+        ``raises`` (k larger than the number of distinct points: ``ValueError``). They are
+        graded with the hidden cases, after them (one case of the partial credit each), never
+        in the visible test; the reference must raise on each (a case it does not refuse is
+        dropped, as a case the reference cannot compute). Only for the errors the exercise's
+        statement asks for.
     output_names : tuple of str, optional
         The names of the results when the algorithm returns a tuple (``("gx", "gy")``), as
         reports name them ("`gx`: 12 of 48 values differ"); by default they are read from the
@@ -224,6 +237,7 @@ class Check:
     rules: tuple = ()
     credit: Callable[[Any, Case], float] | None = None
     measure: Measure | None = None
+    refusals: Sequence[Case] = ()
 
     def __post_init__(self) -> None:
         unknown = [r for r in self.rules if r not in RULES]
@@ -231,6 +245,9 @@ class Check:
             raise ValueError(f"Check.rules must be a tuple of {sorted(RULES)}; got {self.rules!r}")
         if self.measure is not None and not isinstance(self.measure, Measure):
             raise TypeError(f"Check.measure must be a Measure, got {self.measure!r}")
+        for case in self.refusals:
+            if not isinstance(case, Case) or case.raises not in ERROR_KINDS:
+                raise ValueError(f"Check.refusals must be Cases with raises one of {sorted(ERROR_KINDS)}; got {case!r}")
         # functions marked with @mistake stand for their Mistake; the bank keeps the listed order
         self.mistakes = [m if isinstance(m, Mistake) else Mistake.of(m) for m in self.mistakes]
 
@@ -240,6 +257,10 @@ class Check:
 
     def hidden_cases(self, rng: np.random.Generator) -> list[Case]:
         return list(self.hidden(rng))
+
+    def graded_hidden_cases(self, rng: np.random.Generator) -> list[Case]:
+        """What the hidden test grades: the hidden cases drawn from ``rng``, then the refusals."""
+        return self.hidden_cases(rng) + list(self.refusals)
 
     @property
     def bank(self) -> list[Mistake]:

@@ -23,7 +23,7 @@ from .checks import Case, Check, Mistake, bind_call
 from .compare import Mismatch, Statistics
 from .diagnose import CONVENTION, diagnose, explain_exception, image_variants
 from .served import DATA_TRANSFORMS
-from .runtime.guard import Outcome, run_guarded, use_reference_functions
+from .runtime.guard import ERROR_KINDS, Outcome, run_guarded, use_reference_functions
 from .report import MIME_TYPE, CaseResult, Report, cascade_report, headline
 from . import probes
 
@@ -171,6 +171,23 @@ def _reference_output(function: Callable, case, call: Callable | None = None) ->
     with registry.use("reference"), warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return bind_call(call, function)(*copy.deepcopy(case.args), **copy.deepcopy(case.kwargs))
+
+
+def refusal_words(raises: str, label: str) -> str:
+    """What a case of bad input asks for, in the words of its failure message."""
+    return f"this input must raise {raises} ({label}), with a message that names the argument"
+
+
+def _reference_refusal(function: Callable, case, call: Callable | None = None) -> str | None:
+    """None when the reference raises the error a case of bad input names (:attr:`Case.raises`),
+    else what it did instead (the case is then the check's mistake)."""
+    try:
+        _reference_output(function, case, call)
+    except ERROR_KINDS[case.raises]:
+        return None
+    except Exception as error:
+        return f"the reference raises {type(error).__name__}, not {case.raises}, on this case of bad input"
+    return f"the reference does not raise {case.raises} on this case of bad input"
 
 
 def _mistake_output(mistake: Mistake, case, call: Callable | None = None) -> tuple[bool, Any]:
@@ -560,7 +577,7 @@ def _cases_and_seed(mode: _Mode, algorithm_id: str, spec: Check, cases: Sequence
         return list(cases), int(seed) if mode.hidden and seed is not None else None
     if mode.cases is _Cases.HIDDEN:
         seed = hidden_seed(algorithm_id) if seed is None else int(seed)
-        return spec.hidden_cases(np.random.default_rng(seed)), seed
+        return spec.graded_hidden_cases(np.random.default_rng(seed)), seed
     return spec.public_cases(), None
 
 
@@ -632,6 +649,9 @@ class _Evaluation:
         """Run the candidate on one case and record its verdict (or drop the case the reference cannot compute)."""
         outcome = self._outcome(index, case)
         label = case.label or f"case {index + 1}"
+        if case.raises is not None:
+            self._grade_refusal(index, case, outcome, label)
+            return
         # computed only after the candidate ran: it cannot be read from the grader's frames
         try:
             expected = _reference_output(self.record.reference, case, self.spec.call)
@@ -661,6 +681,32 @@ class _Evaluation:
         self._name_outputs(result, expected)
         self.report.cases.append(result)
         self.matching.append(found)
+
+    def _grade_refusal(self, index: int, case: Case, outcome: Outcome, label: str) -> None:
+        """A case of bad input (:attr:`Check.refusals`): passed when the candidate raised the
+        error the case names; dropped when the reference itself does not raise it."""
+        assert case.raises is not None
+        wrong = _reference_refusal(self.record.reference, case, self.spec.call)
+        if wrong is not None:  # the check's fault, not the candidate's
+            self.report.dropped.append(f"case {index + 1} ({label}): {wrong}")
+            return
+        result = CaseResult(index=index, label=label, description=case.describe(self.names), passed=False,
+                            elapsed=outcome.elapsed, warnings=outcome.warnings, stdout=outcome.stdout,
+                            stderr=outcome.stderr, timed_out=outcome.timed_out)
+        wanted = refusal_words(case.raises, label)
+        if outcome.forbidden_calls:
+            result.message = ("calls " + ", ".join(outcome.forbidden_calls)
+                              + ", which would do the exercise for you: write it with NumPy")
+        elif outcome.error is None:
+            result.message = f"returned a result, but {wanted}"
+        elif case.raises in outcome.raised_as and not outcome.timed_out:
+            result.passed = True
+        elif outcome.timed_out or outcome.exception in ("NotImplementedError", "NotRun") or outcome.from_grader:
+            result.message, result.traceback = outcome.error or "", outcome.traceback
+        else:  # the error's type only: its message is the student's text (hidden reports show none)
+            result.message, result.traceback = f"raised {outcome.exception}, but {wanted}", outcome.traceback
+        self.report.cases.append(result)
+        self.matching.append([])
 
     def _outcome(self, index: int, case: Case) -> Outcome:
         """The candidate's outcome on a case, unless an earlier case did not return (then: not run)."""

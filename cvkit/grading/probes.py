@@ -6,7 +6,8 @@ candidate on a few variants of the public inputs shaped like the hidden cases (t
 in the dtypes the hidden cases use, a single point or a single row where they give one) and
 compares with the reference there. A difference is not a failure and costs nothing: the
 visible report gets one line, "passes the shown cases, but …", naming what differs, so that a
-student learns it before the deadline rather than from the grade.
+student learns it before the deadline rather than from the grade. The check's refusals (bad
+inputs the hidden test gives, where the function must raise) are tried the same way.
 
 What the hidden cases use is read from one draw of them with a fixed seed (:data:`PROBE_SEED`):
 its input dtypes, value ranges and shapes (:func:`profile`). The grading seed stays unknown.
@@ -286,6 +287,19 @@ def notes(spec: Check, cases: list[Case], outputs: list[tuple[Any, Any]], run: C
         found.append("passes the shown cases, but computes in float32 — the hidden cases compare in "
                      "float64: compute (and return) float64")
     runs, spent = 0, 0.0
+    for refusal in spec.refusals:  # the bad inputs the hidden test gives (Check.refusals)
+        if runs >= MAX_PROBES or spent >= budget:
+            break
+        runs += 1
+        outcome = run(refusal)
+        spent += getattr(outcome, "elapsed", 0.0) or 0.0
+        if outcome is None or outcome.timed_out or refusal.raises in outcome.raised_as:
+            continue
+        did = "returns a result" if outcome.error is None else f"raises {outcome.exception}"
+        found.append(f"passes the shown cases, but the hidden test also gives {refusal.label}, where your "
+                     f"function must raise {refusal.raises}; it {did}")
+        if len(found) >= 3:
+            return found
     tried: set = set()
     for what, probe in variants(spec, cases):
         if runs >= MAX_PROBES or spent >= budget:

@@ -902,6 +902,10 @@ top_k_accuracy = Check(
               np.array([4, 2, 0, 3, 3])), {"k": 3}, "5 samples, 5 classes, k = 3"),
     ],
     hidden=_topk_hidden,
+    refusals=[
+        Case((np.arange(20, dtype=np.float64).reshape(5, 4) % 3, np.array([0, 1, 2, 3, 0])), {"k": 5},
+             "k = 5 with 4 classes", raises="ValueError"),
+    ],
     compare=close(rtol=0.0, atol=1e-12),
     mistakes=[
         _topk_ties_miss,
@@ -1313,6 +1317,10 @@ def _km_public():
 kmeans = Check(
     public=_km_public,
     hidden=_km_hidden,
+    refusals=[
+        Case((np.repeat(np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 0.0]]), 3, axis=0), 4), {"rng": 0},
+             "k = 4 with 3 distinct points", raises="ValueError"),
+    ],
     compare=Drawn(single=KMeansResult()),
     call=call_draws,
     mistakes=[

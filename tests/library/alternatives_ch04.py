@@ -245,6 +245,8 @@ def non_max_suppression(magnitude, ix, iy, interpolate=True):
 
 def hysteresis(magnitude, low, high):
     """Breadth-first flood fill from every strong pixel through 8-neighbours above low."""
+    if low > high:
+        raise ValueError("low must not exceed high")
     m = np.asarray(magnitude, dtype=np.float64)
     h, w = m.shape
     out = np.zeros((h, w), dtype=bool)

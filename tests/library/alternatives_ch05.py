@@ -173,6 +173,8 @@ def dog_extrema(dog_pyramid, contrast_threshold=0.03):
 def refine_extremum(dog_stack, scale, row, col):
     d = np.asarray(dog_stack, dtype=np.float64)
     s, r, c = scale, row, col
+    if not all(0 < i < n - 1 for i, n in zip((s, r, c), d.shape)):
+        raise ValueError("the sample must have a neighbour on every side")
 
     def D(ds, dr, dc):
         return d[s + ds, r + dr, c + dc]
@@ -382,6 +384,8 @@ def sift(image, sigma0=1.6, scales=3, octaves=None, upsample=True, contrast_thre
 def match_ratio(desc1, desc2, ratio=0.8):
     a = np.asarray(desc1, dtype=np.float64)
     b = np.asarray(desc2, dtype=np.float64)
+    if len(b) < 2:
+        raise ValueError("desc2 needs two rows for a ratio")
     pairs = []
     for i, q in enumerate(a):
         d = np.sqrt(((b - q) ** 2).sum(axis=1))

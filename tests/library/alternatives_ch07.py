@@ -92,6 +92,8 @@ def decompose_projection(P):
     m3 = λ·r3, m2 = λ(fv·r2 + v0·r3), m1 = λ(fu·r1 + s·r2 + u0·r3)."""
     P = np.asarray(P, dtype=np.float64)
     M, p4 = P[:, :3], P[:, 3]
+    if np.linalg.matrix_rank(M) < 3:
+        raise ValueError("P's left 3x3 block is singular")
     if np.linalg.det(M) < 0:
         M, p4 = -M, -p4
     lam = np.linalg.norm(M[2])

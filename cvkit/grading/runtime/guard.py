@@ -48,6 +48,9 @@ _OUTPUT_TAIL = 2000
 #: characters of an exception's one-line summary, of its traceback and of its type name that
 #: cross the boundary (a 64 KB message must not make a 36 MB graded notebook)
 _ERROR_CHARS, _TRACEBACK_CHARS, _NAME_CHARS = 500, 4000, 100
+#: the exceptions a case may require (:attr:`cvkit.grading.Case.raises`), by name: an outcome
+#: says which of them the candidate's exception is an instance of (a subclass counts)
+ERROR_KINDS = {"ValueError": ValueError, "TypeError": TypeError}
 #: the kinds of loop a timed-out candidate can be stopped in (:func:`loop_evidence`), and how
 #: many of their header lines an outcome keeps
 LOOP_KINDS = ("while", "for")
@@ -84,6 +87,9 @@ class Outcome:
     error: str | None = None          # one-line summary of an exception
     traceback: str | None = None      # the candidate's part of the traceback
     exception: str | None = None      # exception type name
+    #: the names of :data:`ERROR_KINDS` the exception is an instance of (``LinAlgError`` is a
+    #: ``ValueError``): what a case that requires an error is judged by
+    raised_as: list = field(default_factory=list)
     elapsed: float = 0.0
     timed_out: bool = False
     modified: list = field(default_factory=list)      # names of inputs the candidate changed
@@ -119,6 +125,7 @@ class Outcome:
         item: dict[str, Any] = {
             "error": _capped(self.error, _ERROR_CHARS), "traceback": _capped(self.traceback, _TRACEBACK_CHARS, True),
             "exception": _capped(self.exception, _NAME_CHARS),
+            "raised_as": [name for name in ERROR_KINDS if name in self.raised_as],
             "elapsed": self.elapsed, "timed_out": self.timed_out,
             **{key: _texts(getattr(self, key), *limits) for key, limits in _LIST_LIMITS.items()},
             "stdout": self.stdout[-_OUTPUT_TAIL:], "stderr": self.stderr[-_OUTPUT_TAIL:],
@@ -162,6 +169,9 @@ class Outcome:
             warnings=_texts(item.get("warnings"), *_LIST_LIMITS["warnings"]),
             stdout=(text("stdout", 1 << 30) or "")[-_OUTPUT_TAIL:], stderr=(text("stderr", 1 << 30) or "")[-_OUTPUT_TAIL:],
         )
+        raised_as = item.get("raised_as")
+        if isinstance(raised_as, list):  # names of a fixed set: nothing else is read
+            outcome.raised_as = [name for name in ERROR_KINDS if name in raised_as]
         loop, lines = item.get("loop"), item.get("loop_lines")
         if loop in LOOP_KINDS:  # a word of a fixed set and a few line numbers: nothing else is read
             outcome.loop = loop
@@ -891,6 +901,7 @@ def _run(outcome, function, args, kwargs, arg_names, time_limit, forbidden_libra
             raise
         except BaseException as exc:  # the candidate's fault, never the grader's
             outcome.exception = type(exc).__name__
+            outcome.raised_as = [name for name, kind in ERROR_KINDS.items() if isinstance(exc, kind)]
             if isinstance(exc, NotImplementedError):
                 outcome.error = "not implemented yet (the function raises NotImplementedError)"
             else:
