@@ -495,9 +495,10 @@ def hidden_view(case: CaseResult, outcome: Outcome, cells: Sequence[str], time_l
             case.message = "returned something the grader cannot read (details are not shown for hidden cases)"
         else:
             case.message = f"raised {exception} ({HIDDEN_MESSAGE_NOTE})"
-    elif refusal is not None and outcome.error is not None and not case.passed and not outcome.from_grader:
+    elif refusal is not None and outcome.error is not None and not case.passed and not outcome.from_grader \
+            and not outcome.forbidden_calls:
         case.message = f"raised {exception}, but {refusal_words(refusal, case.label)}"
-    elif outcome.error is None and outcome.forbidden_calls and case.message.startswith("calls "):
+    elif outcome.forbidden_calls and case.message.startswith("calls "):  # an error too, on a refusal
         names = sorted({_safe_call(str(call)) for call in outcome.forbidden_calls})
         case.message = "calls " + ", ".join(names) + ", which would do the exercise for you: write it with NumPy"
     elif outcome.error is None and outcome.modified and case.message.startswith("modified its input"):

@@ -206,3 +206,14 @@ def test_a_passing_visible_test_notes_a_missing_refusal_without_failing():
         report.notes
     assert not any("k = 5 with 4 classes" in note for note in evaluate(TOP_K, refuses).notes)
     assert any("it raises IndexError" in note for note in evaluate(TOP_K, wrong_error).notes)
+
+
+def test_a_hidden_refusal_that_called_a_forbidden_function_names_it_safely():
+    from cvkit.grading.report import CaseResult
+
+    case = CaseResult(index=0, label="k = 5 with 4 classes", description="", passed=False,
+                      message="calls sklearn.metrics.top_k_accuracy_score, secret 0.25, which would do …")
+    outcome = Outcome(error="raised ValueError: bad k", exception="ValueError", raised_as=["ValueError"],
+                      forbidden_calls=["sklearn.metrics.top_k_accuracy_score, secret 0.25"])
+    hidden_view(case, outcome, cells=[], time_limit=1.0, arg_names=set(), refusal="ValueError")
+    assert case.message.startswith("calls ") and "0.25" not in case.message, case.message
